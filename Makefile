@@ -1,0 +1,39 @@
+# pushbot: the two commands are `make demo` and `make test`; both set up .venv on first use.
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.pushbot-installed
+PACKAGES := push_core sim_bridge push_perception push_estimator push_planner pushbot
+SETUP_FILES := $(foreach p,$(PACKAGES),src/$(p)/setup.py src/$(p)/setup.cfg)
+
+.PHONY: demo test venv lint bench constraints clean
+
+demo: $(STAMP)
+	$(BIN)/pushbot demo
+
+test: $(STAMP)
+	$(BIN)/python -m pytest
+
+venv: $(STAMP)
+
+$(STAMP): requirements.txt constraints.txt $(SETUP_FILES)
+	@$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "pushbot needs Python >= 3.11, found " + sys.version' 
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --upgrade pip
+	$(BIN)/python -m pip install -r requirements.txt -c constraints.txt
+	$(BIN)/python -m pip install --no-deps $(foreach p,$(PACKAGES),-e src/$(p))
+	touch $(STAMP)
+
+lint: $(STAMP)
+	$(BIN)/ruff check .
+
+bench: $(STAMP)
+	$(BIN)/python benchmarks/run_all.py
+
+# Refresh the full resolved set after changing requirements.txt.
+constraints: $(STAMP)
+	{ sed -n '1,2p' constraints.txt; $(BIN)/python -m pip freeze --exclude-editable | grep -v '^torch=='; } > constraints.txt.new
+	mv constraints.txt.new constraints.txt
+
+clean:
+	rm -rf $(VENV) ros_ws/build ros_ws/install ros_ws/log
