@@ -21,7 +21,8 @@ $(STAMP): requirements.txt constraints.txt $(SETUP_FILES)
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --upgrade pip
 	$(BIN)/python -m pip install -r requirements.txt -c constraints.txt
-	$(BIN)/python -m pip install --no-deps $(foreach p,$(PACKAGES),-e src/$(p))
+	# compat mode: a .pth with each source folder, so modules added later import without reinstalling.
+	$(BIN)/python -m pip install --no-deps --config-settings editable_mode=compat $(foreach p,$(PACKAGES),-e src/$(p))
 	touch $(STAMP)
 
 lint: $(STAMP)

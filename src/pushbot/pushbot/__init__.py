@@ -1,0 +1,1 @@
+"""pushbot package."""
