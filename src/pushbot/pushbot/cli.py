@@ -1,0 +1,76 @@
+"""The ``pushbot`` command line (console script ``pushbot = pushbot.cli:main``).
+
+Subcommands:
+
+- ``doctor``: check the install (versions, RMW, DDS settings, a two-process pub/sub round trip);
+- ``run <node> [args...]``: start a node as ``ros2 run`` would (``--list`` lists them);
+- ``topic list|echo|hz|info``: inspect the ROS graph (``ros2 topic`` is not on PyPI);
+- ``demo``: what ``make demo`` runs.
+
+Heavy imports (rclpy, torch) happen inside the subcommands, so ``pushbot --help`` always works
+and missing dependencies are reported by ``pushbot doctor`` instead of a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.metadata
+import sys
+from collections.abc import Sequence
+
+from pushbot import demo, doctor, nodes, topic
+
+
+def _version() -> str:
+    try:
+        return importlib.metadata.version('pushbot')
+    except importlib.metadata.PackageNotFoundError:
+        return 'unknown'
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full argument parser with every subcommand."""
+    parser = argparse.ArgumentParser(
+        prog='pushbot',
+        description='Vision-based planar pushing on ROS 2 Jazzy: tools for the pip install.',
+    )
+    parser.add_argument('--version', action='version', version=f'pushbot {_version()}')
+    sub = parser.add_subparsers(dest='command', metavar='<command>')
+    sub.required = True
+
+    for name, module, handler, summary, extra in (
+        ('doctor', doctor, doctor.run_doctor,
+         'check the install: versions, RMW, DDS settings, pub/sub round trip', {}),
+        ('run', nodes, nodes.run_node,
+         'start a node like `ros2 run` (arguments, --ros-args included, pass through)',
+         {'usage': 'pushbot run [-h] [--list] [<pkg>] <node> [args ...]'}),
+        ('topic', topic, topic.run_topic,
+         'inspect topics: list, echo, hz, info (like `ros2 topic`)', {}),
+        ('demo', demo, demo.run_demo,
+         'what `make demo` runs (for now: doctor and the object library)', {}),
+    ):
+        p = sub.add_parser(name, help=summary, description=module.__doc__,
+                           formatter_class=argparse.RawDescriptionHelpFormatter, **extra)
+        module.add_arguments(p)
+        p.set_defaults(handler=handler)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Parse ``argv`` (default: ``sys.argv[1:]``) and run the subcommand; returns the exit code."""
+    args = build_parser().parse_args(argv)
+    try:
+        return args.handler(args)
+    except KeyboardInterrupt:
+        print('interrupted', file=sys.stderr)
+        return 130
+    except Exception as exc:
+        # rclpy's SIGINT handler shuts the context down; spinning then raises this.
+        if type(exc).__name__ != 'ExternalShutdownException':
+            raise
+        print('interrupted', file=sys.stderr)
+        return 130
+
+
+if __name__ == '__main__':
+    sys.exit(main())
