@@ -1,0 +1,214 @@
+"""Multi-step rollout of a straight-line push with a cylindrical pusher (SPEC section 2.5).
+
+The pusher, a disc of radius ``pusher_radius`` centred on its axis, moves along a straight
+line in the world frame in substeps. At every substep the contact point and normal are found
+again on the *moved* outline and the analytical model (:mod:`push_core.model`) moves the object.
+Numpy only; vectorised over the batch (a Python loop runs over substeps only).
+
+Contact test of one substep (pusher centre ``p`` -> ``p + d``; object pose at the substep start):
+
+1. ``q = p + d`` in the object frame; closest outline point ``r``, outward normal ``n`` and
+   signed distance ``sd`` of ``q`` (:func:`push_core.geometry.closest_point_on_polyline`).
+2. ``pen = pusher_radius - sd`` is how far the pusher would overlap the object at the end of the
+   substep if the object did not move; ``approach = -d_obj . n`` is the motion into the surface.
+3. In contact iff ``sd <= pusher_radius + contact_tol`` (``pen >= -contact_tol``) and
+   ``approach > 0``.
+4. In contact, the model is driven by the part of the substep spent touching,
+   ``clip(pen / approach, 0, 1) * d_obj``, with contact point ``r`` and ``n_in = -n``; so the
+   pusher closes a gap exactly instead of overlapping the object by up to one substep.
+
+Testing at the end of the substep (rather than its start, as a first sketch of this module did)
+detects a first touch within the substep in which it happens, and an overlap that is already
+there at the start (pusher placed inside the object) is not pushed out. The pusher always
+advances by ``d``.
+
+"Lost contact": the pusher was in contact at some substep and is not in contact at a later
+substep of the same push (it slid off a corner, or the object rotated away from it).
+``first_lost_step`` is the first such substep. Contact that resumes later does not clear it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from push_core.geometry import (
+    check_points,
+    check_polyline,
+    check_poses,
+    closest_point_on_polyline,
+    world_to_object,
+)
+from push_core.model import apply_twist, push_twist
+
+#: Radius of the source setup's steel pusher (m), SPEC section 6.
+PUSHER_RADIUS = 0.0048
+#: Rollout substep (m), SPEC section 2.5.
+SUBSTEP = 0.005
+#: Contact tolerance on the pusher-outline distance (m).
+CONTACT_TOL = 5e-4
+
+
+@dataclass(frozen=True)
+class RolloutResult:
+    """Trajectory of a batch of pushes; B pushes, S = max over the batch of ``n_steps``.
+
+    Attributes
+    ----------
+    poses : numpy.ndarray, shape (B, S + 1, 3)
+        Object pose ``(x, y, theta)`` in the world frame before substep 0 and after every
+        substep; ``theta`` is continuous (not wrapped).
+    pusher : numpy.ndarray, shape (B, S + 1, 2)
+        Pusher centre in the world frame at the same instants.
+    contact : numpy.ndarray of bool, shape (B, S)
+        Whether the pusher pushed the object during each substep (False after ``n_steps``).
+    contact_points : numpy.ndarray, shape (B, S, 2)
+        Closest outline point to the pusher centre at the end of each substep, object frame.
+    normals : numpy.ndarray, shape (B, S, 2)
+        Outward unit normal at ``contact_points``, object frame.
+    lost_contact : numpy.ndarray of bool, shape (B,)
+        Whether contact was made and later lost within the push.
+    first_lost_step : numpy.ndarray of int, shape (B,)
+        First substep without contact after a substep with contact; -1 if never.
+    n_steps : numpy.ndarray of int, shape (B,)
+        Substeps of each push, ``ceil(|push| / substep)``; the last one is shorter unless the
+        length is a multiple of ``substep``. Entries beyond ``n_steps`` repeat the final state.
+    """
+
+    poses: NDArray[np.float64]
+    pusher: NDArray[np.float64]
+    contact: NDArray[np.bool_]
+    contact_points: NDArray[np.float64]
+    normals: NDArray[np.float64]
+    lost_contact: NDArray[np.bool_]
+    first_lost_step: NDArray[np.int64]
+    n_steps: NDArray[np.int64]
+
+
+def _batch(x: NDArray[np.float64], ndim: int, batch: int) -> NDArray[np.float64]:
+    """Broadcast an unbatched (``ndim`` axes) or batched input to a leading batch axis."""
+    if x.ndim == ndim:
+        x = x[None]
+    return np.broadcast_to(x, (batch, *x.shape[1:]))
+
+
+def rollout_push(
+    outline: ArrayLike,
+    pose0: ArrayLike,
+    com: ArrayLike,
+    l: ArrayLike,  # noqa: E741 - the symbol of SPEC section 3
+    m: ArrayLike,
+    pusher_start: ArrayLike,
+    push: ArrayLike,
+    substep: float = SUBSTEP,
+    pusher_radius: float = PUSHER_RADIUS,
+    contact_tol: float = CONTACT_TOL,
+) -> RolloutResult:
+    """Roll out straight-line pushes of a disc pusher against an outline, in substeps.
+
+    Parameters
+    ----------
+    outline : array_like, shape (P, 2)
+        Closed counter-clockwise polyline of the object outline, object frame (metres).
+    pose0 : array_like, shape (B, 3) or (3,)
+        Initial object pose ``(x, y, theta)`` in the world frame.
+    com : array_like, shape (B, 2) or (2,)
+        COM offset in the object frame (metres).
+    l, m : float or array_like, shape (B,)
+        Limit-surface parameter (metres) and pusher-object friction coefficient.
+    pusher_start : array_like, shape (B, 2) or (2,)
+        Pusher centre at the start of the push, world frame (metres).
+    push : array_like, shape (B, 2) or (2,)
+        Pusher displacement over the whole push, world frame (metres).
+    substep : float
+        Substep length in metres (> 0).
+    pusher_radius : float
+        Pusher radius in metres (>= 0).
+    contact_tol : float
+        Distance tolerance of the contact test in metres (>= 0).
+
+    Returns
+    -------
+    RolloutResult
+        Batch size B from broadcasting the inputs (B = 1 if none is batched).
+
+    Raises
+    ------
+    ValueError
+        On a bad outline, inputs of the wrong shape, batch sizes that do not broadcast, or a
+        non-positive ``substep`` / negative ``pusher_radius`` or ``contact_tol``.
+    """
+    if not substep > 0.0:
+        raise ValueError(f"substep must be > 0, got {substep}")
+    if not pusher_radius >= 0.0:
+        raise ValueError(f"pusher_radius must be >= 0, got {pusher_radius}")
+    if not contact_tol >= 0.0:
+        raise ValueError(f"contact_tol must be >= 0, got {contact_tol}")
+    outline = check_polyline(outline, "outline")
+    arrays = {
+        "pose0": (np.asarray(check_poses(pose0, "pose0"), dtype=np.float64), 1),
+        "com": (np.asarray(check_points(com, "com"), dtype=np.float64), 1),
+        "l": (np.asarray(l, dtype=np.float64), 0),
+        "m": (np.asarray(m, dtype=np.float64), 0),
+        "pusher_start": (np.asarray(check_points(pusher_start, "pusher_start"), np.float64), 1),
+        "push": (np.asarray(check_points(push, "push"), dtype=np.float64), 1),
+    }
+    sizes = {}
+    for name, (x, ndim) in arrays.items():
+        if x.ndim not in (ndim, ndim + 1):
+            raise ValueError(f"{name} must be unbatched or have one batch axis, got {x.shape}")
+        if x.ndim == ndim + 1:
+            sizes[name] = x.shape[0]
+    try:
+        (batch,) = np.broadcast_shapes(*((s,) for s in sizes.values())) if sizes else (1,)
+    except ValueError:
+        raise ValueError(f"batch sizes do not broadcast: {sizes}") from None
+    pose, com, l, m, start, push = (  # noqa: E741
+        _batch(x, nd, batch) for x, nd in arrays.values()
+    )
+
+    length = np.hypot(push[:, 0], push[:, 1])  # (B,)
+    direction = push / np.where(length > 0.0, length, 1.0)[:, None]
+    # ceil, robust to 0.05 / 0.005 = 10.000000000000002
+    n_steps = np.ceil(length / substep * (1.0 - 1e-12)).astype(np.int64)
+    n_sub = int(n_steps.max(initial=0))
+
+    poses = np.empty((batch, n_sub + 1, 3))
+    pusher = np.empty((batch, n_sub + 1, 2))
+    contact = np.zeros((batch, n_sub), dtype=bool)
+    points = np.empty((batch, n_sub, 2))
+    normals = np.empty((batch, n_sub, 2))
+    poses[:, 0], pusher[:, 0] = pose, start
+    for k in range(n_sub):
+        travelled = np.minimum((k + 1) * substep, length)[:, None]
+        p_end = np.where((k + 1 >= n_steps)[:, None], start + push, start + direction * travelled)
+        q_end = world_to_object(pose, p_end)
+        d_obj = q_end - world_to_object(pose, pusher[:, k])
+        closest, n_out, sd, _ = closest_point_on_polyline(outline, q_end)
+        approach = -np.sum(d_obj * n_out, axis=-1)
+        pen = pusher_radius - sd
+        touching = (k < n_steps) & (pen >= -contact_tol) & (approach > 0.0)
+        frac = np.clip(pen / np.where(touching, approach, 1.0), 0.0, 1.0)
+        twist = push_twist(frac[:, None] * d_obj, closest, -n_out, com, l, m, touching)
+        pose = np.where(touching[:, None], apply_twist(pose, twist, com), pose)
+        poses[:, k + 1], pusher[:, k + 1] = pose, p_end
+        contact[:, k], points[:, k], normals[:, k] = touching, closest, n_out
+
+    ever = np.logical_or.accumulate(contact, axis=1)
+    before = np.concatenate([np.zeros((batch, 1), dtype=bool), ever[:, :-1]], axis=1)
+    active = np.arange(n_sub)[None, :] < n_steps[:, None]
+    lost = before & ~contact & active
+    lost_contact = lost.any(axis=1)
+    first_lost = np.where(lost_contact, np.argmax(lost, axis=1), -1).astype(np.int64)
+    return RolloutResult(
+        poses=poses,
+        pusher=pusher,
+        contact=contact,
+        contact_points=points,
+        normals=normals,
+        lost_contact=lost_contact,
+        first_lost_step=first_lost,
+        n_steps=n_steps,
+    )
