@@ -20,7 +20,7 @@ _SUMMARY_HEAD = 8
 
 
 class ArraySummary(str):
-    """A string standing for a truncated array; printed verbatim, never quoted."""
+    """A string standing for a truncated array, e.g. ``<9216 x uint8, starts [0, 0, ...]>``."""
 
 
 def message_to_dict(msg: Any, max_array: int = DEFAULT_MAX_ARRAY) -> dict[str, Any]:
@@ -64,7 +64,7 @@ def _to_plain(value: Any, field_type: str, max_array: int) -> Any:
             head = [_to_plain(v, element_type, max_array) for v in list(value[:_SUMMARY_HEAD])]
             shown = ', '.join(_scalar(v) if not isinstance(v, dict) else '{...}' for v in head)
             return ArraySummary(
-                f'<{len(value)} x {element_type}, first {_SUMMARY_HEAD}: [{shown}, ...]>'
+                f'<{len(value)} x {element_type}, starts [{shown}, ...]>'
             )
         return [_to_plain(v, element_type, max_array) for v in value]
     return value
@@ -76,8 +76,6 @@ _YAML_SPECIAL_START = tuple('-?:,[]{}#&*!|>\'"%@`')
 
 def _scalar(value: Any) -> str:
     """Format one scalar as a YAML plain or double-quoted scalar."""
-    if isinstance(value, ArraySummary):
-        return str(value)
     if isinstance(value, bool):
         return 'true' if value else 'false'
     if value is None:
@@ -112,8 +110,7 @@ def to_yaml(data: Any, indent: int = 0) -> str:
     """Render plain data (dicts, lists, scalars) as block-style YAML text.
 
     Lists of scalars are written inline (``[1, 2, 3]``), lists of dicts as block sequences.
-    The output parses with ``yaml.safe_load`` except for :class:`ArraySummary` values, which
-    load as strings.
+    The output parses with ``yaml.safe_load`` (:class:`ArraySummary` values load as strings).
     """
     return '\n'.join(_yaml_lines(data, indent))
 

@@ -1,0 +1,187 @@
+"""Session-wide ROS isolation and helpers for tests that start rclpy or node processes.
+
+At import time, before any test module can import rclpy, this sets for the whole session (and
+so for every child process, which inherits ``os.environ``):
+
+- ``ROS_DOMAIN_ID`` = 1 + (pid % 100), or ``PUSHBOT_TEST_DOMAIN_ID`` when that is set, so that
+  concurrent pytest sessions on one machine do not see each other's graphs;
+- ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``: nothing leaves the machine;
+- ``FASTDDS_BUILTIN_TRANSPORTS=UDPv4``: no shared-memory transport, whose stale ``/dev/shm``
+  segments can silently break discovery between runs;
+- ``ROS_LOCALHOST_ONLY`` removed (deprecated in Jazzy; it conflicts with the range above).
+
+Fixtures:
+
+- ``ros_context``: a dedicated, initialised :class:`rclpy.context.Context` for in-process
+  node tests, shut down afterwards;
+- ``wait_for``: ``wait_for(predicate, timeout=10.0, executor=None)`` polls (or spins
+  ``executor``) until the predicate holds; returns its final truth value;
+- ``processes``: a :class:`ProcessManager` that starts commands (``start``) and nodes
+  (``node``: ``pushbot run <node> ...``) with the session environment and always stops them at
+  teardown (SIGINT, then SIGKILL);
+- ``node_process``: shortcut for ``processes.node``.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+
+
+def _isolate_ros_session() -> int:
+    override = os.environ.get('PUSHBOT_TEST_DOMAIN_ID')
+    domain = int(override) if override else 1 + os.getpid() % 100
+    os.environ['ROS_DOMAIN_ID'] = str(domain)
+    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    os.environ['FASTDDS_BUILTIN_TRANSPORTS'] = 'UDPv4'
+    os.environ.pop('ROS_LOCALHOST_ONLY', None)
+    return domain
+
+
+TEST_DOMAIN_ID = _isolate_ros_session()
+
+
+def pytest_report_header(config: pytest.Config) -> str:
+    return (f'ROS isolation: ROS_DOMAIN_ID={TEST_DOMAIN_ID}, '
+            'ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, FASTDDS_BUILTIN_TRANSPORTS=UDPv4')
+
+
+def venv_executable(name: str) -> str:
+    """Path of a console script installed next to the running Python (the .venv's bin)."""
+    candidate = Path(sys.executable).parent / name
+    if candidate.exists():
+        return str(candidate)
+    found = shutil.which(name)
+    if found is None:
+        pytest.fail(f'{name} is not installed next to {sys.executable}: run make venv')
+    return found
+
+
+@pytest.fixture
+def ros_context() -> Iterator[Any]:
+    """An initialised rclpy Context of its own; shut down after the test."""
+    import rclpy
+    from rclpy.context import Context
+
+    context = Context()
+    rclpy.init(args=[], context=context)
+    try:
+        yield context
+    finally:
+        rclpy.try_shutdown(context=context)
+
+
+def _wait_for(
+    predicate: Callable[[], Any],
+    timeout: float = 10.0,
+    executor: Any = None,
+    interval: float = 0.05,
+) -> bool:
+    """Poll ``predicate`` until it is truthy or ``timeout`` seconds passed.
+
+    With an rclpy ``executor``, spin it between polls instead of sleeping, so callbacks run.
+    """
+    deadline = time.monotonic() + timeout
+    while True:
+        if predicate():
+            return True
+        remaining = deadline - time.monotonic()
+        if remaining <= 0:
+            return bool(predicate())
+        if executor is not None:
+            executor.spin_once(timeout_sec=min(interval, remaining))
+        else:
+            time.sleep(min(interval, remaining))
+
+
+@pytest.fixture
+def wait_for() -> Callable[..., bool]:
+    """The ``wait_for(predicate, timeout=10.0, executor=None, interval=0.05)`` helper."""
+    return _wait_for
+
+
+class ProcessManager:
+    """Starts child processes with the session environment; stops them all at teardown.
+
+    Output of each process goes to a log file under the test's ``tmp_path`` (a pipe could fill
+    up and block a chatty node); read it with :meth:`output`.
+    """
+
+    def __init__(self, log_dir: Path) -> None:
+        self.log_dir = log_dir
+        self._procs: list[tuple[subprocess.Popen, Path]] = []
+
+    def start(
+        self, argv: Sequence[str], *, env: dict[str, str] | None = None, name: str | None = None
+    ) -> subprocess.Popen:
+        """Start ``argv``; ``env`` entries are added to the session environment."""
+        full_env = {**os.environ, 'PYTHONUNBUFFERED': '1', **(env or {})}
+        label = name or Path(argv[0]).name
+        log = self.log_dir / f'{len(self._procs):02d}_{label}.log'
+        with open(log, 'wb') as out:
+            proc = subprocess.Popen(
+                list(argv), env=full_env, stdout=out, stderr=subprocess.STDOUT,
+                stdin=subprocess.DEVNULL,
+            )
+        self._procs.append((proc, log))
+        return proc
+
+    def node(
+        self, node: str, *node_args: str, env: dict[str, str] | None = None
+    ) -> subprocess.Popen:
+        """Start ``pushbot run <node> <node_args...>`` (e.g. ``--ros-args -p x:=1``)."""
+        return self.start([venv_executable('pushbot'), 'run', node, *node_args],
+                          env=env, name=node)
+
+    def output(self, proc: subprocess.Popen) -> str:
+        """Everything the process wrote so far (stdout and stderr interleaved)."""
+        for candidate, log in self._procs:
+            if candidate is proc:
+                return log.read_text(errors='replace')
+        raise KeyError(f'process {proc.pid} was not started by this manager')
+
+    @staticmethod
+    def stop(proc: subprocess.Popen, grace: float = 5.0) -> int:
+        """SIGINT (what Ctrl-C sends; nodes shut down cleanly), then SIGKILL after ``grace``."""
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+            try:
+                proc.wait(timeout=grace)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+        return proc.returncode
+
+    def stop_all(self) -> None:
+        """Stop every process, newest first."""
+        for proc, _ in reversed(self._procs):
+            self.stop(proc)
+
+
+@pytest.fixture
+def processes(tmp_path: Path) -> Iterator[ProcessManager]:
+    """A :class:`ProcessManager` whose processes are always stopped after the test."""
+    log_dir = tmp_path / 'process_logs'
+    log_dir.mkdir()
+    manager = ProcessManager(log_dir)
+    try:
+        yield manager
+    finally:
+        manager.stop_all()
+
+
+@pytest.fixture
+def node_process(processes: ProcessManager) -> Callable[..., subprocess.Popen]:
+    """``node_process('sim_bridge_node', '--ros-args', '-p', 'x:=1')`` -> a running process."""
+    return processes.node
