@@ -1,0 +1,717 @@
+"""``sim_bridge_node``: the simulated robot and RGB-D camera behind standard ROS 2 topics.
+
+A thin ROS wrapper around :class:`sim_bridge.world.PushWorld` (pybullet, DIRECT mode): a table,
+one flat object, a vertical cylindrical pusher and a D415-like camera. The node owns ``/clock``.
+
+Publications (QoS as in ``docs/ARCHITECTURE.md``; "sensor" = ``qos_profile_sensor_data``,
+"reliable" = reliable/volatile/depth 10, "latched" = reliable/transient local/depth 1):
+
+- ``camera/color/image_raw`` (sensor_msgs/Image, ``rgb8``; sensor),
+  ``camera/aligned_depth_to_color/image_raw`` (sensor_msgs/Image, ``32FC1`` metres along the
+  optical axis, NaN = no return; sensor), ``camera/color/camera_info`` (sensor_msgs/CameraInfo,
+  plumb_bob, zero distortion; sensor). All three share one stamp (the sim time of the render)
+  and the frame ``camera_color_optical_frame``. A fresh frame is rendered after every push
+  (after the object settled) and after every reset; in between the last frame is re-published
+  at ``idle_frame_rate`` so late subscribers get data (the scene is static while idle).
+- ``camera/color/extrinsics`` (geometry_msgs/TransformStamped; latched): world ->
+  ``camera_color_optical_frame``, i.e. the camera pose in ``world`` (maps optical-frame
+  points to world points). Re-published after each reset.
+- ``/clock`` (rosgraph_msgs/Clock; reliable, keep last 1, volatile: matches the best-effort
+  ``/clock`` subscription of rclpy/rclcpp nodes with ``use_sim_time`` and reliable ones too).
+- ``sim/object_pose`` (geometry_msgs/PoseStamped; reliable): ground truth of the object frame
+  in ``world``, for evaluation only; after every push/reset and at ``idle_frame_rate``.
+- ``pusher/executed`` (nav_msgs/Path; reliable): frame ``world``, two poses: the pusher at the
+  start and at the end of the executed straight push, each stamped with its sim time (header
+  stamp = end). Orientation identity, z = 0 (the ``pusher`` frame is at table height).
+- ``/diagnostics`` (diagnostic_msgs/DiagnosticArray; reliable): one status, level OK when the
+  last command succeeded, WARN after a rejected or failed one; message ``idle`` /
+  ``busy: ...``; values: state, object, counters, last_error, sim_time. Published at 1 Hz and
+  on every change.
+- ``/tf_static`` (latched, world -> ``camera_color_optical_frame``) and ``/tf`` (reliable,
+  world -> ``pusher``): only when ``tf2_msgs`` is importable (full ROS install; see the tf note
+  in ARCHITECTURE.md). The pipeline never depends on them.
+
+Subscriptions:
+
+- ``planner/push`` (nav_msgs/Path; reliable): frame ``world``, exactly three poses: approach,
+  contact and end point of one straight push (positions only). The world moves the pusher to
+  the approach point without touching the object, pushes at ``push_speed`` through contact to
+  the end point, retracts and lets the object settle. Rejected with a logged reason and a
+  diagnostic, never queued: wrong frame, not three poses, NaN/inf, a point outside the
+  workspace, a push that the world refuses (approach inside the object), and any push that
+  arrives while another push or a reset is running.
+
+Services:
+
+- ``~/reset`` (std_srvs/srv/Trigger): re-read the current parameters and rebuild the scene;
+  refused while busy. ``message`` says what was built or why not.
+
+Parameters (declared once below with descriptions and ranges; documented with defaults and
+units in ``ros_ws/config/sim_bridge.yaml``): ``object``, ``initial_pose.{x,y,theta}``,
+``com_offset``, ``mass``, ``friction_table``, ``friction_pusher``, ``seed``, ``randomize``,
+``image_width``, ``image_height``, ``depth_noise``, ``randomize_appearance``,
+``push_speed``, ``pusher_radius`` (all read on start-up and on ``~/reset``), and the read-only
+``idle_frame_rate`` and ``clock_rate`` (timer rates, Hz of wall time). A bad value fails
+start-up with a clear message and a non-zero exit.
+
+Frames: ``world`` (table frame, z up, origin on the table at the workspace centre),
+``camera_color_optical_frame`` (REP 103 optical frame), ``pusher``.
+
+Time and threading. The bridge *is* the clock source, so it never runs on sim time itself
+(``use_sim_time`` false; its timers use the steady clock, so even a launch file that sets
+``use_sim_time`` globally cannot make it wait for its own ``/clock``). Published time is
+``epoch + world.sim_time``: sim time advances only while the physics runs (pushes, settling),
+and ``epoch`` keeps ``/clock`` monotonic across resets (a rebuilt world continues where the old
+one stopped). All pybullet calls run in one worker thread, one job (build, push, reset) at a
+time; the default single-threaded executor only validates, dispatches and publishes, so
+``/clock`` keeps ticking (at ``clock_rate``) while a push runs and the node stays responsive
+(a push arriving meanwhile is rejected at once). The one exception is ``~/reset``: its callback
+waits for the rebuild in the worker (an rclpy coroutine awaiting another thread busy-polls the
+executor, which would be worse); nothing is lost meanwhile, messages wait in their queues.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import traceback
+from collections.abc import Callable
+from concurrent.futures import Future as ThreadFuture
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseStamped, TransformStamped
+from nav_msgs.msg import Path
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    ParameterType,
+)
+from rclpy.clock import Clock, ClockType
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+    qos_profile_sensor_data,
+)
+from rosgraph_msgs.msg import Clock as ClockMsg
+from sensor_msgs.msg import CameraInfo, Image
+from std_srvs.srv import Trigger
+
+from push_core.objects import load_object
+from sim_bridge.conversions import (
+    CAMERA_FRAME,
+    WORLD_FRAME,
+    camera_info_msg,
+    depth_image_msg,
+    path_from_points,
+    pose_stamped_msg,
+    push_points_from_path,
+    rgb_image_msg,
+    stamp_from_seconds,
+    transform_msg,
+)
+from sim_bridge.world import CameraConfig, PushWorld, WorldConfig
+
+try:  # Only on a full ROS install: tf2_msgs has no PyPI wheel (ARCHITECTURE.md, tf note).
+    from tf2_msgs.msg import TFMessage
+except ImportError:  # pragma: no cover - depends on the install
+    TFMessage = None
+
+__all__ = ["SimBridgeNode", "SimBridgeParams", "main"]
+
+PUSHER_FRAME = "pusher"
+RELIABLE_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=10,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+LATCHED_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+CLOCK_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+#: Seconds between repeated log lines of the same kind (the diagnostics count every event).
+LOG_THROTTLE_S = 1.0
+#: Period of the regular /diagnostics message, seconds of wall time.
+DIAGNOSTICS_PERIOD_S = 1.0
+_POINT_NAMES = ("approach point", "contact point", "end point")
+
+
+# --------------------------------------------------------------------------------------------
+# Parameters
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class _ParamSpec:
+    """One declared parameter: name, default (None = typed, no default), text and bounds."""
+
+    name: str
+    default: Any
+    description: str
+    bounds: tuple[float, float] | None = None
+    read_only: bool = False
+    constraints: str = ""
+
+
+_UNSET_OR_NEGATIVE = "negative = the object spec's value"
+PARAMETERS: tuple[_ParamSpec, ...] = (
+    _ParamSpec("object", "butter", "Object library name (e.g. butter, rect1) or path to a "
+               ".json/.yaml object specification file."),
+    _ParamSpec("initial_pose.x", 0.0, "Initial x of the object frame in world, m.", (-1.0, 1.0)),
+    _ParamSpec("initial_pose.y", 0.0, "Initial y of the object frame in world, m.", (-1.0, 1.0)),
+    _ParamSpec("initial_pose.theta", 0.0, "Initial yaw of the object frame in world, rad.",
+               (-math.pi, math.pi)),
+    _ParamSpec("com_offset", None, "Centre of mass (x, y) in the object frame, m; unset or "
+               "empty = the object spec's COM.", constraints="2 values or empty"),
+    _ParamSpec("mass", -1.0, "Object mass, kg.", (-1.0, 100.0), constraints=_UNSET_OR_NEGATIVE),
+    _ParamSpec("friction_table", -1.0, "Object-table Coulomb friction coefficient.",
+               (-1.0, 10.0), constraints=_UNSET_OR_NEGATIVE),
+    _ParamSpec("friction_pusher", -1.0, "Pusher-object Coulomb friction coefficient.",
+               (-1.0, 10.0), constraints=_UNSET_OR_NEGATIVE),
+    _ParamSpec("seed", 0, "Seed of the randomisation (physics and appearance).", (0, 2**31 - 1)),
+    _ParamSpec("randomize", False, "Randomise mass, COM and frictions from the seed."),
+    _ParamSpec("image_width", 640, "Camera image width, px.", (32, 1920)),
+    _ParamSpec("image_height", 480, "Camera image height, px.", (24, 1080)),
+    _ParamSpec("depth_noise", False, "Add D415-like depth noise and dropouts."),
+    _ParamSpec("randomize_appearance", False, "Randomise lighting, table and object colours "
+               "from the seed."),
+    _ParamSpec("idle_frame_rate", 2.0, "Rate of repeated camera frames, object pose and /clock "
+               "while idle, Hz (wall time).", (0.1, 30.0), read_only=True),
+    _ParamSpec("clock_rate", 50.0, "Rate of /clock messages while the physics runs, Hz (wall "
+               "time).", (1.0, 1000.0), read_only=True),
+    _ParamSpec("push_speed", 0.02, "Pusher speed along the push, m/s.", (0.001, 0.2)),
+    _ParamSpec("pusher_radius", 0.0048, "Radius of the cylindrical pusher, m.", (0.001, 0.05)),
+)
+
+
+@dataclass(frozen=True)
+class SimBridgeParams:
+    """The node's parameters, typed; sentinels already turned into None (= spec default).
+
+    Attributes
+    ----------
+    object : str
+        Library name or spec-file path.
+    initial_pose : tuple of 3 float
+        x, y (m) and theta (rad) of the object frame in ``world``.
+    com_offset : tuple of 2 float or None
+        COM in the object frame, m; None = the spec's.
+    mass, friction_table, friction_pusher : float or None
+        kg and Coulomb coefficients; None = the spec's.
+    seed : int
+    randomize, depth_noise, randomize_appearance : bool
+    image_width, image_height : int
+        px.
+    idle_frame_rate, clock_rate : float
+        Hz of wall time.
+    push_speed : float
+        m/s.
+    pusher_radius : float
+        m.
+    """
+
+    object: str
+    initial_pose: tuple[float, float, float]
+    com_offset: tuple[float, float] | None
+    mass: float | None
+    friction_table: float | None
+    friction_pusher: float | None
+    seed: int
+    randomize: bool
+    image_width: int
+    image_height: int
+    depth_noise: bool
+    randomize_appearance: bool
+    idle_frame_rate: float
+    clock_rate: float
+    push_speed: float
+    pusher_radius: float
+
+    @classmethod
+    def from_values(cls, values: dict[str, Any]) -> SimBridgeParams:
+        """Build from ``{parameter name: value}`` and check what the descriptors cannot.
+
+        Raises
+        ------
+        ValueError
+            Naming the parameter: an unknown object, a COM offset that is not 2 finite values,
+            a zero mass.
+        """
+        name = str(values["object"]).strip()
+        if not name:
+            raise ValueError("parameter 'object' is empty; give a library name or a spec path")
+        try:
+            load_object(name)
+        except (ValueError, OSError) as exc:
+            raise ValueError(f"parameter 'object' = {name!r}: {exc}") from exc
+        com = values["com_offset"]
+        if com is not None and len(com) > 0:
+            com_arr = np.asarray(com, dtype=float)
+            if com_arr.shape != (2,) or not np.all(np.isfinite(com_arr)):
+                raise ValueError(
+                    f"parameter 'com_offset' must be 2 finite values (x, y in metres, object "
+                    f"frame) or empty, got {list(com)}"
+                )
+            com_offset: tuple[float, float] | None = (float(com_arr[0]), float(com_arr[1]))
+        else:
+            com_offset = None
+        if values["mass"] == 0.0:
+            raise ValueError("parameter 'mass' must be > 0 kg, or negative for the spec's mass")
+        return cls(
+            object=name,
+            initial_pose=(
+                float(values["initial_pose.x"]),
+                float(values["initial_pose.y"]),
+                float(values["initial_pose.theta"]),
+            ),
+            com_offset=com_offset,
+            mass=_spec_default_if_negative(values["mass"]),
+            friction_table=_spec_default_if_negative(values["friction_table"]),
+            friction_pusher=_spec_default_if_negative(values["friction_pusher"]),
+            seed=int(values["seed"]),
+            randomize=bool(values["randomize"]),
+            image_width=int(values["image_width"]),
+            image_height=int(values["image_height"]),
+            depth_noise=bool(values["depth_noise"]),
+            randomize_appearance=bool(values["randomize_appearance"]),
+            idle_frame_rate=float(values["idle_frame_rate"]),
+            clock_rate=float(values["clock_rate"]),
+            push_speed=float(values["push_speed"]),
+            pusher_radius=float(values["pusher_radius"]),
+        )
+
+    def world_config(self) -> WorldConfig:
+        """The :class:`~sim_bridge.world.WorldConfig` these parameters describe.
+
+        Raises
+        ------
+        ValueError
+            If the world rejects a value.
+        """
+        return WorldConfig(
+            object=self.object,
+            object_pose=self.initial_pose,
+            com_offset=None if self.com_offset is None else np.asarray(self.com_offset),
+            mass=self.mass,
+            friction_table=self.friction_table,
+            friction_pusher=self.friction_pusher,
+            randomize=self.randomize,
+            seed=self.seed,
+            pusher_radius=self.pusher_radius,
+            push_speed=self.push_speed,
+            camera=CameraConfig(width=self.image_width, height=self.image_height),
+            depth_noise=self.depth_noise,
+            randomize_appearance=self.randomize_appearance,
+        )
+
+    def summary(self) -> str:
+        """One line naming what these parameters build."""
+        x, y, theta = self.initial_pose
+        return (
+            f"object {self.object!r} at (x={x:.4f} m, y={y:.4f} m, theta={theta:.4f} rad), "
+            f"camera {self.image_width}x{self.image_height}, seed {self.seed}"
+            f"{', randomized' if self.randomize else ''}"
+        )
+
+
+def _spec_default_if_negative(value: float) -> float | None:
+    return None if value < 0.0 else float(value)
+
+
+def _descriptor(spec: _ParamSpec) -> ParameterDescriptor:
+    desc = ParameterDescriptor(
+        description=spec.description,
+        read_only=spec.read_only,
+        additional_constraints=spec.constraints,
+    )
+    if spec.default is None:
+        desc.type = ParameterType.PARAMETER_DOUBLE_ARRAY
+    if spec.bounds is not None:
+        low, high = spec.bounds
+        if isinstance(spec.default, int) and not isinstance(spec.default, bool):
+            desc.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=1)]
+        else:
+            desc.floating_point_range = [
+                FloatingPointRange(from_value=float(low), to_value=float(high), step=0.0)
+            ]
+    return desc
+
+
+# --------------------------------------------------------------------------------------------
+# The node
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class _Capture:
+    """Messages describing the scene at one sim time (built in the worker thread)."""
+
+    rgb: Image
+    depth: Image
+    info: CameraInfo
+    object_pose: PoseStamped
+    pusher_xy: np.ndarray
+    time: float
+
+
+class SimBridgeNode(Node):
+    """ROS wrapper of :class:`~sim_bridge.world.PushWorld`; see the module docstring.
+
+    Raises
+    ------
+    ValueError, rclpy.exceptions.ParameterException
+        At construction, if a parameter is invalid or the world cannot be built.
+    """
+
+    def __init__(self, node_name: str = "sim_bridge_node", **kwargs: Any) -> None:
+        super().__init__(node_name, **kwargs)
+        for spec in PARAMETERS:
+            default = Parameter.Type.DOUBLE_ARRAY if spec.default is None else spec.default
+            self.declare_parameter(spec.name, default, _descriptor(spec))
+        if self.get_parameter("use_sim_time").value:
+            self.get_logger().warning(
+                "use_sim_time is true, but the sim bridge is the /clock source; its timers run "
+                "on the steady clock regardless"
+            )
+        self._params = self._read_params()
+        config = self._params.world_config()
+
+        self._lock = threading.Lock()  # guards the state below, not pybullet
+        self._busy = ""  # "" = idle, else what the worker is doing
+        self._closing = False
+        self._counts = {"pushes_executed": 0, "pushes_rejected_busy": 0,
+                        "pushes_rejected_invalid": 0, "pushes_failed": 0, "resets": 0}
+        self._last_error = ""
+        self._error_active = False
+        self._clock_lock = threading.Lock()  # makes /clock monotonic across threads
+        self._last_clock = -1.0
+        self._epoch = 0.0  # published time = epoch + world.sim_time
+        self._capture: _Capture | None = None
+
+        # Every pybullet call happens in this one thread.
+        self._worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="sim_bridge_world")
+        try:
+            self._world: PushWorld = self._worker.submit(PushWorld, config).result()
+        except BaseException:
+            self._worker.shutdown(wait=False, cancel_futures=True)
+            raise
+        self._workspace = np.asarray(self._world.workspace, dtype=float)  # (2, 2)
+
+        self._pub_rgb = self.create_publisher(
+            Image, "camera/color/image_raw", qos_profile_sensor_data)
+        self._pub_depth = self.create_publisher(
+            Image, "camera/aligned_depth_to_color/image_raw", qos_profile_sensor_data)
+        self._pub_info = self.create_publisher(
+            CameraInfo, "camera/color/camera_info", qos_profile_sensor_data)
+        self._pub_extrinsics = self.create_publisher(
+            TransformStamped, "camera/color/extrinsics", LATCHED_QOS)
+        self._pub_clock = self.create_publisher(ClockMsg, "/clock", CLOCK_QOS)
+        self._pub_pose = self.create_publisher(PoseStamped, "sim/object_pose", RELIABLE_QOS)
+        self._pub_executed = self.create_publisher(Path, "pusher/executed", RELIABLE_QOS)
+        self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", RELIABLE_QOS)
+        self._pub_tf = self._pub_tf_static = None
+        if TFMessage is not None:
+            self._pub_tf = self.create_publisher(TFMessage, "/tf", RELIABLE_QOS)
+            self._pub_tf_static = self.create_publisher(TFMessage, "/tf_static", LATCHED_QOS)
+
+        self.create_subscription(Path, "planner/push", self._on_push, RELIABLE_QOS)
+        self.create_service(Trigger, "~/reset", self._on_reset)
+
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(1.0 / self._params.clock_rate, self._on_clock_timer, clock=steady)
+        self.create_timer(1.0 / self._params.idle_frame_rate, self._on_idle_timer, clock=steady)
+        self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_diagnostics, clock=steady)
+
+        self._worker.submit(self._after_build).result()
+        self.get_logger().info(f"sim bridge ready: {self._params.summary()}")
+
+    # ---- parameters --------------------------------------------------------------------------
+    def _read_params(self) -> SimBridgeParams:
+        values = {spec.name: self.get_parameter(spec.name).value for spec in PARAMETERS}
+        return SimBridgeParams.from_values(values)
+
+    # ---- worker-thread jobs (all pybullet calls live here) -----------------------------------
+    def _capture_scene(self) -> _Capture:
+        frame = self._world.render()
+        time = self._epoch + float(frame.stamp)
+        stamp = stamp_from_seconds(time)
+        height, width = frame.depth.shape
+        return _Capture(
+            rgb=rgb_image_msg(frame.rgb, stamp),
+            depth=depth_image_msg(frame.depth, stamp),
+            info=camera_info_msg(self._world.camera_matrix, width, height, stamp),
+            object_pose=pose_stamped_msg(self._world.object_pose(), stamp),
+            pusher_xy=np.asarray(self._world.pusher_position(), dtype=float),
+            time=time,
+        )
+
+    def _after_build(self) -> str:
+        """Publish everything that describes a freshly built scene; return its summary."""
+        self._workspace = np.asarray(self._world.workspace, dtype=float)
+        capture = self._capture_scene()
+        stamp = stamp_from_seconds(capture.time)
+        extrinsics = transform_msg(self._world.T_world_camera, stamp, WORLD_FRAME, CAMERA_FRAME)
+        self._publish_clock(capture.time)
+        self._publish_safely(self._pub_extrinsics, extrinsics)
+        if self._pub_tf_static is not None:
+            self._publish_safely(self._pub_tf_static, TFMessage(transforms=[extrinsics]))
+        self._capture = capture
+        self._publish_capture(capture)
+        spec = self._world.object_spec
+        return (
+            f"built {spec.name!r} (mass {spec.mass:.4g} kg, COM ({spec.com[0]:.4f}, "
+            f"{spec.com[1]:.4f}) m, friction table {spec.friction_table:.3g}, pusher "
+            f"{spec.friction_pusher:.3g}) at pose {np.round(self._world.object_pose(), 4)} "
+            f"(world, m/rad); camera {capture.info.width}x{capture.info.height}"
+        )
+
+    def _run_push(self, seq: int, points: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
+        try:
+            result = self._world.execute_push(*points)
+            capture = self._capture_scene()
+        except ValueError as exc:
+            self._finish_job(f"push {seq} refused by the world: {exc}", "pushes_failed")
+            return
+        except Exception as exc:  # keep the node alive; report everything else loudly
+            self.get_logger().error(f"push {seq} crashed:\n{traceback.format_exc()}")
+            self._finish_job(f"push {seq} failed: {type(exc).__name__}: {exc}", "pushes_failed")
+            return
+        t_start = self._epoch + float(result.t_start)
+        t_end = self._epoch + float(result.t_end)
+        executed = path_from_points(
+            np.array([result.pusher_start, result.pusher_end], dtype=float),
+            [stamp_from_seconds(t_start), stamp_from_seconds(t_end)],
+        )
+        self._publish_clock(capture.time)
+        self._publish_safely(self._pub_executed, executed)
+        self._capture = capture
+        self._publish_capture(capture)
+        moved = np.asarray(result.pose_after) - np.asarray(result.pose_before)
+        self.get_logger().info(
+            f"push {seq} done: pusher {np.round(result.pusher_start, 4)} -> "
+            f"{np.round(result.pusher_end, 4)} m, sim {t_start:.3f} -> {t_end:.3f} s, "
+            f"touched={bool(result.touched)}, object moved {np.round(moved, 4)} (m, m, rad)"
+        )
+        self._finish_job(None, "pushes_executed")
+
+    def _run_reset(self, config: WorldConfig, params: SimBridgeParams) -> tuple[bool, str]:
+        time_before = self._epoch + float(self._world.sim_time)
+        previous = self._params
+        try:
+            self._world.reset(config)
+        except Exception as exc:
+            message = f"reset failed: {type(exc).__name__}: {exc}"
+            try:  # never leave the node without a usable scene
+                self._world.reset(previous.world_config())
+                message += "; kept the previous scene"
+            except Exception as exc2:
+                message += f"; restoring the previous scene failed too: {exc2}"
+            self._epoch = time_before - float(self._world.sim_time)
+            self._finish_job(message, None)
+            return False, message
+        # The rebuilt world may restart its sim time; continue /clock where it was.
+        self._epoch = time_before - float(self._world.sim_time)
+        self._params = params
+        try:
+            summary = self._after_build()
+        except Exception as exc:
+            self.get_logger().error(f"reset publish failed:\n{traceback.format_exc()}")
+            self._finish_job(f"reset failed: {exc}", None)
+            return False, f"reset failed: {exc}"
+        self._finish_job(None, "resets")
+        return True, summary
+
+    def _finish_job(self, error: str | None, counter: str | None) -> None:
+        """Mark the worker idle, count the outcome, log an error (worker thread)."""
+        with self._lock:
+            self._busy = ""
+            if counter is not None:
+                self._counts[counter] += 1
+            if error is not None:
+                self._last_error = error
+            self._error_active = error is not None
+        if error is not None:
+            self.get_logger().error(error, throttle_duration_sec=LOG_THROTTLE_S)
+        self._publish_diagnostics()
+
+    # ---- publishing (any thread; rclpy publishers are thread-safe) ---------------------------
+    def _publish_safely(self, publisher: Any, msg: Any) -> None:
+        if not self._closing:
+            publisher.publish(msg)
+
+    def _publish_clock(self, time: float) -> None:
+        with self._clock_lock:
+            if time <= self._last_clock or self._closing:
+                return
+            self._last_clock = time
+            self._pub_clock.publish(ClockMsg(clock=stamp_from_seconds(time)))
+
+    def _publish_capture(self, capture: _Capture) -> None:
+        for publisher, msg in (
+            (self._pub_rgb, capture.rgb),
+            (self._pub_depth, capture.depth),
+            (self._pub_info, capture.info),
+            (self._pub_pose, capture.object_pose),
+        ):
+            self._publish_safely(publisher, msg)
+        if self._pub_tf is not None:
+            pusher = np.eye(4)
+            pusher[:2, 3] = capture.pusher_xy
+            tf = transform_msg(pusher, capture.info.header.stamp, WORLD_FRAME, PUSHER_FRAME)
+            self._publish_safely(self._pub_tf, TFMessage(transforms=[tf]))
+
+    def _publish_diagnostics(self) -> None:
+        with self._lock:
+            busy, counts = self._busy, dict(self._counts)
+            last_error, error_active = self._last_error, self._error_active
+        status = DiagnosticStatus()
+        status.name = f"{self.get_name()}: simulation"
+        status.hardware_id = "pybullet"
+        status.level = DiagnosticStatus.WARN if error_active else DiagnosticStatus.OK
+        status.message = f"busy: {busy}" if busy else "idle"
+        if error_active:
+            status.message += f"; last error: {last_error}"
+        values = {"state": "busy" if busy else "idle", "object": self._params.object,
+                  **{k: str(v) for k, v in counts.items()}, "last_error": last_error,
+                  "sim_time": f"{max(self._last_clock, 0.0):.6f}"}
+        status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
+        array = DiagnosticArray(status=[status])
+        array.header.stamp = stamp_from_seconds(max(self._last_clock, 0.0))
+        self._publish_safely(self._pub_diag, array)
+
+    # ---- executor callbacks ------------------------------------------------------------------
+    def _on_clock_timer(self) -> None:
+        """While the physics runs, publish its sim time (read without locking: a float)."""
+        if self._busy:
+            self._publish_clock(self._epoch + float(self._world.sim_time))
+
+    def _on_idle_timer(self) -> None:
+        """Re-publish the last frame, pose and time so late subscribers get data."""
+        capture = self._capture
+        if self._busy or capture is None:
+            return
+        with self._clock_lock:  # the current time, unchanged while idle
+            if self._last_clock >= 0.0 and not self._closing:
+                self._pub_clock.publish(ClockMsg(clock=stamp_from_seconds(self._last_clock)))
+        self._publish_capture(capture)
+
+    def _on_push(self, msg: Path) -> None:
+        try:
+            points = push_points_from_path(msg)
+            self._check_workspace(points)
+        except ValueError as exc:
+            self._reject(f"rejected push command on planner/push: {exc}",
+                         "pushes_rejected_invalid")
+            return
+        with self._lock:
+            busy = self._busy
+            if not busy:
+                seq = self._counts["pushes_executed"] + self._counts["pushes_failed"] + 1
+                self._busy = f"executing push {seq}"
+        if busy:
+            self._reject(f"rejected push command on planner/push: busy ({busy}); pushes are "
+                         "never queued, resend when idle", "pushes_rejected_busy")
+            return
+        self._publish_diagnostics()
+        self._submit(self._run_push, seq, points)
+
+    def _on_reset(self, request: Trigger.Request, response: Trigger.Response
+                  ) -> Trigger.Response:
+        """Rebuild the scene from the current parameters (blocks the executor while the worker
+        rebuilds: an rclpy coroutine awaiting a thread would busy-poll the executor instead)."""
+        try:
+            params = self._read_params()
+            config = params.world_config()
+        except (ValueError, TypeError) as exc:
+            response.success, response.message = False, f"invalid parameters: {exc}"
+            self.get_logger().error(f"~/reset refused: {response.message}")
+            return response
+        with self._lock:
+            busy = self._busy
+            if not busy:
+                self._busy = f"resetting to {params.object!r}"
+        if busy:
+            response.success = False
+            response.message = f"reset refused: busy ({busy})"
+            self.get_logger().warning(response.message)
+            return response
+        self._publish_diagnostics()
+        try:
+            response.success, response.message = self._submit(
+                self._run_reset, config, params).result()
+        except Exception as exc:  # _run_reset reports its own failures; this is a last resort
+            response.success, response.message = False, f"reset failed: {exc}"
+        log = self.get_logger().info if response.success else self.get_logger().error
+        log(f"~/reset: {response.message}")
+        return response
+
+    # ---- helpers -----------------------------------------------------------------------------
+    def _submit(self, job: Callable[..., Any], *args: Any) -> ThreadFuture:
+        return self._worker.submit(job, *args)
+
+    def _check_workspace(self, points: tuple[np.ndarray, ...]) -> None:
+        (xmin, xmax), (ymin, ymax) = self._workspace
+        for name, (x, y) in zip(_POINT_NAMES, points, strict=True):
+            if not (xmin <= x <= xmax and ymin <= y <= ymax):
+                raise ValueError(
+                    f"{name} ({x:.4f}, {y:.4f}) m is outside the workspace "
+                    f"x in [{xmin:.3f}, {xmax:.3f}], y in [{ymin:.3f}, {ymax:.3f}] m (world)"
+                )
+
+    def _reject(self, reason: str, counter: str) -> None:
+        with self._lock:
+            self._counts[counter] += 1
+            self._last_error = reason
+            self._error_active = True
+        if counter == "pushes_rejected_busy":
+            self.get_logger().warning(reason, throttle_duration_sec=LOG_THROTTLE_S)
+        else:
+            self.get_logger().error(reason, throttle_duration_sec=LOG_THROTTLE_S)
+        self._publish_diagnostics()
+
+    def destroy_node(self) -> None:
+        """Let a running push finish, stop the worker, then destroy the ROS entities."""
+        self._closing = True
+        self._worker.shutdown(wait=True, cancel_futures=True)
+        close = getattr(self._world, "close", None)
+        if callable(close):
+            close()
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> None:
+    """Entry point of ``sim_bridge_node`` (``ros2 run`` / ``pushbot run``)."""
+    rclpy.init(args=args)
+    try:
+        node = SimBridgeNode()
+    except (ValueError, ParameterException) as exc:
+        rclpy.logging.get_logger("sim_bridge_node").fatal(f"invalid configuration: {exc}")
+        rclpy.try_shutdown()
+        raise SystemExit(2) from None
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()
