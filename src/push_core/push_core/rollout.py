@@ -7,20 +7,25 @@ Numpy only; vectorised over the batch (a Python loop runs over substeps only).
 
 Contact test of one substep (pusher centre ``p`` -> ``p + d``; object pose at the substep start):
 
-1. ``q = p + d`` in the object frame; closest outline point ``r``, outward normal ``n`` and
-   signed distance ``sd`` of ``q`` (:func:`push_core.geometry.closest_point_on_polyline`).
-2. ``pen = pusher_radius - sd`` is how far the pusher would overlap the object at the end of the
-   substep if the object did not move; ``approach = -d_obj . n`` is the motion into the surface.
-3. In contact iff ``sd <= pusher_radius + contact_tol`` (``pen >= -contact_tol``) and
-   ``approach > 0``.
-4. In contact, the model is driven by the part of the substep spent touching,
-   ``clip(pen / approach, 0, 1) * d_obj``, with contact point ``r`` and ``n_in = -n``; so the
-   pusher closes a gap exactly instead of overlapping the object by up to one substep.
+1. ``q = p`` in the (moved) object frame; closest outline point ``r``, outward normal ``n`` and
+   signed distance ``sd`` of ``q`` (:func:`push_core.geometry.closest_point_on_polyline`);
+   ``d_obj`` is ``d`` in the same frame.
+2. ``gap = sd - pusher_radius`` is the clearance at the substep start (negative: overlap) and
+   ``approach = -d_obj . n`` the motion into the surface over the substep.
+3. In contact iff ``approach > 0`` and ``gap - approach <= contact_tol``: the pusher touches the
+   surface, or reaches it within the substep, to within ``contact_tol`` (the surface linearised
+   at ``r``). With ``gap <= contact_tol`` this is the plain test ``sd <= pusher_radius +
+   contact_tol``.
+4. In contact, the model is driven by the part of the substep after the touch,
+   ``clip((approach - gap) / approach, 0, 1) * d_obj``, with contact point ``r`` and
+   ``n_in = -n``. So a gap is closed exactly rather than to within one substep; an overlap that
+   is already there (pusher placed inside the object) is not pushed out.
 
-Testing at the end of the substep (rather than its start, as a first sketch of this module did)
-detects a first touch within the substep in which it happens, and an overlap that is already
-there at the start (pusher placed inside the object) is not pushed out. The pusher always
-advances by ``d``.
+The pusher always advances by ``d``. The test uses the pusher centre at the substep start, which
+stays outside the outline in steady contact (each contact substep ends with the pusher touching,
+up to the model's first-order error), so the closest point is well defined even when the
+substep is longer than the pusher radius. A substep that starts on a face and passes a corner
+counts as in contact (it touched for part of the substep); the next one does not.
 
 "Lost contact": the pusher was in contact at some substep and is not in contact at a later
 substep of the same push (it slid off a corner, or the object rotated away from it).
@@ -63,9 +68,11 @@ class RolloutResult:
     pusher : numpy.ndarray, shape (B, S + 1, 2)
         Pusher centre in the world frame at the same instants.
     contact : numpy.ndarray of bool, shape (B, S)
-        Whether the pusher pushed the object during each substep (False after ``n_steps``).
+        Whether the pusher touched the object during each substep (see the module docstring;
+        False after ``n_steps``).
     contact_points : numpy.ndarray, shape (B, S, 2)
-        Closest outline point to the pusher centre at the end of each substep, object frame.
+        Closest outline point to the pusher centre at the start of each substep, in the object
+        frame (the contact point where ``contact`` is True).
     normals : numpy.ndarray, shape (B, S, 2)
         Outward unit normal at ``contact_points``, object frame.
     lost_contact : numpy.ndarray of bool, shape (B,)
@@ -184,13 +191,13 @@ def rollout_push(
     for k in range(n_sub):
         travelled = np.minimum((k + 1) * substep, length)[:, None]
         p_end = np.where((k + 1 >= n_steps)[:, None], start + push, start + direction * travelled)
-        q_end = world_to_object(pose, p_end)
-        d_obj = q_end - world_to_object(pose, pusher[:, k])
-        closest, n_out, sd, _ = closest_point_on_polyline(outline, q_end)
+        q_start = world_to_object(pose, pusher[:, k])
+        d_obj = world_to_object(pose, p_end) - q_start
+        closest, n_out, sd, _ = closest_point_on_polyline(outline, q_start)
         approach = -np.sum(d_obj * n_out, axis=-1)
-        pen = pusher_radius - sd
-        touching = (k < n_steps) & (pen >= -contact_tol) & (approach > 0.0)
-        frac = np.clip(pen / np.where(touching, approach, 1.0), 0.0, 1.0)
+        gap = sd - pusher_radius
+        touching = (k < n_steps) & (approach > 0.0) & (gap - approach <= contact_tol)
+        frac = np.clip((approach - gap) / np.where(touching, approach, 1.0), 0.0, 1.0)
         twist = push_twist(frac[:, None] * d_obj, closest, -n_out, com, l, m, touching)
         pose = np.where(touching[:, None], apply_twist(pose, twist, com), pose)
         poses[:, k + 1], pusher[:, k + 1] = pose, p_end
@@ -201,7 +208,8 @@ def rollout_push(
     active = np.arange(n_sub)[None, :] < n_steps[:, None]
     lost = before & ~contact & active
     lost_contact = lost.any(axis=1)
-    first_lost = np.where(lost_contact, np.argmax(lost, axis=1), -1).astype(np.int64)
+    first = np.argmax(lost, axis=1) if n_sub > 0 else np.zeros(batch, dtype=np.int64)
+    first_lost = np.where(lost_contact, first, -1).astype(np.int64)
     return RolloutResult(
         poses=poses,
         pusher=pusher,
