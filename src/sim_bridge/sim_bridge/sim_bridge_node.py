@@ -93,7 +93,7 @@ from rcl_interfaces.msg import (
     ParameterType,
 )
 from rclpy.clock import Clock, ClockType
-from rclpy.exceptions import ParameterException
+from rclpy.exceptions import ParameterException, ParameterUninitializedException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -443,7 +443,12 @@ class SimBridgeNode(Node):
 
     # ---- parameters --------------------------------------------------------------------------
     def _read_params(self) -> SimBridgeParams:
-        values = {spec.name: self.get_parameter(spec.name).value for spec in PARAMETERS}
+        values: dict[str, Any] = {}
+        for spec in PARAMETERS:
+            try:
+                values[spec.name] = self.get_parameter(spec.name).value
+            except ParameterUninitializedException:  # typed, no default (com_offset)
+                values[spec.name] = None
         return SimBridgeParams.from_values(values)
 
     # ---- worker-thread jobs (all pybullet calls live here) -----------------------------------
