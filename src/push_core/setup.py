@@ -17,6 +17,6 @@ setup(
     zip_safe=True,
     maintainer='pushbot developers',
     maintainer_email='pushbot@example.com',
-    description='ROS-free science of pushbot: quasi-static pushing model, geometry, object library, rollouts.',
+    description='ROS-free pushing science: model, geometry, objects, rollouts.',
     license='Apache-2.0',
 )

@@ -16,7 +16,7 @@ setup(
     zip_safe=True,
     maintainer='pushbot developers',
     maintainer_email='pushbot@example.com',
-    description='EKF over object pose, centre of mass, limit-surface parameter and friction.',
+    description='EKF over object pose, COM, limit surface and friction.',
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

@@ -16,7 +16,7 @@ setup(
     zip_safe=True,
     maintainer='pushbot developers',
     maintainer_email='pushbot@example.com',
-    description='CNN segmentation, object pose from mask and depth, relative orientation and outline with normals.',
+    description='Segmentation, object pose and outline from RGB-D frames.',
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

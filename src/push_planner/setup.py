@@ -16,7 +16,7 @@ setup(
     zip_safe=True,
     maintainer='pushbot developers',
     maintainer_email='pushbot@example.com',
-    description='Affordance-based greedy push planner with analytical and learned affordances.',
+    description='Affordance-based greedy push planner.',
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

@@ -16,7 +16,7 @@ setup(
     zip_safe=True,
     maintainer='pushbot developers',
     maintainer_email='pushbot@example.com',
-    description='The pushbot command line: doctor, run, topic inspection, demo and evaluation.',
+    description='The pushbot command line.',
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

@@ -16,7 +16,7 @@ setup(
     zip_safe=True,
     maintainer='pushbot developers',
     maintainer_email='pushbot@example.com',
-    description='pybullet table, object, cylindrical pusher and RGB-D camera behind standard ROS 2 topics; owns /clock.',
+    description='pybullet robot and RGB-D camera behind standard ROS 2 topics.',
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

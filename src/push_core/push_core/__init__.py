@@ -18,5 +18,10 @@ from push_core.model import apply_twist as apply_twist
 from push_core.model import predict_motion as predict_motion
 from push_core.model import push_twist as push_twist
 from push_core.model import representative_pushes as representative_pushes
+from push_core.objects import ObjectSpec as ObjectSpec
+from push_core.objects import library_names as library_names
+from push_core.objects import load_object as load_object
 from push_core.rollout import RolloutResult as RolloutResult
 from push_core.rollout import rollout_push as rollout_push
+from push_core.shapes import Ellipse as Ellipse
+from push_core.shapes import Polygon as Polygon

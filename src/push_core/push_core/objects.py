@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from push_core.geometry import closest_point_on_polyline
 from push_core.shapes import Ellipse, Polygon, Shape
 
 __all__ = [
@@ -285,12 +286,7 @@ def _vector2(name: str, value: Any) -> np.ndarray:
 def _inside(shape: Shape, point: np.ndarray) -> bool:
     if isinstance(shape, Ellipse):
         return bool((point[0] / shape.a) ** 2 + (point[1] / shape.b) ** 2 < 1.0)
-    v = shape.vertices
-    w = np.roll(v, -1, axis=0)
-    crosses = (v[:, 1] > point[1]) != (w[:, 1] > point[1])
-    t = (point[1] - v[:, 1]) / np.where(crosses, w[:, 1] - v[:, 1], 1.0)
-    x_at = v[:, 0] + t * (w[:, 0] - v[:, 0])
-    return bool(np.count_nonzero(crosses & (x_at > point[0])) % 2 == 1)
+    return bool(closest_point_on_polyline(shape.vertices, point)[2] < 0.0)
 
 
 def _sample_area(shape: Shape, n: int, rng: np.random.Generator) -> np.ndarray:
