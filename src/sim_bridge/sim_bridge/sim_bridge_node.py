@@ -50,9 +50,9 @@ Parameters (declared once below with descriptions and ranges; documented with de
 units in ``ros_ws/config/sim_bridge.yaml``): ``object``, ``initial_pose.{x,y,theta}``,
 ``com_offset``, ``mass``, ``friction_table``, ``friction_pusher``, ``seed``, ``randomize``,
 ``image_width``, ``image_height``, ``depth_noise``, ``randomize_appearance``,
-``push_speed``, ``pusher_radius`` (all read on start-up and on ``~/reset``), and the read-only
-``idle_frame_rate`` and ``clock_rate`` (timer rates, Hz of wall time). A bad value fails
-start-up with a clear message and a non-zero exit.
+``randomize_camera``, ``push_speed``, ``pusher_radius`` (all read on start-up and on
+``~/reset``), and the read-only ``idle_frame_rate`` and ``clock_rate`` (timer rates, Hz of
+wall time). A bad value fails start-up with a clear message and a non-zero exit.
 
 Frames: ``world`` (table frame, z up, origin on the table at the workspace centre),
 ``camera_color_optical_frame`` (REP 103 optical frame), ``pusher``.
@@ -60,14 +60,17 @@ Frames: ``world`` (table frame, z up, origin on the table at the workspace centr
 Time and threading. The bridge *is* the clock source, so it never runs on sim time itself
 (``use_sim_time`` false; its timers use the steady clock, so even a launch file that sets
 ``use_sim_time`` globally cannot make it wait for its own ``/clock``). Published time is
-``epoch + world.sim_time``: sim time advances only while the physics runs (pushes, settling),
-and ``epoch`` keeps ``/clock`` monotonic across resets (a rebuilt world continues where the old
-one stopped). All pybullet calls run in one worker thread, one job (build, push, reset) at a
-time; the default single-threaded executor only validates, dispatches and publishes, so
-``/clock`` keeps ticking (at ``clock_rate``) while a push runs and the node stays responsive
-(a push arriving meanwhile is rejected at once). The one exception is ``~/reset``: its callback
-waits for the rebuild in the worker (an rclpy coroutine awaiting another thread busy-polls the
-executor, which would be worse); nothing is lost meanwhile, messages wait in their queues.
+``epoch + world.sim_time``: sim time advances only while the physics runs (building a scene,
+pushes, settling) and stands still while idle; ``epoch`` keeps ``/clock`` monotonic across
+resets (``PushWorld.reset`` restarts ``sim_time``; the new episode continues where the old one
+stopped, so its stamps are strictly later).
+
+All pybullet calls run in one worker thread, one job (build, push, reset) at a time. The
+default single-threaded executor only validates, dispatches and publishes, so ``/clock`` keeps
+ticking (at ``clock_rate``) while a push runs and the node stays responsive (a push arriving
+meanwhile is rejected at once). The one exception is ``~/reset``: its callback waits for the
+rebuild in the worker (an rclpy coroutine awaiting another thread busy-polls the executor,
+which would be worse); nothing is lost meanwhile, messages wait in their queues.
 """
 
 from __future__ import annotations
@@ -153,7 +156,6 @@ CLOCK_QOS = QoSProfile(
 LOG_THROTTLE_S = 1.0
 #: Period of the regular /diagnostics message, seconds of wall time.
 DIAGNOSTICS_PERIOD_S = 1.0
-_POINT_NAMES = ("approach point", "contact point", "end point")
 
 
 # --------------------------------------------------------------------------------------------
@@ -193,6 +195,8 @@ PARAMETERS: tuple[_ParamSpec, ...] = (
     _ParamSpec("depth_noise", False, "Add D415-like depth noise and dropouts."),
     _ParamSpec("randomize_appearance", False, "Randomise lighting, table and object colours "
                "from the seed."),
+    _ParamSpec("randomize_camera", False, "Jitter the camera pose from the seed (the published "
+               "extrinsics are the true, jittered pose)."),
     _ParamSpec("idle_frame_rate", 2.0, "Rate of repeated camera frames, object pose and /clock "
                "while idle, Hz (wall time).", (0.1, 30.0), read_only=True),
     _ParamSpec("clock_rate", 50.0, "Rate of /clock messages while the physics runs, Hz (wall "
@@ -217,7 +221,7 @@ class SimBridgeParams:
     mass, friction_table, friction_pusher : float or None
         kg and Coulomb coefficients; None = the spec's.
     seed : int
-    randomize, depth_noise, randomize_appearance : bool
+    randomize, depth_noise, randomize_appearance, randomize_camera : bool
     image_width, image_height : int
         px.
     idle_frame_rate, clock_rate : float
@@ -240,6 +244,7 @@ class SimBridgeParams:
     image_height: int
     depth_noise: bool
     randomize_appearance: bool
+    randomize_camera: bool
     idle_frame_rate: float
     clock_rate: float
     push_speed: float
@@ -292,6 +297,7 @@ class SimBridgeParams:
             image_height=int(values["image_height"]),
             depth_noise=bool(values["depth_noise"]),
             randomize_appearance=bool(values["randomize_appearance"]),
+            randomize_camera=bool(values["randomize_camera"]),
             idle_frame_rate=float(values["idle_frame_rate"]),
             clock_rate=float(values["clock_rate"]),
             push_speed=float(values["push_speed"]),
@@ -309,7 +315,7 @@ class SimBridgeParams:
         return WorldConfig(
             object=self.object,
             object_pose=self.initial_pose,
-            com_offset=None if self.com_offset is None else np.asarray(self.com_offset),
+            com_offset=self.com_offset,
             mass=self.mass,
             friction_table=self.friction_table,
             friction_pusher=self.friction_pusher,
@@ -320,6 +326,7 @@ class SimBridgeParams:
             camera=CameraConfig(width=self.image_width, height=self.image_height),
             depth_noise=self.depth_noise,
             randomize_appearance=self.randomize_appearance,
+            randomize_camera=self.randomize_camera,
         )
 
     def summary(self) -> str:
@@ -394,6 +401,7 @@ class SimBridgeNode(Node):
 
         self._lock = threading.Lock()  # guards the state below, not pybullet
         self._busy = ""  # "" = idle, else what the worker is doing
+        self._pushing = False  # the physics is running a push: /clock follows sim_time
         self._closing = False
         self._counts = {"pushes_executed": 0, "pushes_rejected_busy": 0,
                         "pushes_rejected_invalid": 0, "pushes_failed": 0, "resets": 0}
@@ -411,7 +419,6 @@ class SimBridgeNode(Node):
         except BaseException:
             self._worker.shutdown(wait=False, cancel_futures=True)
             raise
-        self._workspace = np.asarray(self._world.workspace, dtype=float)  # (2, 2)
 
         self._pub_rgb = self.create_publisher(
             Image, "camera/color/image_raw", qos_profile_sensor_data)
@@ -468,7 +475,6 @@ class SimBridgeNode(Node):
 
     def _after_build(self) -> str:
         """Publish everything that describes a freshly built scene; return its summary."""
-        self._workspace = np.asarray(self._world.workspace, dtype=float)
         capture = self._capture_scene()
         stamp = stamp_from_seconds(capture.time)
         extrinsics = transform_msg(self._world.T_world_camera, stamp, WORLD_FRAME, CAMERA_FRAME)
@@ -487,25 +493,38 @@ class SimBridgeNode(Node):
         )
 
     def _run_push(self, seq: int, points: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
+        self._pushing = True
         try:
             result = self._world.execute_push(*points)
-            capture = self._capture_scene()
-        except ValueError as exc:
-            self._finish_job(f"push {seq} refused by the world: {exc}", "pushes_failed")
+        except ValueError as exc:  # the world moved nothing (workspace, geometry of the push)
+            self._finish_job(f"rejected push command on planner/push: {exc}",
+                             "pushes_rejected_invalid")
             return
         except Exception as exc:  # keep the node alive; report everything else loudly
             self.get_logger().error(f"push {seq} crashed:\n{traceback.format_exc()}")
             self._finish_job(f"push {seq} failed: {type(exc).__name__}: {exc}", "pushes_failed")
             return
+        finally:
+            self._pushing = False
         t_start = self._epoch + float(result.t_start)
         t_end = self._epoch + float(result.t_end)
         executed = path_from_points(
             np.array([result.pusher_start, result.pusher_end], dtype=float),
             [stamp_from_seconds(t_start), stamp_from_seconds(t_end)],
         )
+        try:
+            capture = self._capture_scene()
+        except Exception as exc:
+            self.get_logger().error(f"render after push {seq} failed:\n{traceback.format_exc()}")
+            self._publish_safely(self._pub_executed, executed)
+            self._finish_job(f"render after push {seq} failed: {exc}", "pushes_failed")
+            return
+        self._capture = capture
+        # Idle before the results go out: a client that answers pusher/executed or the fresh
+        # frame with the next push at once must not find the bridge busy.
+        self._finish_job(None, "pushes_executed")
         self._publish_clock(capture.time)
         self._publish_safely(self._pub_executed, executed)
-        self._capture = capture
         self._publish_capture(capture)
         moved = np.asarray(result.pose_after) - np.asarray(result.pose_before)
         self.get_logger().info(
@@ -513,30 +532,37 @@ class SimBridgeNode(Node):
             f"{np.round(result.pusher_end, 4)} m, sim {t_start:.3f} -> {t_end:.3f} s, "
             f"touched={bool(result.touched)}, object moved {np.round(moved, 4)} (m, m, rad)"
         )
-        self._finish_job(None, "pushes_executed")
+        if not getattr(result, "settled", True):
+            self.get_logger().warning(f"push {seq}: the object had not come to rest when the "
+                                      "settle timeout ended; the frame shows it moving")
 
     def _run_reset(self, config: WorldConfig, params: SimBridgeParams) -> tuple[bool, str]:
         time_before = self._epoch + float(self._world.sim_time)
-        previous = self._params
         try:
             self._world.reset(config)
-        except Exception as exc:
-            message = f"reset failed: {type(exc).__name__}: {exc}"
-            try:  # never leave the node without a usable scene
-                self._world.reset(previous.world_config())
-                message += "; kept the previous scene"
-            except Exception as exc2:
-                message += f"; restoring the previous scene failed too: {exc2}"
-            self._epoch = time_before - float(self._world.sim_time)
+        except ValueError as exc:  # PushWorld.reset keeps the previous scene on ValueError
+            message = f"reset failed: {exc}; kept the previous scene"
             self._finish_job(message, None)
             return False, message
-        # The rebuilt world may restart its sim time; continue /clock where it was.
-        self._epoch = time_before - float(self._world.sim_time)
+        except Exception as exc:
+            self.get_logger().error(f"reset crashed:\n{traceback.format_exc()}")
+            message = f"reset failed: {type(exc).__name__}: {exc}"
+            try:  # never leave the node without a usable scene
+                self._world.reset(self._params.world_config())
+                message += "; rebuilt the previous configuration"
+            except Exception as exc2:
+                message += f"; rebuilding the previous configuration failed too: {exc2}"
+            self._epoch = time_before  # a rebuilt world restarts its sim_time at 0
+            self._finish_job(message, None)
+            return False, message
+        # PushWorld.reset restarts sim_time at 0: the new episode continues /clock where the old
+        # one stopped, so the new scene's stamps (after its initial settling) are strictly later.
+        self._epoch = time_before
         self._params = params
         try:
             summary = self._after_build()
         except Exception as exc:
-            self.get_logger().error(f"reset publish failed:\n{traceback.format_exc()}")
+            self.get_logger().error(f"publishing the new scene failed:\n{traceback.format_exc()}")
             self._finish_job(f"reset failed: {exc}", None)
             return False, f"reset failed: {exc}"
         self._finish_job(None, "resets")
@@ -586,7 +612,7 @@ class SimBridgeNode(Node):
             busy, counts = self._busy, dict(self._counts)
             last_error, error_active = self._last_error, self._error_active
         status = DiagnosticStatus()
-        status.name = f"{self.get_name()}: simulation"
+        status.name = f"{self.get_fully_qualified_name()}: simulation"
         status.hardware_id = "pybullet"
         status.level = DiagnosticStatus.WARN if error_active else DiagnosticStatus.OK
         status.message = f"busy: {busy}" if busy else "idle"
@@ -602,8 +628,13 @@ class SimBridgeNode(Node):
 
     # ---- executor callbacks ------------------------------------------------------------------
     def _on_clock_timer(self) -> None:
-        """While the physics runs, publish its sim time (read without locking: a float)."""
-        if self._busy:
+        """While a push runs, publish its sim time.
+
+        ``PushWorld.sim_time`` is plain Python arithmetic on a step counter (no pybullet call),
+        so reading it here while the worker steps is safe; a stale value is harmless and
+        ``_publish_clock`` never lets /clock go backwards.
+        """
+        if self._pushing:
             self._publish_clock(self._epoch + float(self._world.sim_time))
 
     def _on_idle_timer(self) -> None:
@@ -619,7 +650,6 @@ class SimBridgeNode(Node):
     def _on_push(self, msg: Path) -> None:
         try:
             points = push_points_from_path(msg)
-            self._check_workspace(points)
         except ValueError as exc:
             self._reject(f"rejected push command on planner/push: {exc}",
                          "pushes_rejected_invalid")
@@ -670,15 +700,6 @@ class SimBridgeNode(Node):
     def _submit(self, job: Callable[..., Any], *args: Any) -> ThreadFuture:
         return self._worker.submit(job, *args)
 
-    def _check_workspace(self, points: tuple[np.ndarray, ...]) -> None:
-        (xmin, xmax), (ymin, ymax) = self._workspace
-        for name, (x, y) in zip(_POINT_NAMES, points, strict=True):
-            if not (xmin <= x <= xmax and ymin <= y <= ymax):
-                raise ValueError(
-                    f"{name} ({x:.4f}, {y:.4f}) m is outside the workspace "
-                    f"x in [{xmin:.3f}, {xmax:.3f}], y in [{ymin:.3f}, {ymax:.3f}] m (world)"
-                )
-
     def _reject(self, reason: str, counter: str) -> None:
         with self._lock:
             self._counts[counter] += 1
@@ -693,10 +714,8 @@ class SimBridgeNode(Node):
     def destroy_node(self) -> None:
         """Let a running push finish, stop the worker, then destroy the ROS entities."""
         self._closing = True
-        self._worker.shutdown(wait=True, cancel_futures=True)
-        close = getattr(self._world, "close", None)
-        if callable(close):
-            close()
+        self._worker.submit(self._world.close)  # queued behind a running push, if any
+        self._worker.shutdown(wait=True)
         super().destroy_node()
 
 
