@@ -542,3 +542,17 @@ def test_reset_with_a_bad_parameter_is_refused_and_keeps_the_scene(fresh: Bridge
     n_poses = len(fresh.got.pose)
     fresh.spin_until(lambda: len(fresh.got.pose) > n_poses, 10.0, "an idle ground-truth pose")
     np.testing.assert_allclose(fresh.object_pose(), before, atol=1e-6)
+
+
+def test_reset_while_a_push_runs_is_refused(fresh: BridgeClient) -> None:
+    # A slow push (5 cm at 2 mm/s = 25 s of sim time) keeps the bridge busy long enough.
+    assert fresh.reset(push_speed=0.002).success
+    n_executed, n_diag = len(fresh.got.executed), len(fresh.got.diagnostics)
+    fresh.send_push(THROUGH_CENTRE)
+    fresh.spin_until(lambda: [d for d in fresh.diagnostics_since(n_diag) if d["state"] == "busy"],
+                     10.0, "a busy diagnostic")
+    response = fresh.call(fresh.reset_client, Trigger.Request())
+    assert not response.success and "busy" in response.message, response.message
+    fresh.spin_until(lambda: len(fresh.got.executed) > n_executed, PUSH_TIMEOUT,
+                     "pusher/executed of the slow push")
+    assert fresh.reset(push_speed=0.02).success
