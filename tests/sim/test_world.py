@@ -22,6 +22,7 @@ from sim_bridge.world import (
     MASS_FACTOR_RANGE,
     PushWorld,
     WorldConfig,
+    push_points,
 )
 
 R_P = 0.0048  # default pusher radius
@@ -226,6 +227,25 @@ def test_bad_pushes_raise_clear_errors_and_the_world_keeps_working(rect_world):
     assert world.sim_time == t
     res = world.execute_push([-0.065, 0.0], [-0.0498, 0.0], [-0.03, 0.0])
     assert res.touched and res.pose_after[0] > 0.015
+
+
+def test_push_points_and_check_push(rect_world):
+    world = rect_world
+    world.reset()
+    # Outline point in the middle of rect1's -x face, outward normal -x, 30 deg off the normal.
+    a, c, e = push_points((0.0, 0.0, np.pi / 2), [-RECT_HALF, 0.0], [-1.0, 0.0],
+                          np.radians(30.0), 0.04, pusher_radius=R_P, gap=0.01)
+    # The object is turned by 90 deg, so that face now looks along -y.
+    np.testing.assert_allclose(c, [0.0, -RECT_HALF - R_P], atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(e - c), 0.04)
+    np.testing.assert_allclose(np.linalg.norm(c - a), 0.01)
+    direction = (e - c) / 0.04
+    assert np.degrees(np.arccos(direction @ [0.0, 1.0])) == pytest.approx(30.0)
+    world.set_object_pose((0.0, 0.0, np.pi / 2))
+    checked = world.check_push(a, c, e)
+    np.testing.assert_array_equal(checked[1], c)
+    with pytest.raises(ValueError, match="push too short"):
+        world.check_push(a, c, c + 1e-4 * direction)
 
 
 def test_invalid_configs_raise_and_reset_keeps_the_previous_scene(rect_world):

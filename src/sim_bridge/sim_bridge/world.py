@@ -48,8 +48,11 @@ Physics model
   position-controlled robot finger: every contact with the object is resolved by the solver,
   the pusher is never teleported through the object.
 - Time: fixed step ``WorldConfig.time_step`` (default 1/240 s), ``solver_iterations`` (default
-  20) sequential-impulse iterations; ``sim_time`` is ``steps * time_step``. The settings are
-  justified in docs/RESULTS.md (section sim-bench) by a convergence study.
+  10) sequential-impulse iterations; ``sim_time`` is ``steps * time_step``. The settings are
+  justified in docs/RESULTS.md (section bench_sim) by a convergence study: against a
+  1/960 s, 100-iteration reference, final poses differ by about 1 mm / 1 deg (median), the
+  same as moving the push sideways by 0.1 mm does at fixed settings (the contact dynamics are
+  that sensitive), while 1/120 s is clearly worse and 20 iterations are no better but slower.
 
 Push execution (``execute_push(approach, contact, end)``)
 ---------------------------------------------------------
@@ -67,8 +70,8 @@ Push execution (``execute_push(approach, contact, end)``)
    ``pusher_start`` / ``t_start`` and ``pusher_end`` / ``t_end`` are the pusher's *measured*
    position and the sim time when this motion starts and ends (the pusher lags the pivot by
    a fraction of a millimetre under load).
-5. Retract: back off 1 mm along the push direction, lift at ``LIFT_SPEED``, park (air
-   teleport).
+5. Retract: back off 1 mm along the push direction at ``RETRACT_SPEED``, lift at
+   ``LIFT_SPEED``, park (air teleport).
 6. Settle: step until the object is at rest (speed below ``REST_SPEED`` and ``REST_ANGULAR``
    for ``REST_STEPS`` consecutive steps) or ``settle_timeout`` has passed.
 
@@ -128,6 +131,7 @@ __all__ = [
     "MASS_FACTOR_RANGE",
     "MIN_PUSH_LENGTH",
     "CameraConfig",
+    "push_points",
     "Frame",
     "PushResult",
     "PushWorld",
@@ -155,7 +159,8 @@ PUSHER_MASS = 0.1
 PUSHER_GAP = 0.002  # bottom of the pusher above the table while pushing, m
 PUSHER_MAX_FORCE = 100.0  # N, force limit of the driving constraint
 PUSHER_PARK = (-0.45, 0.0, 0.30)  # parked pusher: axis x, y and bottom height, m
-LIFT_SPEED = 0.2  # m/s, lowering and lifting
+LIFT_SPEED = 0.5  # m/s, lowering and lifting
+RETRACT_SPEED = 0.1  # m/s, backing off after the push
 LIFT_CLEARANCE = 0.01  # m above the object's top while travelling
 BACK_OFF = 1e-3  # m, retreat along -push direction before lifting
 
@@ -235,7 +240,7 @@ class WorldConfig:
     workspace: tuple[tuple[float, float], tuple[float, float]] = ((-0.25, 0.25), (-0.3, 0.3))
     max_push_length: float = 0.2
     time_step: float = 1.0 / 240.0
-    solver_iterations: int = 20
+    solver_iterations: int = 10
     settle_timeout: float = 2.0
 
     def __post_init__(self) -> None:
@@ -596,7 +601,7 @@ class PushWorld:
             point inside the object or closer than ``pusher_radius + 0.5 mm`` to its outline.
             Nothing has moved when it is raised.
         """
-        a, c, e = self._check_push(approach, contact, end)
+        a, c, e = self.check_push(approach, contact, end)
         pose_before = self.object_pose()
         z_push = PUSHER_GAP + PUSHER_LENGTH / 2.0
         z_clear = self._clear_height()
@@ -607,7 +612,7 @@ class PushWorld:
                                     watch_contact=True)
         finish, t_end = self.pusher_position(), self.sim_time
         back = e - BACK_OFF * (e - a) / np.linalg.norm(e - a)
-        self._move_pusher(np.array([back[0], back[1], z_push]), self._config.push_speed)
+        self._move_pusher(np.array([back[0], back[1], z_push]), RETRACT_SPEED)
         self._move_pusher(np.array([back[0], back[1], z_clear]), LIFT_SPEED)
         self._teleport_pusher(self._park_position())
         settled = self._settle()
@@ -616,8 +621,19 @@ class PushWorld:
                           touched=touched, settled=settled, t_done=self.sim_time,
                           approach=a, contact=c, end=e)
 
-    def _check_push(self, approach: ArrayLike, contact: ArrayLike,
-                    end: ArrayLike) -> tuple[NDArray[np.float64], ...]:
+    def check_push(self, approach: ArrayLike, contact: ArrayLike,
+                   end: ArrayLike) -> tuple[NDArray[np.float64], ...]:
+        """Validate a push against the current scene without moving anything (addition).
+
+        Returns
+        -------
+        approach, contact, end : (3 x) (2,) float64 ndarray
+
+        Raises
+        ------
+        ValueError
+            Exactly the errors of :meth:`execute_push`.
+        """
         cfg = self._config
         pts = []
         for name, value in (("approach", approach), ("contact", contact), ("end", end)):
@@ -687,19 +703,20 @@ class PushWorld:
                      watch_contact: bool = False) -> bool:
         """Move the constraint pivot in a straight line to ``target`` at ``speed``, stepping
         the physics; returns whether the pusher touched the object (if ``watch_contact``)."""
-        c = self._client
+        cid = self._client._client  # direct pybullet calls: this loop runs every physics step
         dt = self._config.time_step
         start = self._target
         n = max(1, int(np.ceil(np.linalg.norm(target - start) / (speed * dt) - 1e-9)))
         touched = False
         for i in range(1, n + 1):
-            pivot = start + (target - start) * (i / n)
-            c.changeConstraint(self._drive, pivot.tolist(), maxForce=PUSHER_MAX_FORCE)
-            c.stepSimulation()
+            pivot = (start + (target - start) * (i / n)).tolist()
+            p.changeConstraint(self._drive, pivot, maxForce=PUSHER_MAX_FORCE,
+                               physicsClientId=cid)
+            p.stepSimulation(physicsClientId=cid)
             self._steps += 1
             if watch_contact and not touched:
-                touched = any(pt[9] > 0.0 for pt in c.getContactPoints(self._pusher,
-                                                                        self._object))
+                touched = any(pt[9] > 0.0 for pt in p.getContactPoints(
+                    self._pusher, self._object, physicsClientId=cid))
         self._target = target.copy()
         return touched
 
@@ -759,6 +776,43 @@ class PushWorld:
 
 
 # ---------------------------------------------------------------- helpers
+def push_points(pose: ArrayLike, point: ArrayLike, normal: ArrayLike, angle: float,
+                length: float, pusher_radius: float = 0.0048,
+                gap: float = 0.01) -> tuple[NDArray[np.float64], ...]:
+    """World points ``(approach, contact, end)`` of the pusher axis for a push at an outline
+    point (addition; used by the benchmarks and handy for data generation).
+
+    Parameters
+    ----------
+    pose : (3,) array_like
+        Object pose ``(x, y, theta)`` in ``world``.
+    point, normal : (2,) array_like
+        Outline point and its *outward* unit normal in the object frame.
+    angle : float
+        Push direction relative to the inward normal ``-normal``, radians (counter-clockwise).
+    length : float
+        Push length ``|end - contact|``, metres.
+    pusher_radius : float
+        The pusher axis touches a flat face at ``point + pusher_radius * normal``: that is the
+        returned contact point.
+    gap : float
+        Distance of the approach point before the contact point along the push, metres.
+
+    Returns
+    -------
+    approach, contact, end : (2,) float64 ndarrays in ``world``, collinear.
+    """
+    pose = _finite_vector("pose", pose, 3)
+    n = _finite_vector("normal", normal, 2)
+    n = n / np.linalg.norm(n)
+    c, s = np.cos(angle), np.sin(angle)
+    direction = -np.array([c * n[0] - s * n[1], s * n[0] + c * n[1]])
+    contact = _finite_vector("point", point, 2) + pusher_radius * n
+    local = np.stack([contact - gap * direction, contact, contact + length * direction])
+    approach_w, contact_w, end_w = object_to_world(pose, local)
+    return approach_w, contact_w, end_w
+
+
 def _finite_vector(name: str, value: ArrayLike, size: int) -> NDArray[np.float64]:
     try:
         out = np.array(value, dtype=float).reshape(-1)
