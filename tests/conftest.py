@@ -36,6 +36,8 @@ from typing import Any
 
 import pytest
 
+from pushbot.graph import spin_until  # imports no rclpy at module level
+
 REPO_ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -92,17 +94,7 @@ def _wait_for(
 
     With an rclpy ``executor``, spin it between polls instead of sleeping, so callbacks run.
     """
-    deadline = time.monotonic() + timeout
-    while True:
-        if predicate():
-            return True
-        remaining = deadline - time.monotonic()
-        if remaining <= 0:
-            return bool(predicate())
-        if executor is not None:
-            executor.spin_once(timeout_sec=min(interval, remaining))
-        else:
-            time.sleep(min(interval, remaining))
+    return spin_until(executor, predicate, time.monotonic() + timeout, interval)
 
 
 @pytest.fixture

@@ -203,6 +203,53 @@ def test_yaml_strings_round_trip(text: str) -> None:
     assert yaml.safe_load(to_yaml({'data': text})) == {'data': text}
 
 
+@pytest.mark.ros
+def test_compatible_qos_receives_from_best_effort_and_latched_publishers(
+    ros_context: Any, wait_for: Any
+) -> None:
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from rclpy.qos import (
+        DurabilityPolicy,
+        QoSProfile,
+        ReliabilityPolicy,
+        qos_profile_sensor_data,
+    )
+    from std_msgs.msg import String
+
+    from pushbot.graph import compatible_qos
+
+    node = Node('qos_test', context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    try:
+        latched = node.create_publisher(
+            String, 'qos_test/latched',
+            QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        latched.publish(String(data='published before anyone subscribed'))
+        sensor = node.create_publisher(String, 'qos_test/sensor', qos_profile_sensor_data)
+        received: dict[str, str] = {}
+        chosen = {}
+        for name in ('latched', 'sensor'):
+            topic = f'/qos_test/{name}'
+            assert wait_for(lambda t=topic: node.get_publishers_info_by_topic(t), timeout=10)
+            chosen[name] = compatible_qos(node.get_publishers_info_by_topic(topic))
+            node.create_subscription(String, topic,
+                                     lambda msg, n=name: received.setdefault(n, msg.data),
+                                     chosen[name])
+        assert chosen['latched'].durability == DurabilityPolicy.TRANSIENT_LOCAL
+        assert chosen['latched'].reliability == ReliabilityPolicy.RELIABLE
+        assert chosen['sensor'].reliability == ReliabilityPolicy.BEST_EFFORT
+        assert chosen['sensor'].durability == DurabilityPolicy.VOLATILE
+        assert wait_for(lambda: sensor.get_subscription_count() > 0, timeout=10)
+        sensor.publish(String(data='live'))
+        assert wait_for(lambda: len(received) == 2, timeout=10, executor=executor), received
+        assert received == {'latched': 'published before anyone subscribed', 'sensor': 'live'}
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+
+
 # --- topic (a real publisher in another process) --------------------------------------------
 
 PUBLISHER = textwrap.dedent('''

@@ -31,6 +31,10 @@ def _describe(spec: Any) -> str:
         type(shape).__name__ if shape is not None else None)
     if kind:
         parts.append(str(kind))
+    area = getattr(spec, 'area', None)
+    area = area() if callable(area) else area
+    if isinstance(area, (int, float)):
+        parts.append(f'area={area * 1e4:.3g} cm^2')
     for field, unit, scale in (('mass', 'kg', 1.0), ('thickness', 'mm', 1000.0),
                                ('friction_table', '', 1.0), ('friction_pusher', '', 1.0)):
         value = getattr(spec, field, None)

@@ -83,11 +83,12 @@ def cli_node(role: str) -> Iterator[tuple[Node, Executor]]:
 
 
 def spin_until(
-    executor: Executor, predicate: Callable[[], bool], deadline: float, step: float = 0.05
+    executor: Executor | None, predicate: Callable[[], Any], deadline: float, step: float = 0.05
 ) -> bool:
     """Spin ``executor`` until ``predicate()`` is true or ``time.monotonic()`` passes ``deadline``.
 
-    Returns the final value of the predicate. Never call this from inside a callback.
+    With ``executor=None`` it sleeps between polls instead. Returns the final truth value of
+    the predicate. Never call this from inside a callback.
     """
     while True:
         if predicate():
@@ -95,7 +96,10 @@ def spin_until(
         remaining = deadline - time.monotonic()
         if remaining <= 0.0:
             return bool(predicate())
-        executor.spin_once(timeout_sec=min(step, remaining))
+        if executor is None:
+            time.sleep(min(step, remaining))
+        else:
+            executor.spin_once(timeout_sec=min(step, remaining))
 
 
 def topic_types(node: Node, topic: str) -> list[str]:
