@@ -32,8 +32,9 @@ Physics model
   outline simplified to within 0.5 mm, so non-convex outlines such as butter keep their
   concavities), with a collision margin of 0.1 mm (pybullet's default 1 mm inflates the
   outline by 1 mm). Visual: a mesh of the true outline (top face triangulated, side walls;
-  within 0.02 mm), so images show the exact outline. Mass from the spec; inertia diagonal ``(I_xx, I_yy, I_zz)`` about the COM with
-  ``I_zz = ObjectSpec.moment_of_inertia`` and the tilt inertias of the uniform plate.
+  within 0.02 mm), so images show the exact outline. Mass from the spec; inertia diagonal
+  ``(I_xx, I_yy, I_zz)`` about the COM with ``I_zz = ObjectSpec.moment_of_inertia`` and the
+  tilt inertias of the uniform plate.
   Linear/angular damping 0, restitution 0, spinning and rolling friction 0. The object has a
   friction anchor (``changeDynamics(frictionAnchor=1)``): without it a resting rect1 creeps
   on the table by about 0.3 deg and 0.2 mm in 8 s with nothing touching it (bullet's support
@@ -132,11 +133,11 @@ __all__ = [
     "MASS_FACTOR_RANGE",
     "MIN_PUSH_LENGTH",
     "CameraConfig",
-    "push_points",
     "Frame",
     "PushResult",
     "PushWorld",
     "WorldConfig",
+    "push_points",
 ]
 
 #: Randomisation ranges (see the module docstring).
@@ -390,6 +391,11 @@ class PushWorld:
     ------
     ValueError
         Unknown object, invalid overrides (e.g. a COM outside the outline).
+
+    Notes
+    -----
+    Not thread-safe: one pybullet client per world, so calls on one world must not overlap
+    (the node serialises pushes, renders and resets). Different worlds are independent.
     """
 
     def __init__(self, config: WorldConfig | None = None) -> None:
@@ -399,7 +405,8 @@ class PushWorld:
 
     # ------------------------------------------------------------------ scene
     def reset(self, config: WorldConfig | None = None) -> None:
-        """Rebuild the scene from ``config`` (default: the current one); ``sim_time`` restarts.
+        """Rebuild the scene from ``config`` (default: the current one); ``sim_time`` restarts
+        (at 0.1 s: the new scene settles for ``INITIAL_SETTLE_STEPS`` steps).
 
         The same config (including the seed) reproduces the same world and the same push
         results exactly. On ``ValueError`` the previous scene is kept.
@@ -567,8 +574,9 @@ class PushWorld:
     def set_object_pose(self, pose: ArrayLike) -> None:
         """Teleport the object to ``(x, y, theta)`` at rest (addition; data generation, tests).
 
-        Not a physical motion: use it only while the pusher is parked. The object is placed
-        on the table and one settle step-set is run.
+        Not a physical motion: use it only while the pusher is parked (between pushes). The
+        object is placed on the table at rest and ``INITIAL_SETTLE_STEPS`` physics steps are
+        run so that its resting contacts form.
         """
         pose = _finite_vector("pose", pose, 3)
         self._place_object(pose)
