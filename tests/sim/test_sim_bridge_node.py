@@ -12,6 +12,7 @@ import math
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from pathlib import Path as FilePath
 from typing import Any
 
 import numpy as np
@@ -262,6 +263,30 @@ def executed_push(bridge: BridgeClient, points: list[tuple[float, float]]) -> tu
 
 def counter(values: dict[str, str], name: str) -> int:
     return int(values[name])
+
+
+# --------------------------------------------------------------------------------------------
+# The parameter YAML (no process needed)
+# --------------------------------------------------------------------------------------------
+def test_parameter_yaml_documents_every_parameter_with_its_default() -> None:
+    import yaml
+
+    from sim_bridge.sim_bridge_node import PARAMETERS
+
+    path = FilePath(__file__).resolve().parents[2] / "ros_ws" / "config" / "sim_bridge.yaml"
+    text = path.read_text()
+    params = yaml.safe_load(text)["sim_bridge_node"]["ros__parameters"]
+    assert params["use_sim_time"] is False  # the bridge is the clock source
+    flat = {f"{k}.{kk}": vv for k, v in params.items() if isinstance(v, dict)
+            for kk, vv in v.items()}
+    flat.update({k: v for k, v in params.items() if not isinstance(v, dict)})
+    for spec in PARAMETERS:
+        if spec.default is None:  # typed without a default: documented as a comment
+            assert f"# {spec.name}:" in text, spec.name
+            continue
+        assert spec.name in flat, f"{spec.name} is not in {path.name}"
+        value = flat[spec.name]
+        assert value == spec.default and type(value) is type(spec.default), spec.name
 
 
 # --------------------------------------------------------------------------------------------

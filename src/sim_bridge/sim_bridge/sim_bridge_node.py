@@ -479,11 +479,11 @@ class SimBridgeNode(Node):
         stamp = stamp_from_seconds(capture.time)
         extrinsics = transform_msg(self._world.T_world_camera, stamp, WORLD_FRAME, CAMERA_FRAME)
         self._publish_clock(capture.time)
+        self._capture = capture
+        self._publish_capture(capture)
         self._publish_safely(self._pub_extrinsics, extrinsics)
         if self._pub_tf_static is not None:
             self._publish_safely(self._pub_tf_static, TFMessage(transforms=[extrinsics]))
-        self._capture = capture
-        self._publish_capture(capture)
         spec = self._world.object_spec
         return (
             f"built {spec.name!r} (mass {spec.mass:.4g} kg, COM ({spec.com[0]:.4f}, "
@@ -522,10 +522,11 @@ class SimBridgeNode(Node):
         self._capture = capture
         # Idle before the results go out: a client that answers pusher/executed or the fresh
         # frame with the next push at once must not find the bridge busy.
-        self._finish_job(None, "pushes_executed")
+        self._finish_job(None, "pushes_executed", publish=False)
         self._publish_clock(capture.time)
-        self._publish_safely(self._pub_executed, executed)
         self._publish_capture(capture)
+        self._publish_safely(self._pub_executed, executed)
+        self._publish_diagnostics()
         moved = np.asarray(result.pose_after) - np.asarray(result.pose_before)
         self.get_logger().info(
             f"push {seq} done: pusher {np.round(result.pusher_start, 4)} -> "
@@ -568,8 +569,8 @@ class SimBridgeNode(Node):
         self._finish_job(None, "resets")
         return True, summary
 
-    def _finish_job(self, error: str | None, counter: str | None) -> None:
-        """Mark the worker idle, count the outcome, log an error (worker thread)."""
+    def _finish_job(self, error: str | None, counter: str | None, publish: bool = True) -> None:
+        """Mark the worker idle, count the outcome, log an error, publish the diagnostic."""
         with self._lock:
             self._busy = ""
             if counter is not None:
@@ -579,7 +580,8 @@ class SimBridgeNode(Node):
             self._error_active = error is not None
         if error is not None:
             self.get_logger().error(error, throttle_duration_sec=LOG_THROTTLE_S)
-        self._publish_diagnostics()
+        if publish:
+            self._publish_diagnostics()
 
     # ---- publishing (any thread; rclpy publishers are thread-safe) ---------------------------
     def _publish_safely(self, publisher: Any, msg: Any) -> None:
@@ -594,6 +596,13 @@ class SimBridgeNode(Node):
             self._pub_clock.publish(ClockMsg(clock=stamp_from_seconds(time)))
 
     def _publish_capture(self, capture: _Capture) -> None:
+        """Publish a frame, then the small reliable messages (ground truth, tf).
+
+        Order matters: with Fast DDS (2.14, UDPv4 and shared memory alike) a small reliable
+        sample published just *before* a large best-effort burst (the images) to the same
+        subscriber is sometimes only delivered by the next heartbeat, up to 3 s later; after
+        the burst it arrives at once. So reliable messages follow the images everywhere.
+        """
         for publisher, msg in (
             (self._pub_rgb, capture.rgb),
             (self._pub_depth, capture.depth),
