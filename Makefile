@@ -19,10 +19,10 @@ venv: $(STAMP)
 $(STAMP): requirements.txt constraints.txt $(SETUP_FILES)
 	@$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "pushbot needs Python >= 3.11, found " + sys.version' 
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --upgrade pip
 	$(BIN)/python -m pip install -r requirements.txt -c constraints.txt
-	# compat mode: a .pth with each source folder, so modules added later import without reinstalling.
-	$(BIN)/python -m pip install --no-deps --config-settings editable_mode=compat $(foreach p,$(PACKAGES),-e src/$(p))
+	# compat mode: a .pth with each source folder, so modules added later import without
+	# reinstalling; no build isolation, so the pinned setuptools of .venv builds them.
+	$(BIN)/python -m pip install --no-deps --no-build-isolation --config-settings editable_mode=compat $(foreach p,$(PACKAGES),-e src/$(p))
 	touch $(STAMP)
 
 lint: $(STAMP)

@@ -49,7 +49,7 @@ _LIBRARY_FILE = "mit_push_objects.json"
 _SPEC_SUFFIXES = (".json", ".yaml", ".yml")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ObjectSpec:
     """A flat, extruded object with its physical parameters.
 
@@ -70,6 +70,8 @@ class ObjectSpec:
         ``"library:<name>"`` or the spec file's path.
     source_origin : (2,) ndarray
         The source description's origin expressed in the object frame.
+
+    Equality is identity (the fields hold arrays); compare fields explicitly.
     """
 
     name: str
