@@ -130,8 +130,10 @@ class BridgeClient:
 
     # ---- commands ---------------------------------------------------------------------------
     def set_parameters(self, **values: Any) -> None:
-        params = [Parameter(name.replace("__", "."), value=v).to_parameter_msg()
+        params = [Parameter(name.replace("__", "."), Parameter.Type.DOUBLE_ARRAY, v)
+                  if isinstance(v, list) else Parameter(name.replace("__", "."), value=v)
                   for name, v in values.items()]
+        params = [p.to_parameter_msg() for p in params]
         result = self.call(self.param_client, SetParameters.Request(parameters=params))
         failed = [(p.name, r.reason) for p, r in zip(params, result.results, strict=True)
                   if not r.successful]
@@ -558,15 +560,26 @@ def test_reset_after_set_parameters_rebuilds_the_scene(fresh: BridgeClient) -> N
                               if d["object"] == "butter"], 10.0, "diagnostics naming butter")
 
 
-def test_reset_with_a_bad_parameter_is_refused_and_keeps_the_scene(fresh: BridgeClient) -> None:
+@pytest.mark.parametrize(
+    ("bad", "reason"),
+    [
+        ({"object": "no_such_object"}, "unknown object 'no_such_object'"),  # refused by the node
+        ({"com_offset": [0.5, 0.0]}, "com"),  # refused by the world: COM outside the outline
+    ],
+)
+def test_reset_with_a_bad_parameter_is_refused_and_keeps_the_scene(
+    fresh: BridgeClient, bad: dict[str, Any], reason: str
+) -> None:
+    executed_push(fresh, THROUGH_CENTRE)  # a scene that differs from the initial one
     before = fresh.object_pose()
-    response = fresh.reset(object="no_such_object")
+    response = fresh.reset(**bad)
     assert not response.success
-    assert "no_such_object" in response.message
-    fresh.set_parameters(object="rect1")
+    assert reason in response.message, response.message
+    fresh.set_parameters(object="rect1", com_offset=[])
     n_poses = len(fresh.got.pose)
     fresh.spin_until(lambda: len(fresh.got.pose) > n_poses, 10.0, "an idle ground-truth pose")
     np.testing.assert_allclose(fresh.object_pose(), before, atol=1e-6)
+    assert fresh.reset().success  # and the node still works
 
 
 def test_reset_while_a_push_runs_is_refused(fresh: BridgeClient) -> None:

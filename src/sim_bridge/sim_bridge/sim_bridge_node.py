@@ -23,6 +23,9 @@ Publications (QoS as in ``docs/ARCHITECTURE.md``; "sensor" = ``qos_profile_senso
 - ``pusher/executed`` (nav_msgs/Path; reliable): frame ``world``, two poses: the pusher at the
   start and at the end of the executed straight push, each stamped with its sim time (header
   stamp = end). Orientation identity, z = 0 (the ``pusher`` frame is at table height).
+  After a push the bridge publishes, in this order: ``/clock`` (time after settling), the fresh
+  frame, ``sim/object_pose``, ``pusher/executed``, ``/diagnostics``; it is already idle then,
+  so a client may send the next push as soon as any of them arrives.
 - ``/diagnostics`` (diagnostic_msgs/DiagnosticArray; reliable): one status, level OK when the
   last command succeeded, WARN after a rejected or failed one; message ``idle`` /
   ``busy: ...``; values: state, object, counters, last_error, sim_time. Published at 1 Hz and
@@ -77,6 +80,7 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 import traceback
 from collections.abc import Callable
 from concurrent.futures import Future as ThreadFuture
@@ -407,6 +411,7 @@ class SimBridgeNode(Node):
                         "pushes_rejected_invalid": 0, "pushes_failed": 0, "resets": 0}
         self._last_error = ""
         self._error_active = False
+        self._log_state: dict[str, tuple[float, int]] = {}  # kind -> (last logged, suppressed)
         self._clock_lock = threading.Lock()  # makes /clock monotonic across threads
         self._last_clock = -1.0
         self._epoch = 0.0  # published time = epoch + world.sim_time
@@ -488,7 +493,7 @@ class SimBridgeNode(Node):
         return (
             f"built {spec.name!r} (mass {spec.mass:.4g} kg, COM ({spec.com[0]:.4f}, "
             f"{spec.com[1]:.4f}) m, friction table {spec.friction_table:.3g}, pusher "
-            f"{spec.friction_pusher:.3g}) at pose {np.round(self._world.object_pose(), 4)} "
+            f"{spec.friction_pusher:.3g}) at pose {np.round(self._world.object_pose(), 4) + 0.0} "
             f"(world, m/rad); camera {capture.info.width}x{capture.info.height}"
         )
 
@@ -579,7 +584,7 @@ class SimBridgeNode(Node):
                 self._last_error = error
             self._error_active = error is not None
         if error is not None:
-            self.get_logger().error(error, throttle_duration_sec=LOG_THROTTLE_S)
+            self._log_limited(counter or "reset", error)
         if publish:
             self._publish_diagnostics()
 
@@ -696,13 +701,14 @@ class SimBridgeNode(Node):
             self.get_logger().warning(response.message)
             return response
         self._publish_diagnostics()
-        try:
+        try:  # _run_reset logs and reports its own failures
             response.success, response.message = self._submit(
                 self._run_reset, config, params).result()
-        except Exception as exc:  # _run_reset reports its own failures; this is a last resort
+        except Exception as exc:  # a last resort: the job itself broke
             response.success, response.message = False, f"reset failed: {exc}"
-        log = self.get_logger().info if response.success else self.get_logger().error
-        log(f"~/reset: {response.message}")
+            self.get_logger().error(f"~/reset: {response.message}")
+        if response.success:
+            self.get_logger().info(f"~/reset: {response.message}")
         return response
 
     # ---- helpers -----------------------------------------------------------------------------
@@ -714,11 +720,29 @@ class SimBridgeNode(Node):
             self._counts[counter] += 1
             self._last_error = reason
             self._error_active = True
-        if counter == "pushes_rejected_busy":
-            self.get_logger().warning(reason, throttle_duration_sec=LOG_THROTTLE_S)
-        else:
-            self.get_logger().error(reason, throttle_duration_sec=LOG_THROTTLE_S)
+        self._log_limited(counter, reason, warning=counter == "pushes_rejected_busy")
         self._publish_diagnostics()
+
+    def _log_limited(self, kind: str, message: str, warning: bool = False) -> None:
+        """Log at most one line per ``kind`` every ``LOG_THROTTLE_S`` s (any thread).
+
+        Suppressed lines are counted and the count is reported with the next line that is
+        logged; every event is also counted on /diagnostics, so nothing goes unnoticed.
+        """
+        now = time.monotonic()
+        with self._lock:
+            last, suppressed = self._log_state.get(kind, (-math.inf, 0))
+            if now - last < LOG_THROTTLE_S:
+                self._log_state[kind] = (last, suppressed + 1)
+                return
+            self._log_state[kind] = (now, 0)
+        if suppressed:
+            message += f" ({suppressed} similar message(s) suppressed before this one)"
+        # Two call sites: rclpy binds one severity to each logging call site.
+        if warning:
+            self.get_logger().warning(message)
+        else:
+            self.get_logger().error(message)
 
     def destroy_node(self) -> None:
         """Let a running push finish, stop the worker, then destroy the ROS entities."""
