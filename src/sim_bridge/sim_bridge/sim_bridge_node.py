@@ -406,6 +406,7 @@ class SimBridgeNode(Node):
         self._lock = threading.Lock()  # guards the state below, not pybullet
         self._busy = ""  # "" = idle, else what the worker is doing
         self._pushing = False  # the physics is running a push: /clock follows sim_time
+        self._push_seq = 0  # number of pushes handed to the worker
         self._closing = False
         self._counts = {"pushes_executed": 0, "pushes_rejected_busy": 0,
                         "pushes_rejected_invalid": 0, "pushes_failed": 0, "resets": 0}
@@ -465,9 +466,10 @@ class SimBridgeNode(Node):
 
     # ---- worker-thread jobs (all pybullet calls live here) -----------------------------------
     def _capture_scene(self) -> _Capture:
+        """Render and convert one frame with the ground truth at its time (worker thread)."""
         frame = self._world.render()
-        time = self._epoch + float(frame.stamp)
-        stamp = stamp_from_seconds(time)
+        t = self._epoch + float(frame.stamp)
+        stamp = stamp_from_seconds(t)
         height, width = frame.depth.shape
         return _Capture(
             rgb=rgb_image_msg(frame.rgb, stamp),
@@ -475,7 +477,7 @@ class SimBridgeNode(Node):
             info=camera_info_msg(self._world.camera_matrix, width, height, stamp),
             object_pose=pose_stamped_msg(self._world.object_pose(), stamp),
             pusher_xy=np.asarray(self._world.pusher_position(), dtype=float),
-            time=time,
+            time=t,
         )
 
     def _after_build(self) -> str:
@@ -553,12 +555,13 @@ class SimBridgeNode(Node):
         except Exception as exc:
             self.get_logger().error(f"reset crashed:\n{traceback.format_exc()}")
             message = f"reset failed: {type(exc).__name__}: {exc}"
+            self._epoch = time_before  # a rebuilt world restarts its sim_time at 0
             try:  # never leave the node without a usable scene
                 self._world.reset(self._params.world_config())
+                self._after_build()
                 message += "; rebuilt the previous configuration"
             except Exception as exc2:
                 message += f"; rebuilding the previous configuration failed too: {exc2}"
-            self._epoch = time_before  # a rebuilt world restarts its sim_time at 0
             self._finish_job(message, None)
             return False, message
         # PushWorld.reset restarts sim_time at 0: the new episode continues /clock where the old
@@ -671,7 +674,8 @@ class SimBridgeNode(Node):
         with self._lock:
             busy = self._busy
             if not busy:
-                seq = self._counts["pushes_executed"] + self._counts["pushes_failed"] + 1
+                self._push_seq += 1
+                seq = self._push_seq
                 self._busy = f"executing push {seq}"
         if busy:
             self._reject(f"rejected push command on planner/push: busy ({busy}); pushes are "
