@@ -8,7 +8,10 @@ so for every child process, which inherits ``os.environ``):
 - ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``: nothing leaves the machine;
 - ``FASTDDS_BUILTIN_TRANSPORTS=UDPv4``: no shared-memory transport, whose stale ``/dev/shm``
   segments can silently break discovery between runs;
-- ``ROS_LOCALHOST_ONLY`` removed (deprecated in Jazzy; it conflicts with the range above).
+- ``ROS_LOCALHOST_ONLY`` removed (deprecated in Jazzy; it conflicts with the range above);
+- ``FASTRTPS_DEFAULT_PROFILES_FILE`` = the bundled profile (``pushbot.dds``) unless set:
+  reliable writers heartbeat every 100 ms, so a sample lost behind camera-image fragments is
+  repaired at once instead of after Fast DDS's default 3 s.
 
 Fixtures:
 
@@ -36,6 +39,7 @@ from typing import Any
 
 import pytest
 
+from pushbot.dds import apply_default_profile
 from pushbot.graph import spin_until  # imports no rclpy at module level
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
@@ -48,6 +52,7 @@ def _isolate_ros_session() -> int:
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     os.environ['FASTDDS_BUILTIN_TRANSPORTS'] = 'UDPv4'
     os.environ.pop('ROS_LOCALHOST_ONLY', None)
+    apply_default_profile()  # 100 ms heartbeats: lost reliable samples are repaired quickly
     return domain
 
 

@@ -7,6 +7,9 @@ Subcommands:
 - ``topic list|echo|hz|info``: inspect the ROS graph (``ros2 topic`` is not on PyPI);
 - ``demo``: what ``make demo`` runs.
 
+Every subcommand runs with the project's Fast DDS profile (``pushbot.dds``) unless
+``FASTRTPS_DEFAULT_PROFILES_FILE`` is already set.
+
 Heavy imports (rclpy, torch) happen inside the subcommands, so ``pushbot --help`` always works
 and missing dependencies are reported by ``pushbot doctor`` instead of a traceback.
 """
@@ -18,7 +21,7 @@ import importlib.metadata
 import sys
 from collections.abc import Sequence
 
-from pushbot import demo, doctor, nodes, topic
+from pushbot import dds, demo, doctor, nodes, topic
 
 
 def _version() -> str:
@@ -59,6 +62,9 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse ``argv`` (default: ``sys.argv[1:]``) and run the subcommand; returns the exit code."""
     args = build_parser().parse_args(argv)
+    # Every process pushbot starts (nodes, doctor probes, topic tools) uses the project's DDS
+    # profile unless the user configured one (see pushbot.dds).
+    dds.apply_default_profile()
     try:
         return args.handler(args)
     except KeyboardInterrupt:

@@ -30,6 +30,7 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
+from pushbot.dds import PROFILE_ENV
 from pushbot.doctor_probe import DEFAULT_COUNT, DEFAULT_TIMEOUT
 
 SUB_DOMAIN_OFFSET_ENV = 'PUSHBOT_DOCTOR_SUB_DOMAIN_OFFSET'
@@ -177,7 +178,7 @@ def check_environment() -> list[Check]:
     else:
         checks.append(Check('discovery range', True, scope))
     notes = [f'{key}={os.environ[key]}' for key in (
-        'FASTDDS_BUILTIN_TRANSPORTS', 'ROS_LOCALHOST_ONLY', 'ROS_STATIC_PEERS'
+        'FASTDDS_BUILTIN_TRANSPORTS', 'ROS_LOCALHOST_ONLY', 'ROS_STATIC_PEERS', PROFILE_ENV
     ) if os.environ.get(key)]
     checks.append(Check('DDS settings', True, ', '.join(notes) or 'no overrides'))
     return checks
