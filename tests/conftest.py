@@ -22,11 +22,13 @@ Fixtures:
 - ``processes``: a :class:`ProcessManager` that starts commands (``start``) and nodes
   (``node``: ``pushbot run <node> ...``) with the session environment and always stops them at
   teardown (SIGINT, then SIGKILL);
+- ``module_processes``: the same, shared by the tests of one module;
 - ``node_process``: shortcut for ``processes.node``.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import signal
@@ -166,16 +168,29 @@ class ProcessManager:
             self.stop(proc)
 
 
-@pytest.fixture
-def processes(tmp_path: Path) -> Iterator[ProcessManager]:
-    """A :class:`ProcessManager` whose processes are always stopped after the test."""
-    log_dir = tmp_path / 'process_logs'
-    log_dir.mkdir()
+@contextlib.contextmanager
+def _managed_processes(log_dir: Path) -> Iterator[ProcessManager]:
     manager = ProcessManager(log_dir)
     try:
         yield manager
     finally:
         manager.stop_all()
+
+
+@pytest.fixture
+def processes(tmp_path: Path) -> Iterator[ProcessManager]:
+    """A :class:`ProcessManager` whose processes are always stopped after the test."""
+    log_dir = tmp_path / 'process_logs'
+    log_dir.mkdir()
+    with _managed_processes(log_dir) as manager:
+        yield manager
+
+
+@pytest.fixture(scope='module')
+def module_processes(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ProcessManager]:
+    """Like ``processes``, shared by the tests of one module (e.g. one bridge for all)."""
+    with _managed_processes(tmp_path_factory.mktemp('process_logs')) as manager:
+        yield manager
 
 
 @pytest.fixture

@@ -13,7 +13,7 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path as FilePath
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pytest
@@ -44,7 +44,9 @@ from sim_bridge.conversions import (
     seconds_from_stamp,
     xytheta_from_pose,
 )
-from tests.conftest import ProcessManager
+
+if TYPE_CHECKING:  # the fixtures come from tests/conftest.py
+    from conftest import ProcessManager
 
 pytestmark = [pytest.mark.ros, pytest.mark.graph, pytest.mark.slow]
 
@@ -192,15 +194,6 @@ class BridgeClient:
 # --------------------------------------------------------------------------------------------
 # Fixtures
 # --------------------------------------------------------------------------------------------
-@pytest.fixture(scope="module")
-def module_processes(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ProcessManager]:
-    manager = ProcessManager(tmp_path_factory.mktemp("sim_bridge_logs"))
-    try:
-        yield manager
-    finally:
-        manager.stop_all()
-
-
 @pytest.fixture(scope="module")
 def bridge(module_processes: ProcessManager) -> Iterator[BridgeClient]:
     """One bridge process (butter at the origin, 320 x 240) and a client that is ready."""
