@@ -106,11 +106,26 @@ def test_doctor_reports_a_missing_module_without_traceback() -> None:
 
 @pytest.mark.ros
 @pytest.mark.slow
-def test_demo_runs_doctor_and_shows_the_object_library() -> None:
-    result = pushbot('demo')
+def test_demo_runs_doctor_then_pushes_through_the_sim_bridge(tmp_path: Path) -> None:
+    result = pushbot('demo', '--object', 'rect1', '--out', str(tmp_path))
     assert result.returncode == 0, result.stdout + result.stderr
     assert 'checks passed' in result.stdout
-    assert 'object library:' in result.stdout
+    rows = {}
+    for line in result.stdout.splitlines():
+        match = re.match(r'^(through the COM|2\.5 cm off the COM|at 30 deg to the normal)\s+'
+                         r'(.*?)\s+(\S+) / \s*(\S+)$', line)
+        if match:
+            numbers = [float(v) for v in re.findall(r'-?\d+\.\d', match.group(2))]
+            rows[match.group(1)] = (numbers, float(match.group(3)), float(match.group(4)))
+    assert len(rows) == 3, result.stdout
+    # The push through the COM of rect1 (from its -x side, object at the origin) continues 4 cm
+    # past the contact point, so the object moves ~4 cm along +x with little rotation; the
+    # model agrees within a few mm.
+    (dx, dy, dth, *_), err_mm, _ = rows['through the COM']
+    assert 25.0 < dx < 45.0 and abs(dy) < 5.0 and abs(dth) < 3.0, result.stdout
+    assert err_mm < 10.0, result.stdout
+    assert (tmp_path / 'last_frame.png').stat().st_size > 0
+    assert (tmp_path / 'poses.png').stat().st_size > 0
 
 
 # --- run ------------------------------------------------------------------------------------
