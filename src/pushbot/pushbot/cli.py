@@ -5,7 +5,9 @@ Subcommands:
 - ``doctor``: check the install (versions, RMW, DDS settings, a two-process pub/sub round trip);
 - ``run <node> [args...]``: start a node as ``ros2 run`` would (``--list`` lists them);
 - ``topic list|echo|hz|info``: inspect the ROS graph (``ros2 topic`` is not on PyPI);
-- ``demo``: what ``make demo`` runs.
+- ``demo``: what ``make demo`` runs;
+- ``data <target>``, ``train <target>``, ``eval <target>``: data generation, training and
+  evaluation of the learned and estimated parts (targets in :data:`TARGETS`).
 
 Every subcommand runs with the project's Fast DDS profile (``pushbot.dds``) unless
 ``FASTRTPS_DEFAULT_PROFILES_FILE`` is already set.
@@ -17,6 +19,7 @@ and missing dependencies are reported by ``pushbot doctor`` instead of a traceba
 from __future__ import annotations
 
 import argparse
+import importlib
 import importlib.metadata
 import sys
 from collections.abc import Sequence
@@ -29,6 +32,31 @@ def _version() -> str:
         return importlib.metadata.version('pushbot')
     except importlib.metadata.PackageNotFoundError:
         return 'unknown'
+
+
+#: Subcommand groups whose targets live in the node packages: group -> (summary, {target:
+#: (module, summary)}). Each module defines ``add_arguments(parser)`` and ``run(args) -> int``
+#: and keeps heavy imports (torch, pybullet, rclpy) inside ``run``, so ``pushbot --help`` stays
+#: fast and works even when those are broken.
+TARGETS: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
+    'data': ('generate training data sets', {
+        'perception': ('push_perception.data',
+                       'render RGB-D frames with masks, poses and outlines (segmentation CNN)'),
+    }),
+}
+
+
+def _add_targets(sub: argparse._SubParsersAction) -> None:
+    for group, (summary, targets) in TARGETS.items():
+        parser = sub.add_parser(group, help=summary, description=summary)
+        group_sub = parser.add_subparsers(dest='target', metavar='<target>')
+        group_sub.required = True
+        for target, (module_name, help_text) in targets.items():
+            module = importlib.import_module(module_name)
+            p = group_sub.add_parser(target, help=help_text, description=module.__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+            module.add_arguments(p)
+            p.set_defaults(handler=module.run)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -56,6 +84,7 @@ def build_parser() -> argparse.ArgumentParser:
                            formatter_class=argparse.RawDescriptionHelpFormatter, **extra)
         module.add_arguments(p)
         p.set_defaults(handler=handler)
+    _add_targets(sub)
     return parser
 
 
