@@ -1,0 +1,769 @@
+"""Greedy affordance-based push planner (SPEC section 2 step 5): one push per cycle.
+
+ROS-free, numpy, seeded. One planning step (:meth:`Planner.plan`):
+
+1. **Affordances** (:mod:`push_core.affordances`): the predicted object motion for every outline
+   point x the 10 representative pushes (``ana``: analytical model; ``lrn``: learned CNN).
+2. **Scores**, eq. (5.1) of the source, for every outline point ``r_i``::
+
+       s(r_i) = min_u  ||v_d - v_hat(u, r_i)||_mm  +  lambda * |omega_d - omega_hat(u, r_i)|_deg
+
+   ``(v_d, omega_d)`` is the desired motion (goal minus current pose, the translation expressed
+   in the object frame, the rotation wrapped to (-pi, pi]). **Units: the translation error in
+   millimetres, the rotation error in degrees; lambda in millimetres per degree.** A score is
+   therefore "millimetres of remaining error" and so is the sampling temperature.
+   (``lambda = 2`` mm/deg is the tuned default, see ``docs/RESULTS.md``, section bench_planner.)
+3. **Contact proposal**: ``k`` points sampled without replacement from the softmax
+   ``p_i ~ exp(-(s_i - min s) / T)`` (Gumbel top-k, exact for any k); baselines ``rdn``
+   (uniform over the outline) and ``geo`` (:func:`geo_mask`).
+4. **Push optimisation** at each sampled point (skipped by the ``direct`` variant):
+
+   a. 5 base directions (-60, -30, 0, 30, 60 degrees from the inward normal), each rolled out
+      with :func:`push_core.rollout.rollout_push` (analytical model, 5 mm substeps, contact point
+      and normal found again on the moved outline at every substep). The rollout starts at the
+      approach point, ``approach_clearance`` before the touching position, so the pusher's way in
+      is simulated too (a push into a concavity that first meets another part of the outline is
+      predicted as such) and runs until the push is ``max_push_length`` (5 cm) past the contact.
+   b. eq. (5.1) of the predicted pose (residual to the goal) after every substep;
+   c. each direction truncated at its best-scoring length >= ``min_push_length`` (1 cm);
+   d. direction interpolation between the best base direction and its two neighbours:
+      the directions every 10 degrees between them (``INTERPOLATION_STEPS = 2`` per 30 degree
+      gap, so best +-10 and +-20 degrees);
+   e. their lengths optimised as in a-c.
+
+   Implementation note: the rollouts of d-e run in the *same* batched rollout call as a
+   (speculatively for every gap between neighbouring base directions, 13 directions per
+   point), because a rollout call costs ~4 ms of per-substep overhead almost independent of
+   the batch size (docs/RESULTS.md, bench_planner); afterwards only the interpolated directions
+   next to each point's best base direction are admitted, so the answer is that of the
+   sequential procedure at half the time.
+   The best admitted push over all candidates is returned.
+   **direct** variant: no rollouts; for the 5 base directions the affordance predictions for
+   1 cm and 5 cm are interpolated linearly in the push length (``motion(L) = m_1 + (L - 1 cm) /
+   4 cm * (m_5 - m_1)``; for the analytical model this is exactly proportional to ``L``) and the
+   length in ``[min_push_length, max_push_length]`` (1 mm grid) with the best score is taken.
+5. **Feasibility**: a push is excluded when its approach point or its end point lies outside the
+   workspace rectangle, or the approach point is inside the object or closer than
+   ``pusher_radius + APPROACH_MARGIN`` to its outline (the pusher could not be lowered there).
+   If no sampled candidate has a feasible push, every other eligible point is tried once
+   (``PushPlan.fallback``); if none has one, :class:`NoFeasiblePush` is raised.
+
+Frames and units: SI (metres, radians) except inside scores (see above). Outline points and
+normals, the COM and affordances are in the object frame (origin = area centroid); poses, goals
+and the returned pusher points are in ``world``. The returned ``contact`` is the pusher *axis*
+where the pusher touches the outline, ``point + pusher_radius * n_out``; ``approach`` lies
+``approach_clearance`` before it and ``end`` ``length`` after it on the same straight line.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from push_core.affordances import N_ANGLES, AffordanceModel, analytical_affordances
+from push_core.geometry import (
+    check_polyline,
+    closest_point_on_polyline,
+    object_to_world,
+    world_to_object,
+    wrap_angle,
+)
+from push_core.model import REPRESENTATIVE_ANGLES_DEG, REPRESENTATIVE_LENGTHS
+from push_core.rollout import PUSHER_RADIUS, SUBSTEP, rollout_push
+from push_core.shapes import Polygon
+
+__all__ = [
+    "APPROACH_MARGIN",
+    "BASE_ANGLES_DEG",
+    "METHODS",
+    "NoFeasiblePush",
+    "Outline",
+    "Planner",
+    "PlannerConfig",
+    "PushPlan",
+    "desired_motion",
+    "geo_mask",
+    "goal_reached",
+    "motion_score",
+    "point_scores",
+    "prepare_outline",
+    "sample_contacts",
+    "softmax_probabilities",
+]
+
+#: Contact-selection methods: analytical / learned affordances, geometric / random baselines.
+METHODS = ("ana", "lrn", "geo", "rdn")
+#: Base push directions of the optimisation, degrees from the inward normal, ascending.
+BASE_ANGLES_DEG = (-60.0, -30.0, 0.0, 30.0, 60.0)
+#: Extra clearance beyond the pusher radius between an approach point and the outline, metres
+#: (the value ``sim_bridge.world`` enforces).
+APPROACH_MARGIN = 5e-4
+#: geo baseline: below this rotation (rad) points near the line to the goal are used ...
+GEO_MIN_ROTATION = math.radians(2.0)
+#: ... within this distance of it (m).
+GEO_LINE_BAND = 0.02
+#: geo baseline: below this translation (m) the goal is a pure rotation (no line to the goal).
+GEO_MIN_TRANSLATION = 1e-3
+#: Grid step of the push length in the direct variant, metres.
+DIRECT_LENGTH_STEP = 1e-3
+
+#: Interpolated directions between two neighbouring base directions (every 10 degrees).
+INTERPOLATION_STEPS = 2
+
+# Column of each base direction (ascending) in the representative-push order (0, 30, -30, ...).
+_BASE_TO_REPR = tuple(REPRESENTATIVE_ANGLES_DEG.index(a) for a in BASE_ANGLES_DEG)
+# All directions of the optimisation, ascending (radians); base ones at _BASE_COLUMNS.
+_FINE_ANGLES = np.radians(np.linspace(
+    BASE_ANGLES_DEG[0], BASE_ANGLES_DEG[-1],
+    (len(BASE_ANGLES_DEG) - 1) * (INTERPOLATION_STEPS + 1) + 1))
+_BASE_COLUMNS = np.arange(0, len(_FINE_ANGLES), INTERPOLATION_STEPS + 1)
+
+
+class NoFeasiblePush(RuntimeError):
+    """No outline point admits a push inside the workspace with a clear approach."""
+
+
+# ------------------------------------------------------------------------------ scores
+def motion_score(residual: ArrayLike, lam: float) -> NDArray[np.float64]:
+    """Eq. (5.1) of a residual motion: millimetres plus ``lam`` times degrees.
+
+    Parameters
+    ----------
+    residual : array_like, shape (..., 3)
+        ``(dx, dy, dtheta)``: remaining translation (metres, any frame) and rotation (radians;
+        wrapped to (-pi, pi] here).
+    lam : float
+        Weight of the rotation error, millimetres per degree.
+
+    Returns
+    -------
+    numpy.ndarray, shape (...)
+        ``1000 * ||(dx, dy)|| + lam * |deg(wrap(dtheta))|``.
+    """
+    r = np.asarray(residual, dtype=np.float64)
+    return 1e3 * np.hypot(r[..., 0], r[..., 1]) + lam * np.degrees(np.abs(wrap_angle(r[..., 2])))
+
+
+def desired_motion(pose: ArrayLike, goal: ArrayLike) -> NDArray[np.float64]:
+    """Desired motion ``(v_d, omega_d)`` from the current pose to the goal.
+
+    Parameters
+    ----------
+    pose, goal : array_like, shape (3,)
+        Current and goal pose ``(x, y, theta)`` of the object frame in ``world``.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3,)
+        Translation of the object frame origin expressed in the current object frame (metres)
+        and the rotation ``wrap(theta_goal - theta)`` in (-pi, pi] (radians), the frame of the
+        affordances.
+    """
+    pose = _vector(pose, 3, "pose")
+    goal = _vector(goal, 3, "goal")
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    dx, dy = goal[0] - pose[0], goal[1] - pose[1]
+    return np.array([c * dx + s * dy, -s * dx + c * dy, float(wrap_angle(goal[2] - pose[2]))])
+
+
+def goal_reached(pose: ArrayLike, goal: ArrayLike, tolerance_xy: float,
+                 tolerance_theta: float) -> bool:
+    """Whether the pose is within the goal tolerances (SPEC section 5: 0.75 cm and 5 degrees).
+
+    Parameters
+    ----------
+    pose, goal : array_like, shape (3,)
+        Poses ``(x, y, theta)`` in ``world``.
+    tolerance_xy : float
+        Largest position error, metres (inclusive).
+    tolerance_theta : float
+        Largest orientation error, radians (inclusive; the error is wrapped).
+    """
+    d = desired_motion(pose, goal)
+    return bool(math.hypot(d[0], d[1]) <= tolerance_xy and abs(d[2]) <= tolerance_theta)
+
+
+def point_scores(affordances: ArrayLike, desired: ArrayLike, lam: float) -> NDArray[np.float64]:
+    """Eq. (5.1) for every outline point: the best residual over its pushes.
+
+    Parameters
+    ----------
+    affordances : array_like, shape (N, M, 3)
+        Predicted motion of each of M pushes at each of N points (object frame, metres, rad).
+    desired : array_like, shape (3,)
+        Desired motion, :func:`desired_motion`.
+    lam : float
+        Rotation weight, millimetres per degree.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N,)
+        ``min_j motion_score(desired - affordances[:, j], lam)``.
+    """
+    aff = np.asarray(affordances, dtype=np.float64)
+    if aff.ndim != 3 or aff.shape[2] != 3:
+        raise ValueError(f"affordances must have shape (N, M, 3), got shape {aff.shape}")
+    desired = _vector(desired, 3, "desired")
+    return motion_score(desired - aff, lam).min(axis=1)
+
+
+def softmax_probabilities(scores: ArrayLike, temperature: float) -> NDArray[np.float64]:
+    """Sampling distribution over outline points: lower score, more likely.
+
+    Parameters
+    ----------
+    scores : array_like, shape (N,)
+        Eq. (5.1) scores (millimetres); ``inf`` marks ineligible points (probability 0).
+    temperature : float
+        Softmax temperature in score units (millimetres), > 0.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N,)
+        ``exp(-(s_i - min s) / T)`` normalised to sum 1.
+    """
+    s = np.asarray(scores, dtype=np.float64)
+    if s.ndim != 1 or s.size == 0:
+        raise ValueError(f"scores must have shape (N,) with N >= 1, got shape {s.shape}")
+    if not temperature > 0.0:
+        raise ValueError(f"temperature must be > 0, got {temperature}")
+    best = np.min(s)
+    if not np.isfinite(best):
+        raise ValueError("scores: no finite score")
+    w = np.exp(-(s - best) / temperature)
+    return w / w.sum()
+
+
+def sample_contacts(scores: ArrayLike, k: int, temperature: float,
+                    rng: np.random.Generator) -> NDArray[np.intp]:
+    """Sample ``k`` distinct outline points from :func:`softmax_probabilities`.
+
+    Gumbel top-k: the ``k`` largest ``-s_i / T + g_i`` with ``g_i`` standard Gumbel, which is
+    sequential sampling without replacement from the softmax (for ``k = 1`` exactly the
+    softmax). Points with ``inf`` scores are never drawn.
+
+    Parameters
+    ----------
+    scores : array_like, shape (N,)
+        Eq. (5.1) scores (millimetres).
+    k : int
+        Number of points, >= 1; at most the number of finite scores are returned.
+    temperature : float
+        Softmax temperature, millimetres, > 0.
+    rng : numpy.random.Generator
+        Source of randomness.
+
+    Returns
+    -------
+    numpy.ndarray of intp, shape (min(k, n_finite),)
+        Indices into ``scores``, in the order drawn.
+    """
+    s = np.asarray(scores, dtype=np.float64)
+    softmax_probabilities(s, temperature)  # validates
+    if isinstance(k, bool) or int(k) != k or k < 1:
+        raise ValueError(f"k must be an integer >= 1, got {k!r}")
+    keys = -(s - np.min(s)) / temperature + rng.gumbel(size=s.shape)
+    keys[~np.isfinite(s)] = -np.inf
+    n = min(int(k), int(np.count_nonzero(np.isfinite(s))))
+    order = np.argsort(-keys, kind="stable")
+    return order[:n]
+
+
+def geo_mask(points: ArrayLike, normals_out: ArrayLike, desired: ArrayLike) -> NDArray[np.bool_]:
+    """The ``geo`` baseline's eligible contact points (SPEC section 2 step 5).
+
+    With ``u`` the unit direction of the desired translation (object frame) and ``d_i`` the
+    signed distance of point ``i`` from the line through the current position along ``u``
+    (positive to the left):
+
+    - "far side": ``points . u < 0`` (the pusher pushes the object towards the goal);
+    - rotation ``|omega_d| < 2 deg``: ``|d_i| <= 2 cm`` (pushes near the line keep orientation);
+    - otherwise the side of the line that turns the object the right way: a push along ``u`` at
+      a point left of the line turns it clockwise, so ``d_i * omega_d < 0``.
+
+    A pure rotation (translation below 1 mm, no line to the goal) takes the points where a push
+    along the inward normal has a torque about the object frame origin of the sign of
+    ``omega_d`` (this case is not specified by the source).
+
+    Parameters
+    ----------
+    points, normals_out : array_like, shape (N, 2)
+        Outline points and outward normals, object frame.
+    desired : array_like, shape (3,)
+        Desired motion (:func:`desired_motion`), object frame.
+
+    Returns
+    -------
+    numpy.ndarray of bool, shape (N,)
+    """
+    p = np.asarray(points, dtype=np.float64)
+    n = np.asarray(normals_out, dtype=np.float64)
+    desired = _vector(desired, 3, "desired")
+    dist = math.hypot(desired[0], desired[1])
+    omega = desired[2]
+    if dist < GEO_MIN_TRANSLATION:
+        torque = p[:, 0] * -n[:, 1] - p[:, 1] * -n[:, 0]  # r x n_in
+        return torque * omega > 0.0
+    u = desired[:2] / dist
+    far = p @ u < 0.0
+    side = u[0] * p[:, 1] - u[1] * p[:, 0]
+    if abs(omega) < GEO_MIN_ROTATION:
+        return far & (np.abs(side) <= GEO_LINE_BAND)
+    return far & (side * omega < 0.0)
+
+
+# ------------------------------------------------------------------------------ outline
+@dataclass(frozen=True, eq=False)
+class Outline:
+    """A validated outline for planning (build it with :func:`prepare_outline`, once per shape).
+
+    Attributes
+    ----------
+    points : numpy.ndarray, shape (N, 2)
+        Candidate contact points, counter-clockwise, object frame (metres).
+    normals : numpy.ndarray, shape (N, 2)
+        Outward unit normals at ``points``.
+    polyline : numpy.ndarray, shape (P, 2)
+        Closed counter-clockwise polyline for contact search in rollouts and approach checks:
+        ``points`` simplified by Douglas-Peucker (``P <= N``).
+    """
+
+    points: NDArray[np.float64]
+    normals: NDArray[np.float64]
+    polyline: NDArray[np.float64]
+
+
+def prepare_outline(points: ArrayLike, normals_out: ArrayLike,
+                    simplify_tolerance: float = 5e-4) -> Outline:
+    """Validate an outline and build the simplified polyline used for contact search.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 2)
+        Outline points, counter-clockwise, object frame (metres), ``N >= 3``, finite, with a
+        positive enclosed area.
+    normals_out : array_like, shape (N, 2)
+        Outward normals at ``points``, finite and non-zero; normalised here.
+    simplify_tolerance : float
+        Douglas-Peucker tolerance of the contact polyline, metres (>= 0; 0 keeps ``points``).
+        Measured outlines that do not form a simple polygon are used unsimplified.
+
+    Returns
+    -------
+    Outline
+
+    Raises
+    ------
+    ValueError
+        Naming ``points`` or ``normals_out``.
+    """
+    p = np.array(points, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != 2 or p.shape[0] < 3:
+        raise ValueError(f"points must have shape (N, 2) with N >= 3, got shape {p.shape}")
+    check_polyline(p, "points")
+    n = np.array(normals_out, dtype=np.float64)
+    if n.shape != p.shape:
+        raise ValueError(f"normals_out must have the shape of points {p.shape}, got {n.shape}")
+    norm = np.hypot(n[:, 0], n[:, 1])
+    if not np.all(np.isfinite(norm)) or np.any(norm <= 1e-12):
+        raise ValueError("normals_out must be finite and non-zero")
+    if not simplify_tolerance >= 0.0:
+        raise ValueError(f"simplify_tolerance must be >= 0, got {simplify_tolerance}")
+    polyline = p
+    if simplify_tolerance > 0.0:
+        try:
+            polyline = np.array(Polygon(p).simplified(simplify_tolerance).vertices)
+        except ValueError:  # not a simple polygon (noisy measured outline): use it as it is
+            polyline = p
+    for a in (p, n, polyline):
+        a.setflags(write=False)
+    n = n / norm[:, None]
+    n.setflags(write=False)
+    return Outline(points=p, normals=n, polyline=polyline)
+
+
+# ------------------------------------------------------------------------------ planner
+@dataclass(frozen=True)
+class PlannerConfig:
+    """Planner parameters, validated on construction (``ValueError`` naming the field).
+
+    Attributes
+    ----------
+    method : str
+        Contact selection: ``ana`` | ``lrn`` (softmax over eq. 5.1 with analytical / learned
+        affordances), ``geo`` | ``rdn`` (baselines, :func:`geo_mask` / uniform).
+    direct : bool
+        Choose the push from the affordances with linear length rescaling instead of rollouts.
+    k : int
+        Contact points sampled per step, >= 1.
+    lam : float
+        Rotation weight lambda of eq. (5.1), millimetres per degree, >= 0.
+    temperature : float
+        Softmax temperature, millimetres (score units), > 0.
+    tolerance_xy : float
+        Goal position tolerance, metres, > 0.
+    tolerance_theta : float
+        Goal orientation tolerance, radians, > 0.
+    pusher_radius : float
+        Radius of the cylindrical pusher, metres, >= 0.
+    approach_clearance : float
+        Distance of the approach point before the touching position along the push, metres, > 0.
+    min_push_length, max_push_length : float
+        Range of push lengths past the contact, metres, ``0 < min <= max``.
+    substep : float
+        Rollout substep, metres, > 0.
+    workspace : ((xmin, xmax), (ymin, ymax))
+        Rectangle in ``world`` every pusher point must stay in, metres.
+    simplify_tolerance : float
+        Douglas-Peucker tolerance of the contact polyline (:func:`prepare_outline`), metres.
+    seed : int
+        Seed of the planner's random generator, >= 0.
+    """
+
+    method: str = "ana"
+    direct: bool = False
+    k: int = 3
+    lam: float = 2.0
+    temperature: float = 2.0
+    tolerance_xy: float = 0.0075
+    tolerance_theta: float = math.radians(5.0)
+    pusher_radius: float = PUSHER_RADIUS
+    approach_clearance: float = 0.005
+    min_push_length: float = REPRESENTATIVE_LENGTHS[0]
+    max_push_length: float = REPRESENTATIVE_LENGTHS[-1]
+    substep: float = SUBSTEP
+    workspace: tuple[tuple[float, float], tuple[float, float]] = ((-0.25, 0.25), (-0.3, 0.3))
+    simplify_tolerance: float = 5e-4
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {self.method!r}")
+        if not isinstance(self.direct, bool | np.bool_):
+            raise ValueError(f"direct: expected a bool, got {self.direct!r}")
+        object.__setattr__(self, "direct", bool(self.direct))
+        for name, low in (("k", 1), ("seed", 0)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < low:
+                raise ValueError(f"{name}: expected an integer >= {low}, got {value!r}")
+            object.__setattr__(self, name, int(value))
+        for name, strict in (("lam", False), ("temperature", True), ("tolerance_xy", True),
+                             ("tolerance_theta", True), ("pusher_radius", False),
+                             ("approach_clearance", True), ("min_push_length", True),
+                             ("max_push_length", True), ("substep", True),
+                             ("simplify_tolerance", False)):
+            value = getattr(self, name)
+            try:
+                value = float(value)
+            except (TypeError, ValueError):
+                raise ValueError(f"{name}: expected a number, got {value!r}") from None
+            ok = math.isfinite(value) and (value > 0.0 if strict else value >= 0.0)
+            if not ok:
+                raise ValueError(f"{name}: must be finite and {'>' if strict else '>='} 0, "
+                                 f"got {value!r}")
+            object.__setattr__(self, name, value)
+        if self.max_push_length < self.min_push_length:
+            raise ValueError(f"max_push_length: must be >= min_push_length "
+                             f"({self.min_push_length}), got {self.max_push_length}")
+        try:
+            ws = np.array(self.workspace, dtype=float)
+        except (TypeError, ValueError):
+            ws = np.zeros(0)
+        if ws.shape != (2, 2) or not np.all(np.isfinite(ws)) or np.any(ws[:, 1] <= ws[:, 0]):
+            raise ValueError(f"workspace: expected ((xmin, xmax), (ymin, ymax)) with min < max, "
+                             f"got {self.workspace!r}")
+        object.__setattr__(self, "workspace", tuple(tuple(float(v) for v in r) for r in ws))
+
+
+@dataclass(frozen=True)
+class PushPlan:
+    """The planner's answer for one step. Points in ``world`` (metres).
+
+    Attributes
+    ----------
+    approach, contact, end : numpy.ndarray, shape (2,)
+        Pusher axis: lowered at ``approach``, touching at ``contact``, stopping at ``end``.
+    index : int
+        Outline point of the contact.
+    angle : float
+        Push direction relative to the inward normal at that point, radians (counter-clockwise).
+    length : float
+        Push length ``|end - contact|``, metres.
+    predicted_pose : numpy.ndarray, shape (3,)
+        Object pose after the push predicted by the rollout (or the affordances, ``direct``).
+    score : float
+        Eq. (5.1) of the predicted residual to the goal, millimetres.
+    current_score : float
+        Eq. (5.1) of the residual without pushing, millimetres.
+    scores : numpy.ndarray, shape (N,)
+        Eq. (5.1) of every outline point from the affordances (``ana``: analytical; ``lrn``:
+        learned; ``geo``/``rdn``: analytical, for display).
+    probabilities : numpy.ndarray, shape (N,)
+        The distribution the candidates were drawn from.
+    candidates : numpy.ndarray of intp, shape (k',)
+        The sampled outline points (``k' <= k``), in the order drawn.
+    fallback : bool
+        No sampled candidate had a feasible push; every other eligible point was tried.
+    method : str
+    direct : bool
+    """
+
+    approach: NDArray[np.float64]
+    contact: NDArray[np.float64]
+    end: NDArray[np.float64]
+    index: int
+    angle: float
+    length: float
+    predicted_pose: NDArray[np.float64]
+    score: float
+    current_score: float
+    scores: NDArray[np.float64]
+    probabilities: NDArray[np.float64]
+    candidates: NDArray[np.intp]
+    fallback: bool = False
+    method: str = "ana"
+    direct: bool = False
+
+
+@dataclass
+class _Options:
+    """Evaluated pushes (flat batch): outline index, angle, best length and its outcome."""
+
+    index: NDArray[np.intp]
+    angle: NDArray[np.float64]
+    length: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    score: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    pose: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 3)))
+
+
+class Planner:
+    """The greedy push planner of SPEC section 2 step 5 (module docstring).
+
+    Parameters
+    ----------
+    config : PlannerConfig
+        Parameters (already validated).
+    affordance_model : AffordanceModel, optional
+        Required for ``method = "lrn"`` (e.g. ``push_core.learned.LearnedAffordances``); the
+        other methods use :func:`push_core.affordances.analytical_affordances`.
+
+    Raises
+    ------
+    ValueError
+        ``config`` is not a PlannerConfig, or ``lrn`` without a model.
+    """
+
+    def __init__(self, config: PlannerConfig | None = None,
+                 affordance_model: AffordanceModel | None = None) -> None:
+        config = PlannerConfig() if config is None else config
+        if not isinstance(config, PlannerConfig):
+            raise ValueError(f"config: expected a PlannerConfig, got {type(config).__name__}")
+        if config.method == "lrn" and affordance_model is None:
+            raise ValueError("affordance_model: method 'lrn' needs a learned affordance model")
+        self.config = config
+        self._affordances = affordance_model if config.method == "lrn" else analytical_affordances
+        self.rng = np.random.default_rng(config.seed)
+
+    def reached(self, pose: ArrayLike, goal: ArrayLike) -> bool:
+        """:func:`goal_reached` with the configured tolerances."""
+        cfg = self.config
+        return goal_reached(pose, goal, cfg.tolerance_xy, cfg.tolerance_theta)
+
+    def plan(self, outline: Outline, state: ArrayLike, goal: ArrayLike) -> PushPlan:
+        """Plan one push.
+
+        Parameters
+        ----------
+        outline : Outline
+            From :func:`prepare_outline` (object frame).
+        state : array_like, shape (7,)
+            ``(x, y, theta, c_x, c_y, l, m)``: object pose in ``world`` (m, rad), COM offset in
+            the object frame (m), limit-surface parameter (m, > 0), pusher friction (>= 0); the
+            layout of the estimator's state.
+        goal : array_like, shape (3,)
+            Goal pose ``(x, y, theta)`` of the object frame in ``world``.
+
+        Returns
+        -------
+        PushPlan
+
+        Raises
+        ------
+        ValueError
+            Bad ``outline``, ``state`` or ``goal`` (the message names it).
+        NoFeasiblePush
+            No outline point admits a feasible push (see the module docstring).
+        """
+        cfg = self.config
+        if not isinstance(outline, Outline):
+            raise ValueError(f"outline: expected an Outline (prepare_outline), got "
+                             f"{type(outline).__name__}")
+        state = _vector(state, 7, "state")
+        if not state[5] > 0.0 or not state[6] >= 0.0:
+            raise ValueError(f"state: l must be > 0 and m >= 0, got l = {state[5]}, "
+                             f"m = {state[6]}")
+        goal = _vector(goal, 3, "goal")
+        pose, com, l, m = state[:3], state[3:5], float(state[5]), float(state[6])  # noqa: E741
+        desired = desired_motion(pose, goal)
+        aff = np.asarray(self._affordances(outline.points, outline.normals, com, l, m))
+        scores = point_scores(aff, desired, cfg.lam)
+
+        n = len(outline.points)
+        if cfg.method in ("ana", "lrn"):
+            eligible = np.ones(n, dtype=bool)
+            probabilities = softmax_probabilities(scores, cfg.temperature)
+            candidates = sample_contacts(scores, cfg.k, cfg.temperature, self.rng)
+        else:
+            eligible = (geo_mask(outline.points, outline.normals, desired)
+                        if cfg.method == "geo" else np.ones(n, dtype=bool))
+            if not eligible.any():  # e.g. a goal direction no outline point is behind
+                eligible[:] = True
+            probabilities = eligible / np.count_nonzero(eligible)
+            pool = np.flatnonzero(eligible)
+            candidates = self.rng.choice(pool, size=min(cfg.k, pool.size), replace=False)
+
+        options = self._evaluate(outline, pose, com, l, m, goal, desired, aff, candidates)
+        fallback = not np.isfinite(options.score).any()
+        if fallback:
+            rest = np.flatnonzero(eligible & ~np.isin(np.arange(n), candidates))
+            rest = rest[np.argsort(scores[rest], kind="stable")]
+            if rest.size:
+                options = self._evaluate(outline, pose, com, l, m, goal, desired, aff, rest)
+            if not np.isfinite(options.score).any():
+                raise NoFeasiblePush(
+                    "no outline point admits a push with its approach and end point inside the "
+                    f"workspace {cfg.workspace} and an approach clear of the object")
+        best = int(np.argmin(options.score))
+        index, angle, length = (int(options.index[best]), float(options.angle[best]),
+                                float(options.length[best]))
+        approach, contact, end = self._pusher_points(outline, pose, options.index[best:best + 1],
+                                                     options.angle[best:best + 1],
+                                                     options.length[best:best + 1])
+        return PushPlan(
+            approach=approach[0], contact=contact[0], end=end[0], index=index, angle=angle,
+            length=length, predicted_pose=options.pose[best].copy(),
+            score=float(options.score[best]), current_score=float(motion_score(desired, cfg.lam)),
+            scores=scores, probabilities=probabilities, candidates=np.asarray(candidates),
+            fallback=fallback, method=cfg.method, direct=cfg.direct)
+
+    # -------------------------------------------------------------- internals
+    def _evaluate(self, outline: Outline, pose: NDArray[np.float64], com: NDArray[np.float64],
+                  l: float, m: float, goal: NDArray[np.float64],  # noqa: E741
+                  desired: NDArray[np.float64], aff: NDArray[np.float64],
+                  candidates: NDArray[np.intp]) -> _Options:
+        """Best push (direction and length) at each candidate point; flat over the options."""
+        if self.config.direct:
+            return self._direct(outline, pose, desired, aff, candidates)
+        # One batched rollout for the base directions and the interpolated ones between every
+        # pair of neighbouring base directions (a rollout call costs the same for 15 or 40
+        # pushes); only the interpolated directions next to a candidate's best base direction
+        # are then admitted, which gives the result of the sequential procedure.
+        n_fine = len(_FINE_ANGLES)
+        opts = self._rollouts(outline, pose, com, l, m, goal, np.repeat(candidates, n_fine),
+                              np.tile(_FINE_ANGLES, len(candidates)))
+        score = opts.score.reshape(len(candidates), n_fine)
+        best_base = _BASE_COLUMNS[np.argmin(score[:, _BASE_COLUMNS], axis=1)]
+        col = np.arange(n_fine)
+        admitted = (col % (INTERPOLATION_STEPS + 1) == 0)[None, :] | (
+            np.abs(col[None, :] - best_base[:, None]) <= INTERPOLATION_STEPS)
+        opts.score = np.where(admitted, score, np.inf).reshape(-1)
+        return opts
+
+    def _pusher_points(self, outline: Outline, pose: NDArray[np.float64], idx: NDArray[np.intp],
+                       angle: NDArray[np.float64], length: ArrayLike
+                       ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """World approach, contact (touching axis) and end points; shapes broadcast over
+        ``idx``, ``angle`` (...) and ``length`` (...), each result (..., 2)."""
+        cfg = self.config
+        n_out = outline.normals[idx]
+        c, s = np.cos(angle), np.sin(angle)
+        direction = -np.stack([c * n_out[..., 0] - s * n_out[..., 1],
+                               s * n_out[..., 0] + c * n_out[..., 1]], -1)
+        touch = outline.points[idx] + cfg.pusher_radius * n_out
+        length = np.asarray(length, dtype=np.float64)[..., None]
+        approach = object_to_world(pose, touch - cfg.approach_clearance * direction)
+        contact = object_to_world(pose, touch)
+        end = object_to_world(pose, touch + length * direction)
+        return approach, contact, end
+
+    def _in_workspace(self, points: NDArray[np.float64]) -> NDArray[np.bool_]:
+        (x0, x1), (y0, y1) = self.config.workspace
+        x, y = points[..., 0], points[..., 1]
+        return (x >= x0) & (x <= x1) & (y >= y0) & (y <= y1)
+
+    def _approach_ok(self, outline: Outline, pose: NDArray[np.float64],
+                     approach: NDArray[np.float64]) -> NDArray[np.bool_]:
+        """Approach points inside the workspace and clear of the object (B,)."""
+        local = world_to_object(pose, approach)
+        _, _, dist, _ = closest_point_on_polyline(outline.polyline, local)
+        clear = dist >= self.config.pusher_radius + APPROACH_MARGIN
+        return clear & self._in_workspace(approach)
+
+    def _rollouts(self, outline: Outline, pose: NDArray[np.float64], com: NDArray[np.float64],
+                  l: float, m: float, goal: NDArray[np.float64],  # noqa: E741
+                  idx: NDArray[np.intp], angle: NDArray[np.float64]) -> _Options:
+        """Roll out each (point, direction) to ``max_push_length`` and truncate at its best."""
+        cfg = self.config
+        approach, contact, _ = self._pusher_points(outline, pose, idx, angle, 0.0)
+        direction = (contact - approach) / cfg.approach_clearance  # unit, world
+        total = cfg.approach_clearance + cfg.max_push_length
+        res = rollout_push(outline.polyline, pose, com, l, m, approach, total * direction,
+                           substep=cfg.substep, pusher_radius=cfg.pusher_radius)
+        n_sub = res.poses.shape[1] - 1
+        travelled = np.minimum(cfg.substep * np.arange(1, n_sub + 1), total)  # (S,)
+        lengths = travelled - cfg.approach_clearance
+        ends = approach[:, None, :] + travelled[None, :, None] * direction[:, None, :]
+        after = res.poses[:, 1:]  # (B, S, 3)
+        residual = np.concatenate([goal[:2] - after[..., :2], goal[2] - after[..., 2:]], -1)
+        score = motion_score(residual, cfg.lam)
+        valid = ((lengths >= cfg.min_push_length - 1e-9)[None, :] & self._in_workspace(ends)
+                 & self._approach_ok(outline, pose, approach)[:, None])
+        score = np.where(valid, score, np.inf)
+        j = np.argmin(score, axis=1)
+        rows = np.arange(len(idx))
+        return _Options(index=np.asarray(idx), angle=np.asarray(angle, dtype=np.float64),
+                        length=lengths[j], score=score[rows, j], pose=after[rows, j])
+
+    def _direct(self, outline: Outline, pose: NDArray[np.float64],
+                desired: NDArray[np.float64], aff: NDArray[np.float64],
+                candidates: NDArray[np.intp]) -> _Options:
+        """Direct variant: affordances with the push length rescaled linearly (no rollouts)."""
+        cfg = self.config
+        cols = np.array(_BASE_TO_REPR)
+        m1 = aff[candidates][:, cols]  # (C, 5, 3) the 1 cm pushes
+        m5 = aff[candidates][:, N_ANGLES + cols]  # the 5 cm pushes
+        l1, l5 = REPRESENTATIVE_LENGTHS
+        n_len = int(round((cfg.max_push_length - cfg.min_push_length) / DIRECT_LENGTH_STEP)) + 1
+        grid = np.linspace(cfg.min_push_length, cfg.max_push_length, max(n_len, 1))  # (G,)
+        t = ((grid - l1) / (l5 - l1))[None, None, :, None]
+        motion = m1[:, :, None] + t * (m5 - m1)[:, :, None]  # (C, 5, G, 3)
+        score = motion_score(desired - motion, cfg.lam)
+        n_c, n_a = len(candidates), len(cols)
+        idx = np.repeat(candidates, n_a)
+        ang = np.tile(np.radians(np.array(BASE_ANGLES_DEG)), n_c)
+        approach, _, ends = self._pusher_points(outline, pose, idx[:, None], ang[:, None],
+                                                grid[None, :])
+        valid = self._in_workspace(ends) & self._approach_ok(outline, pose, approach[:, 0])[:, None]
+        score = np.where(valid.reshape(n_c, n_a, -1), score, np.inf).reshape(n_c * n_a, -1)
+        j = np.argmin(score, axis=1)
+        rows = np.arange(n_c * n_a)
+        best = motion.reshape(n_c * n_a, -1, 3)[rows, j]
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        moved = np.stack([pose[0] + c * best[:, 0] - s * best[:, 1],
+                          pose[1] + s * best[:, 0] + c * best[:, 1], pose[2] + best[:, 2]], -1)
+        return _Options(index=idx, angle=ang, length=grid[j], score=score[rows, j], pose=moved)
+
+
+def _vector(value: ArrayLike, size: int, name: str) -> NDArray[np.float64]:
+    try:
+        v = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected {size} numbers, got {value!r}") from None
+    if v.shape != (size,):
+        raise ValueError(f"{name}: expected shape ({size},), got shape {v.shape}")
+    if not np.all(np.isfinite(v)):
+        raise ValueError(f"{name}: must be finite, got {v.tolist()}")
+    return v
