@@ -44,7 +44,9 @@ ROS-free, numpy, seeded. One planning step (:meth:`Planner.plan`):
    length in ``[min_push_length, max_push_length]`` (1 mm grid) with the best score is taken.
 5. **Feasibility**: a push is excluded when its approach point or its end point lies outside the
    workspace rectangle, or the approach point is inside the object or closer than
-   ``pusher_radius + APPROACH_MARGIN`` to its outline (the pusher could not be lowered there).
+   ``pusher_radius + APPROACH_MARGIN + simplify_tolerance`` to the contact polyline (the pusher
+   could not be lowered there; the simplified polyline is within ``simplify_tolerance`` of the
+   outline).
    If no sampled candidate has a feasible push, every other eligible point is tried once
    (``PushPlan.fallback``); if none has one, :class:`NoFeasiblePush` is raised.
 
@@ -699,7 +701,8 @@ class Planner:
         """Approach points inside the workspace and clear of the object (B,)."""
         local = world_to_object(pose, approach)
         _, _, dist, _ = closest_point_on_polyline(outline.polyline, local)
-        clear = dist >= self.config.pusher_radius + APPROACH_MARGIN
+        cfg = self.config
+        clear = dist >= cfg.pusher_radius + APPROACH_MARGIN + cfg.simplify_tolerance
         return clear & self._in_workspace(approach)
 
     def _rollouts(self, outline: Outline, pose: NDArray[np.float64], com: NDArray[np.float64],
