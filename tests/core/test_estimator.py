@@ -160,7 +160,7 @@ def test_twist_jacobian_equals_autodiff_of_the_model() -> None:
         if mode == "off":
             continue
         modes.add(mode)
-        _, _, _, jac = twist_with_jacobian(*args, True)
+        jac = np.array(twist_with_jacobian(*args, True)[3])
         ref = jac_model(torch.tensor(args, dtype=torch.float64)).numpy()
         # The normal columns are exact for tangent changes (n stays a unit vector).
         n = np.array(args[4:6])
@@ -329,9 +329,10 @@ def test_first_observation_initialises_the_state() -> None:
     l0 = limit_surface_of_polygon(square(0.03))
     np.testing.assert_allclose(ekf.state, [0.1, -0.02, 0.5, 0.0, 0.0, l0, 0.3])
     cfg = ekf.config
-    np.testing.assert_allclose(np.diag(ekf.covariance), [
-        cfg.position_sigma**2, cfg.position_sigma**2, cfg.angle_sigma**2, cfg.com_sigma**2,
-        cfg.com_sigma**2, (cfg.l_sigma_fraction * l0) ** 2, cfg.m_sigma**2])
+    # COM prior: a point uniform over the 6 cm square, variance 0.06^2 / 12 per axis.
+    np.testing.assert_allclose(ekf.covariance, np.diag([
+        cfg.position_sigma**2, cfg.position_sigma**2, cfg.angle_sigma**2, 0.06**2 / 12,
+        0.06**2 / 12, (cfg.l_sigma_fraction * l0) ** 2, cfg.m_sigma**2]), atol=1e-18)
 
 
 def test_update_is_the_kalman_update_in_joseph_form() -> None:
