@@ -452,6 +452,39 @@ def test_predict_uses_the_model_and_propagates_the_covariance() -> None:
     np.testing.assert_allclose(ekf.covariance, expected, rtol=1e-12, atol=1e-18)
 
 
+def test_iterated_update_relinearises_at_the_smoothed_pre_push_state() -> None:
+    points, normals = library_outline("tri1")
+    plain = PushEKF(points, normals, EKFConfig(iterations=1))
+    iterated = PushEKF(points, normals, EKFConfig(iterations=2))
+    for ekf in (plain, iterated):
+        ekf.update_pose([0.0, 0.0, 0.4])
+    x_prev, p_prev = plain.state, plain.covariance
+    rng = np.random.default_rng(6)
+    start, end = informative_push(points, normals, x_prev[:3], rng)
+    z = predict_push(x_prev, plain.outline, start, end).state[:3] + [0.003, -0.002, 0.03]
+    for ekf in (plain, iterated):
+        ekf.predict_push(start, end)
+        assert not ekf.update_pose(z).reinitialized
+    # Iteration 1 is the plain EKF; iteration 2 by hand: smoothed pre-push state, prediction
+    # linearised there, Kalman update from the pre-push estimate.
+    cfg = iterated.config
+    first = predict_push(x_prev, plain.outline, start, end)
+    f1 = first.jacobian
+    p_prior = f1 @ p_prev @ f1.T + cfg.process_noise(first.contact_length)
+    x_lin = x_prev + p_prev @ f1.T @ np.linalg.solve(p_prior, plain.state - first.state)
+    second = predict_push(x_lin, plain.outline, start, end)
+    f2 = second.jacobian
+    x_bar = second.state + f2 @ (x_prev - x_lin)
+    p_bar = f2 @ p_prev @ f2.T + cfg.process_noise(second.contact_length)
+    k = p_bar[:, :3] @ np.linalg.inv(p_bar[:3, :3] + cfg.observation_noise)
+    np.testing.assert_allclose(iterated.state, x_bar + k @ (z - x_bar[:3]), rtol=1e-9,
+                               atol=1e-12)
+    ikh = np.eye(7) - k @ np.eye(3, 7)
+    expected_p = ikh @ p_bar @ ikh.T + k @ cfg.observation_noise @ k.T
+    np.testing.assert_allclose(iterated.covariance, expected_p, rtol=1e-8, atol=1e-16)
+    assert not np.allclose(iterated.state, plain.state)
+
+
 def test_reset_starts_a_new_episode() -> None:
     ekf = square_ekf()
     ekf.update_pose([0.1, 0.0, 0.0])
