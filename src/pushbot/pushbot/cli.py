@@ -43,6 +43,10 @@ TARGETS: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
         'perception': ('push_perception.data',
                        'render RGB-D frames with masks, poses and outlines (segmentation CNN)'),
     }),
+    'train': ('train learned models', {
+        'segmentation': ('push_perception.train',
+                         'train the two-stage segmentation CNN on `pushbot data perception` data'),
+    }),
 }
 
 

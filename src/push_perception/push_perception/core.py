@@ -1,0 +1,702 @@
+"""From an object mask and depth to the object's state: pose, relative orientation, outline.
+
+ROS-free (numpy, OpenCV, scipy); the node (``segmentation_node``) and the evaluation wrap it.
+SPEC section 2, steps 1 and 2; the frames are those of ``docs/ARCHITECTURE.md``.
+
+Pipeline for one frame (:class:`EpisodeTracker.update`)
+-------------------------------------------------------
+1. **Object points.** Every mask pixel with a valid depth is deprojected with K and the
+   extrinsics ``T_world_camera`` into ``world`` (:func:`object_points`). Points lower than
+   ``min_height`` (or 40 % of the object's top height, whichever is larger) are dropped:
+   they are table pixels at the mask boundary. What is left is the top face and the visible
+   side walls; the walls are vertical, so their points project onto the outline.
+2. **Top-down view.** The points' (x, y) are rasterised into an orthographic, world-aligned
+   grid (``resolution``, 1 mm by default), closed morphologically (a disc of
+   ``closing_radius`` cells fills the gaps between the image pixels' footprints, about
+   1.3-2 mm apart on the table) and hole-filled; the largest component is the *footprint*
+   (:func:`top_down_view`).
+3. **Position.** The area centroid of the footprint: the origin of the ``object`` frame (the
+   contract's "centre of the top-down mask"). This is not the mean of the mask's points: the
+   camera sees one side wall and samples the near part of the top face more densely, both of
+   which would bias a plain mean toward the camera.
+4. **Outline.** The footprint's boundary (``cv2.findContours``, cell centres) is resampled,
+   smoothed along its length with a Gaussian (``outline_smoothing``, metres), moved outward by
+   half a cell (the cell centres lie half a cell inside the boundary) and resampled at
+   ``outline_spacing`` (2 mm); normals are the outward unit normals of the smoothed curve,
+   points counter-clockwise (:func:`smooth_outline`). On the first frame of an episode this is
+   the shape encoding, in the object frame (origin at the centroid, axes = world axes at the
+   first frame).
+5. **Orientation** relative to the first frame (:func:`rotation_search`): the rotation about
+   the centroid that best aligns the current outline with the first frame's, by a symmetric,
+   truncated chamfer cost (mean distance of each outline's points to the other footprint's
+   boundary, read bilinearly from signed distance fields), searched on a coarse grid over the
+   full circle and refined around every candidate minimum by successive parabolic fits.
+   Symmetric objects have several (near-)equal minima: every refined minimum whose cost is
+   within ``symmetry_tolerance`` of the best is a candidate, and the one closest to the
+   previous frame's angle is reported (the angle is continuous, not wrapped).
+
+Covariance model (:func:`pose_covariance`)
+------------------------------------------
+Standard deviations of (x, y) and theta grow with fewer valid pixels, with missing depth and
+with disagreement between the current footprint and the first one::
+
+    k       = sqrt(NOMINAL_PIXELS / n_valid) / valid_fraction
+    sigma_p = sigma_position * k + area_mismatch * sqrt(A_0) / 2
+    sigma_t = sigma_theta * k + match_cost / r_0 + area_mismatch
+
+``n_valid`` mask pixels with depth of ``n_mask``, ``valid_fraction = n_valid / n_mask``;
+``area_mismatch = |A_t / A_0 - 1|`` (an occluded or mis-segmented part moves the centroid by up
+to about half the object's size times the missing fraction); ``match_cost`` the chamfer
+residual of the rotation search (metres) and ``r_0`` the footprint's radius of gyration (an
+outline misfit of d metres at radius r is an angle of about d / r). The base values
+``sigma_position`` and ``sigma_theta`` are the measured median errors on the held-out objects
+(docs/RESULTS.md). x and y are uncorrelated and share one variance.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.ndimage import gaussian_filter1d
+
+__all__ = [
+    "NOMINAL_PIXELS",
+    "EpisodeTracker",
+    "Measurement",
+    "PerceptionConfig",
+    "PerceptionError",
+    "TopDownView",
+    "check_frame",
+    "object_points",
+    "pose_covariance",
+    "rotation_search",
+    "smooth_outline",
+    "top_down_view",
+]
+
+#: Mask size (pixels with depth) at which the base standard deviations apply: a ~100 cm^2
+#: object near the workspace centre in a 640 x 480 frame.
+NOMINAL_PIXELS = 5000
+
+
+class PerceptionError(ValueError):
+    """A frame from which no pose can be measured; ``kind`` names the class of problem.
+
+    Kinds: ``"empty_mask"``, ``"few_pixels"``, ``"no_depth"``, ``"out_of_view"``,
+    ``"bad_input"`` (malformed arrays).
+    """
+
+    def __init__(self, kind: str, message: str) -> None:
+        super().__init__(message)
+        self.kind = kind
+
+
+@dataclass(frozen=True)
+class PerceptionConfig:
+    """Parameters of the mask-to-state pipeline (SI units).
+
+    Attributes
+    ----------
+    resolution : float
+        Cell size of the top-down view, m (0.2-5 mm).
+    min_height : float
+        Points lower than this above the table are not the object, m.
+    closing_radius : int
+        Radius of the morphological closing of the top-down view, cells.
+    outline_spacing : float
+        Distance between outline points, m.
+    outline_smoothing : float
+        Standard deviation of the Gaussian smoothing along the outline, m.
+    outline_offset : float
+        Extra outward offset of the outline (a calibration), m.
+    coarse_step_deg : float
+        Grid step of the coarse rotation search, degrees.
+    angle_tolerance_deg : float
+        Step below which the parabolic refinement of the rotation stops, degrees.
+    symmetry_tolerance : float
+        Candidate minima whose chamfer cost is within this of the best are treated as
+        symmetric equivalents (the one closest to the previous angle wins), m.
+    chamfer_truncation : float
+        Distances are truncated at this value in the chamfer cost (robustness), m.
+    min_pixels : int
+        Fewer mask pixels with depth than this: no pose.
+    min_valid_fraction : float
+        Smaller fraction of mask pixels with depth than this: no pose.
+    max_border_pixels : int
+        More mask pixels than this on the image border: the object is (partly) out of view,
+        no pose.
+    sigma_position : float
+        Base standard deviation of x and y at ``NOMINAL_PIXELS`` with full depth, m.
+    sigma_theta : float
+        Base standard deviation of the relative orientation, rad.
+    """
+
+    resolution: float = 0.001
+    min_height: float = 0.003
+    closing_radius: int = 2
+    outline_spacing: float = 0.002
+    outline_smoothing: float = 0.003
+    outline_offset: float = 0.0
+    coarse_step_deg: float = 3.0
+    angle_tolerance_deg: float = 0.02
+    symmetry_tolerance: float = 0.0008
+    chamfer_truncation: float = 0.005
+    min_pixels: int = 100
+    min_valid_fraction: float = 0.3
+    max_border_pixels: int = 3
+    sigma_position: float = 0.0005
+    sigma_theta: float = 0.005
+
+    def __post_init__(self) -> None:
+        checks = (
+            ("resolution", 2e-4, 5e-3), ("min_height", 0.0, 0.05),
+            ("outline_spacing", 2e-4, 0.02), ("outline_smoothing", 0.0, 0.01),
+            ("outline_offset", -0.005, 0.005), ("coarse_step_deg", 0.1, 10.0),
+            ("angle_tolerance_deg", 1e-4, 1.0), ("symmetry_tolerance", 0.0, 0.01),
+            ("chamfer_truncation", 1e-4, 0.05), ("min_valid_fraction", 0.0, 1.0),
+            ("sigma_position", 1e-6, 1.0), ("sigma_theta", 1e-6, math.pi),
+        )
+        for name, low, high in checks:
+            value = getattr(self, name)
+            if isinstance(value, bool) or not (np.isfinite(value) and low <= value <= high):
+                raise ValueError(f"{name}: must be in [{low}, {high}], got {value!r}")
+            object.__setattr__(self, name, float(value))
+        for name, low, high in (("closing_radius", 0, 10), ("min_pixels", 3, 10**7),
+                                ("max_border_pixels", 0, 10**7)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or int(value) != value or not low <= value <= high:
+                raise ValueError(f"{name}: must be an integer in [{low}, {high}], got {value!r}")
+            object.__setattr__(self, name, int(value))
+
+
+# --------------------------------------------------------------------------------------------
+# Validation
+# --------------------------------------------------------------------------------------------
+def check_frame(mask: ArrayLike, depth: ArrayLike, camera_matrix: ArrayLike,
+                t_world_camera: ArrayLike) -> tuple[NDArray[np.bool_], NDArray[np.float32],
+                                                    NDArray[np.float64], NDArray[np.float64]]:
+    """Validate one frame's arrays; returns them as (bool, float32, float64, float64).
+
+    Raises
+    ------
+    PerceptionError
+        kind ``"bad_input"``, naming the offending array: mask and depth not 2-D or of
+        different sizes, K not a finite pinhole matrix, T not a finite rigid transform.
+    """
+    m = np.asarray(mask)
+    d = np.asarray(depth)
+    if m.ndim != 2 or d.ndim != 2:
+        raise PerceptionError("bad_input", f"mask and depth must be 2-D, got shapes {m.shape} "
+                              f"and {d.shape}")
+    if m.shape != d.shape:
+        raise PerceptionError("bad_input", f"mask {m.shape} and depth {d.shape} differ in size")
+    k = np.asarray(camera_matrix, dtype=np.float64)
+    if k.shape != (3, 3) or not np.all(np.isfinite(k)) or k[0, 0] <= 0 or k[1, 1] <= 0 \
+            or not np.allclose(k[2], (0.0, 0.0, 1.0)):
+        raise PerceptionError("bad_input", f"camera matrix must be a finite (3, 3) pinhole K "
+                              f"with fx, fy > 0, got {k.tolist()}")
+    t = np.asarray(t_world_camera, dtype=np.float64)
+    if t.shape != (4, 4) or not np.all(np.isfinite(t)) \
+            or not np.allclose(t[:3, :3] @ t[:3, :3].T, np.eye(3), atol=1e-6) \
+            or not np.allclose(t[3], (0.0, 0.0, 0.0, 1.0)):
+        raise PerceptionError("bad_input", "T_world_camera must be a finite (4, 4) rigid "
+                              "transform")
+    return m.astype(bool, copy=False), d.astype(np.float32, copy=False), k, t
+
+
+# --------------------------------------------------------------------------------------------
+# Geometry of one frame
+# --------------------------------------------------------------------------------------------
+def object_points(mask: NDArray[np.bool_], depth: NDArray[np.floating],
+                  camera_matrix: NDArray[np.floating], t_world_camera: NDArray[np.floating]
+                  ) -> tuple[NDArray[np.float64], int]:
+    """World points of the mask pixels that have a depth.
+
+    Parameters
+    ----------
+    mask : (H, W) bool
+    depth : (H, W) float
+        z-depth along the optical axis, metres; NaN, inf and values <= 0 mean no return.
+    camera_matrix : (3, 3)
+        K, pixels (OpenCV convention: pixel centres at integer coordinates).
+    t_world_camera : (4, 4)
+        world <- camera_color_optical_frame.
+
+    Returns
+    -------
+    points : (N, 3) float64
+        ``p_world = R (z (u - cx) / fx, z (v - cy) / fy, z) + t`` for each valid pixel.
+    n_mask : int
+        Number of mask pixels (with or without depth).
+    """
+    v, u = np.nonzero(mask)
+    z = depth[v, u].astype(np.float64)
+    ok = np.isfinite(z) & (z > 0)
+    u, v, z = u[ok], v[ok], z[ok]
+    k = camera_matrix
+    cam = np.stack([(u - k[0, 2]) / k[0, 0] * z, (v - k[1, 2]) / k[1, 1] * z, z], axis=1)
+    t = np.asarray(t_world_camera, dtype=np.float64)
+    return cam @ t[:3, :3].T + t[:3, 3], int(len(ok))
+
+
+@dataclass(frozen=True)
+class TopDownView:
+    """Orthographic, world-aligned top-down view of the object (the footprint).
+
+    Cell ``[row, col]`` covers ``x in origin_x + [col, col + 1) * resolution`` and
+    ``y in origin_y + [row, row + 1) * resolution`` (rows along +y, columns along +x).
+
+    Attributes
+    ----------
+    image : (R, C) uint8
+        1 on the footprint, 0 elsewhere.
+    origin : (2,) float
+        World (x, y) of the corner of cell (0, 0), metres.
+    resolution : float
+        Cell size, metres.
+    centroid : (2,) float
+        Area centroid of the footprint in ``world``, metres.
+    area : float
+        Footprint area, m^2.
+    radius_of_gyration : float
+        sqrt of the footprint's polar second moment about the centroid over its area, m.
+    boundary : (P, 2) float
+        Boundary cell centres in ``world`` (closed, counter-clockwise), metres.
+    sdf : (R, C) float32
+        Signed distance to the footprint's boundary, metres, negative inside (zero half-way
+        between inside and outside cells).
+    """
+
+    image: NDArray[np.uint8]
+    origin: NDArray[np.float64]
+    resolution: float
+    centroid: NDArray[np.float64]
+    area: float
+    radius_of_gyration: float
+    boundary: NDArray[np.float64]
+    sdf: NDArray[np.float32] = field(repr=False)
+
+    def sample_sdf(self, points: NDArray[np.float64], outside: float) -> NDArray[np.float64]:
+        """Bilinear SDF at world points (..., 2), metres; ``outside`` beyond the grid."""
+        res = self.resolution
+        shape = points.shape[:-1]
+        flat = points.reshape(-1, 1, 2)
+        map_x = ((flat[..., 0] - self.origin[0]) / res - 0.5).astype(np.float32)
+        map_y = ((flat[..., 1] - self.origin[1]) / res - 0.5).astype(np.float32)
+        out = cv2.remap(self.sdf, map_x, map_y, cv2.INTER_LINEAR,
+                        borderMode=cv2.BORDER_CONSTANT, borderValue=float(outside))
+        return out.reshape(shape).astype(np.float64)
+
+
+def top_down_view(points: NDArray[np.float64], cfg: PerceptionConfig,
+                  pad: float = 0.01) -> TopDownView:
+    """Rasterise object points into the top-down footprint (see the module docstring).
+
+    Parameters
+    ----------
+    points : (N, 3) float
+        Object points in ``world`` (metres), N >= 3.
+    cfg : PerceptionConfig
+    pad : float
+        Empty border around the footprint, metres (at least the chamfer truncation, so the
+        SDF is valid wherever the rotation search reads it).
+
+    Raises
+    ------
+    PerceptionError
+        kind ``"few_pixels"`` when no point is above the table.
+    """
+    z = points[:, 2]
+    top = float(np.quantile(z, 0.95)) if len(z) else 0.0
+    keep = z > max(cfg.min_height, 0.4 * top)
+    xy = points[keep, :2]
+    if len(xy) < 3:
+        raise PerceptionError("few_pixels", f"only {len(xy)} mask point(s) above the table "
+                              f"(>{1e3 * cfg.min_height:.1f} mm)")
+    res = cfg.resolution
+    pad = max(pad, cfg.chamfer_truncation + 2 * res)
+    lo = np.floor((xy.min(axis=0) - pad) / res) * res
+    cols, rows = (np.ceil((xy.max(axis=0) + pad - lo) / res).astype(int) + 1)
+    img = np.zeros((rows, cols), dtype=np.uint8)
+    ij = ((xy - lo) / res).astype(np.intp)
+    img[ij[:, 1], ij[:, 0]] = 1
+    r = cfg.closing_radius
+    if r > 0:
+        kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+        img = cv2.morphologyEx(img, cv2.MORPH_CLOSE, kernel)
+    # The largest outer contour, filled: drops stray cells and fills holes in one step.
+    contours, _ = cv2.findContours(img, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    outer = max(contours, key=cv2.contourArea)
+    img = np.zeros_like(img)
+    cv2.drawContours(img, [outer], -1, 1, thickness=cv2.FILLED)
+    mom = cv2.moments(img, binaryImage=True)
+    cells = mom["m00"]
+    centroid = lo + (np.array([mom["m10"], mom["m01"]]) / cells + 0.5) * res
+    area = cells * res * res
+    # Polar second moment of the cells about the centroid (+ each cell's own, res^2 / 6).
+    r_gyr = float(np.sqrt((mom["mu20"] + mom["mu02"]) / cells + 1.0 / 6.0) * res)
+    boundary = lo + (outer[:, 0, :].astype(np.float64) + 0.5) * res  # (P, 2) = (col, row)
+    if _signed_area(boundary) < 0:
+        boundary = boundary[::-1]
+    inside = cv2.distanceTransform(img, cv2.DIST_L2, cv2.DIST_MASK_5)
+    outside = cv2.distanceTransform(1 - img, cv2.DIST_L2, cv2.DIST_MASK_5)
+    sdf = np.where(img > 0, -(inside - 0.5), outside - 0.5).astype(np.float32) * np.float32(res)
+    return TopDownView(image=img, origin=lo, resolution=res, centroid=centroid, area=area,
+                       radius_of_gyration=r_gyr, boundary=boundary, sdf=sdf)
+
+
+def _signed_area(poly: NDArray[np.float64]) -> float:
+    x, y = poly[:, 0], poly[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+
+
+def smooth_outline(boundary: NDArray[np.float64], spacing: float, smoothing: float,
+                   offset: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Smooth, offset and resample a closed counter-clockwise boundary.
+
+    Parameters
+    ----------
+    boundary : (P, 2) float
+        Closed polyline (first point not repeated), counter-clockwise, metres.
+    spacing : float
+        Arc-length spacing of the output points, metres.
+    smoothing : float
+        Standard deviation of the Gaussian applied along the curve, metres (0: none).
+    offset : float
+        Distance the curve is moved along its outward normal, metres.
+
+    Returns
+    -------
+    points, normals : (K, 2) float64
+        Points counter-clockwise at the centres of ``round(length / spacing)`` equal arcs
+        (like ``push_core.shapes.Polygon.outline``) and their outward unit normals.
+    """
+    pts = np.asarray(boundary, dtype=np.float64)
+    closed = np.vstack([pts, pts[:1]])
+    seg = np.linalg.norm(np.diff(closed, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    length = float(s[-1])
+    step = min(spacing / 4.0, max(smoothing / 2.0, 1e-5)) if smoothing > 0 else spacing / 4.0
+    n_dense = max(16, int(math.ceil(length / step)))
+    sd = np.arange(n_dense) * (length / n_dense)
+    x = np.interp(sd, s, closed[:, 0])
+    y = np.interp(sd, s, closed[:, 1])
+    if smoothing > 0:
+        sigma = smoothing / (length / n_dense)
+        x = gaussian_filter1d(x, sigma, mode="wrap")
+        y = gaussian_filter1d(y, sigma, mode="wrap")
+    tx = np.roll(x, -1) - np.roll(x, 1)
+    ty = np.roll(y, -1) - np.roll(y, 1)
+    norm = np.hypot(tx, ty)
+    norm[norm == 0] = 1.0
+    nx, ny = ty / norm, -tx / norm  # outward for a counter-clockwise curve
+    x, y = x + offset * nx, y + offset * ny
+    # Resample by arc length of the smoothed, offset curve.
+    closed = np.stack([np.append(x, x[0]), np.append(y, y[0])], axis=1)
+    seg = np.linalg.norm(np.diff(closed, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    n_out = max(3, int(round(s[-1] / spacing)))
+    so = (np.arange(n_out) + 0.5) * (s[-1] / n_out)
+    px = np.interp(so, s, closed[:, 0])
+    py = np.interp(so, s, closed[:, 1])
+    nxo = np.interp(so, s, np.append(nx, nx[0]))
+    nyo = np.interp(so, s, np.append(ny, ny[0]))
+    nn = np.hypot(nxo, nyo)
+    nn[nn == 0] = 1.0
+    return np.stack([px, py], axis=1), np.stack([nxo / nn, nyo / nn], axis=1)
+
+
+# --------------------------------------------------------------------------------------------
+# Rotation search
+# --------------------------------------------------------------------------------------------
+def _rot(theta: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    return np.cos(theta), np.sin(theta)
+
+
+def chamfer_cost(theta: ArrayLike, ref: TopDownView, ref_points: NDArray[np.float64],
+                 cur: TopDownView, cur_points: NDArray[np.float64],
+                 truncation: float) -> NDArray[np.float64]:
+    """Symmetric truncated chamfer cost of the hypothesis "the object turned by ``theta``
+    (about its centroid) from the reference view to the current one", metres, for every
+    angle in ``theta`` (T,).
+
+    ``ref_points`` / ``cur_points`` (N, 2) are outline points of each view in ``world``. The
+    cost is the mean of ``min(|sdf_ref(R(-theta)(p - c_cur) + c_ref)|, truncation)`` over the
+    current points plus the same with the roles swapped (rotation by ``+theta``), halved.
+    """
+    th = np.atleast_1d(np.asarray(theta, dtype=np.float64))
+    c, s = _rot(th)
+    pc = cur_points - cur.centroid  # (N, 2)
+    qr = ref_points - ref.centroid
+    # Current points rotated back by -theta onto the reference; reference points by +theta.
+    fwd = np.stack([c[:, None] * pc[:, 0] + s[:, None] * pc[:, 1],
+                    -s[:, None] * pc[:, 0] + c[:, None] * pc[:, 1]], axis=-1) + ref.centroid
+    bwd = np.stack([c[:, None] * qr[:, 0] - s[:, None] * qr[:, 1],
+                    s[:, None] * qr[:, 0] + c[:, None] * qr[:, 1]], axis=-1) + cur.centroid
+    d1 = np.minimum(np.abs(ref.sample_sdf(fwd, truncation)), truncation).mean(axis=1)
+    d2 = np.minimum(np.abs(cur.sample_sdf(bwd, truncation)), truncation).mean(axis=1)
+    return 0.5 * (d1 + d2)
+
+
+@dataclass(frozen=True)
+class RotationResult:
+    """Outcome of :func:`rotation_search`.
+
+    Attributes
+    ----------
+    theta : float
+        Chosen rotation (current relative to reference), radians, continuous: within pi of
+        the previous angle.
+    cost : float
+        Chamfer cost at ``theta``, metres.
+    candidates : (K,) float
+        All refined minima within the symmetry tolerance of the best, radians in (-pi, pi].
+    """
+
+    theta: float
+    cost: float
+    candidates: NDArray[np.float64]
+
+
+def rotation_search(ref: TopDownView, ref_points: NDArray[np.float64], cur: TopDownView,
+                    cur_points: NDArray[np.float64], previous: float,
+                    cfg: PerceptionConfig) -> RotationResult:
+    """Rotation of the current view relative to the reference (see the module docstring).
+
+    Parameters
+    ----------
+    ref, cur : TopDownView
+        Reference (first frame) and current views.
+    ref_points, cur_points : (N, 2) float
+        Outline points of each view in ``world``, metres.
+    previous : float
+        Angle reported for the previous frame, radians (0 for the second frame).
+    cfg : PerceptionConfig
+
+    Returns
+    -------
+    RotationResult
+    """
+    trunc = cfg.chamfer_truncation
+    step = math.radians(cfg.coarse_step_deg)
+    n = int(math.ceil(2 * math.pi / step))
+    grid = -math.pi + np.arange(n) * (2 * math.pi / n)
+    # Coarse search on every third point (6 mm apart at the default spacing: plenty).
+    coarse = chamfer_cost(grid, ref, ref_points[::3], cur, cur_points[::3], trunc)
+    left, right = np.roll(coarse, 1), np.roll(coarse, -1)
+    minima = np.nonzero((coarse <= left) & (coarse <= right))[0]
+    # Refine the promising minima (within a generous margin of the coarse best) together.
+    best_coarse = coarse[minima].min()
+    margin = cfg.symmetry_tolerance + 0.5 * best_coarse
+    thetas = grid[minima[coarse[minima] <= best_coarse + margin]]
+    thetas, costs = _refine(thetas, 2 * math.pi / n, math.radians(cfg.angle_tolerance_deg),
+                            ref, ref_points, cur, cur_points, trunc)
+    best = costs.min()
+    close = costs <= best + cfg.symmetry_tolerance
+    cand = _wrap(thetas[close])
+    # The candidate closest to the previous angle, reported continuously around it.
+    deltas = _wrap(cand - previous)
+    k = int(np.argmin(np.abs(deltas)))
+    return RotationResult(theta=float(previous + deltas[k]), cost=float(costs[close][k]),
+                          candidates=cand)
+
+
+def _refine(thetas: NDArray[np.float64], step: float, tol: float, ref: TopDownView,
+            ref_points: NDArray[np.float64], cur: TopDownView, cur_points: NDArray[np.float64],
+            trunc: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Refine several local minima at once (one vectorised cost call per iteration).
+
+    Each iteration evaluates every angle at ``theta + h (-1, -1/2, 0, 1/2, 1)``; if the lowest
+    value is at an end the angle moves there (same ``h``), otherwise it moves to the vertex of
+    the parabola through the lowest value and its two neighbours and ``h`` shrinks by 2.5,
+    until ``h < tol``. The chamfer cost is not quadratic far from its minimum (it is closer
+    to a V with a noise floor), hence the small steps. Returns the angles and their costs.
+    """
+    h = step
+    offsets = np.linspace(-1.0, 1.0, 5)
+    for _ in range(100):  # bounded: each end move covers h, each other iteration shrinks h
+        if h < tol:
+            break
+        c = chamfer_cost((thetas[:, None] + h * offsets).ravel(), ref, ref_points, cur,
+                         cur_points, trunc).reshape(-1, 5)
+        j = np.argmin(c, axis=1)
+        at_end = (j == 0) | (j == 4)
+        jj = np.clip(j, 1, 3)
+        rows = np.arange(len(j))
+        c0, c1, c2 = c[rows, jj - 1], c[rows, jj], c[rows, jj + 1]
+        denom = c0 - 2.0 * c1 + c2
+        vertex = np.where(denom > 0, 0.5 * (c0 - c2) / np.where(denom > 0, denom, 1.0), 0.0)
+        inner = offsets[jj] + 0.5 * np.clip(vertex, -1.0, 1.0)
+        thetas = thetas + h * np.where(at_end, offsets[j], inner)
+        if not np.any(at_end):
+            h /= 2.5
+    return thetas, chamfer_cost(thetas, ref, ref_points, cur, cur_points, trunc)
+
+
+def _wrap(theta: ArrayLike) -> NDArray[np.float64]:
+    """Angles wrapped to (-pi, pi]."""
+    t = np.asarray(theta, dtype=np.float64)
+    return np.pi - np.mod(np.pi - t, 2 * np.pi)
+
+
+# --------------------------------------------------------------------------------------------
+# Covariance
+# --------------------------------------------------------------------------------------------
+def pose_covariance(n_valid: int, valid_fraction: float, area_mismatch: float,
+                    match_cost: float, reference_area: float, radius_of_gyration: float,
+                    cfg: PerceptionConfig) -> NDArray[np.float64]:
+    """Covariance (3, 3) of the measured (x, y, theta), m^2 and rad^2 (module docstring).
+
+    Parameters
+    ----------
+    n_valid : int
+        Mask pixels with a valid depth (>= 1).
+    valid_fraction : float
+        ``n_valid`` over the number of mask pixels, (0, 1].
+    area_mismatch : float
+        ``|A_t / A_0 - 1|`` of the footprint areas (0 on the first frame).
+    match_cost : float
+        Chamfer residual of the rotation search, metres (0 on the first frame).
+    reference_area : float
+        First frame's footprint area, m^2.
+    radius_of_gyration : float
+        First frame's footprint radius of gyration, m.
+    cfg : PerceptionConfig
+    """
+    k = math.sqrt(NOMINAL_PIXELS / max(n_valid, 1)) / max(valid_fraction, 1e-3)
+    sigma_p = cfg.sigma_position * k + area_mismatch * math.sqrt(reference_area) / 2.0
+    sigma_t = cfg.sigma_theta * k + match_cost / max(radius_of_gyration, 1e-3) + area_mismatch
+    return np.diag([sigma_p**2, sigma_p**2, sigma_t**2])
+
+
+# --------------------------------------------------------------------------------------------
+# Episode tracking
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Measurement:
+    """What one frame says about the object.
+
+    Attributes
+    ----------
+    pose : (3,) float
+        ``(x, y, theta)``: area centroid of the footprint in ``world`` (m) and the orientation
+        relative to the episode's first frame (rad, continuous across frames; 0 on the first).
+    covariance : (3, 3) float
+        Of ``pose``, m^2 / rad^2.
+    n_mask, n_valid : int
+        Mask pixels, and those with a valid depth.
+    area : float
+        Footprint area, m^2.
+    match_cost : float
+        Chamfer residual of the rotation search, m (0 on the first frame).
+    candidates : int
+        Number of symmetric orientation candidates (1 for an asymmetric match).
+    is_reference : bool
+        True on the first frame of an episode (the outline was computed from it).
+    """
+
+    pose: NDArray[np.float64]
+    covariance: NDArray[np.float64]
+    n_mask: int
+    n_valid: int
+    area: float
+    match_cost: float
+    candidates: int
+    is_reference: bool
+
+
+class EpisodeTracker:
+    """Pose, relative orientation and outline over one episode (not thread-safe).
+
+    The first successful :meth:`update` after construction or :meth:`reset` fixes the
+    reference: the ``object`` frame (origin at that frame's footprint centroid, axes = world
+    axes) and the outline in it (:attr:`outline`).
+    """
+
+    def __init__(self, cfg: PerceptionConfig | None = None) -> None:
+        self.cfg = PerceptionConfig() if cfg is None else cfg
+        self.reset()
+
+    def reset(self) -> None:
+        """Start a new episode: the next good frame becomes the reference."""
+        self._ref: TopDownView | None = None
+        self._ref_points: NDArray[np.float64] | None = None
+        self._outline: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
+        self._previous = 0.0
+
+    @property
+    def outline(self) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+        """(points, normals) (K, 2) of the episode's outline in the ``object`` frame (metres,
+        counter-clockwise, outward unit normals), or None before the first good frame."""
+        return self._outline
+
+    @property
+    def reference(self) -> TopDownView | None:
+        """The first frame's top-down view (None before the first good frame)."""
+        return self._ref
+
+    def update(self, mask: ArrayLike, depth: ArrayLike, camera_matrix: ArrayLike,
+               t_world_camera: ArrayLike) -> Measurement:
+        """Measure the object in one frame.
+
+        Parameters
+        ----------
+        mask : (H, W) bool
+            Object pixels.
+        depth : (H, W) float
+            z-depth aligned to the mask, metres; NaN/0 = no return.
+        camera_matrix : (3, 3)
+            K, pixels.
+        t_world_camera : (4, 4)
+            world <- camera_color_optical_frame.
+
+        Raises
+        ------
+        PerceptionError
+            With ``kind`` ``"bad_input"``, ``"empty_mask"``, ``"out_of_view"``,
+            ``"few_pixels"`` or ``"no_depth"``; the tracker's state is unchanged.
+        """
+        cfg = self.cfg
+        m, d, k, t = check_frame(mask, depth, camera_matrix, t_world_camera)
+        n_mask = int(np.count_nonzero(m))
+        if n_mask == 0:
+            raise PerceptionError("empty_mask", "the object mask is empty (object not found)")
+        border = int(np.count_nonzero(m[0]) + np.count_nonzero(m[-1])
+                     + np.count_nonzero(m[1:-1, 0]) + np.count_nonzero(m[1:-1, -1]))
+        if border > cfg.max_border_pixels:
+            raise PerceptionError("out_of_view", f"the object touches the image border "
+                                  f"({border} mask pixels on it): partly out of view")
+        if n_mask < cfg.min_pixels:
+            raise PerceptionError("few_pixels", f"only {n_mask} mask pixels (< min_pixels = "
+                                  f"{cfg.min_pixels})")
+        points, _ = object_points(m, d, k, t)
+        n_valid = len(points)
+        fraction = n_valid / n_mask
+        if n_valid < cfg.min_pixels or fraction < cfg.min_valid_fraction:
+            raise PerceptionError("no_depth", f"only {n_valid} of {n_mask} mask pixels have a "
+                                  f"valid depth ({100 * fraction:.0f} %; need >= "
+                                  f"{cfg.min_pixels} and {100 * cfg.min_valid_fraction:.0f} %)")
+        view = top_down_view(points, cfg)
+        pts, normals = smooth_outline(view.boundary, cfg.outline_spacing,
+                                      cfg.outline_smoothing,
+                                      0.5 * cfg.resolution + cfg.outline_offset)
+        if self._ref is None:
+            self._ref, self._ref_points = view, pts
+            self._outline = (pts - view.centroid, normals)
+            self._previous = 0.0
+            cov = pose_covariance(n_valid, fraction, 0.0, 0.0, view.area,
+                                  view.radius_of_gyration, cfg)
+            return Measurement(np.array([*view.centroid, 0.0]), cov, n_mask, n_valid,
+                               view.area, 0.0, 1, True)
+        ref = self._ref
+        rot = rotation_search(ref, self._ref_points, view, pts, self._previous, cfg)
+        self._previous = rot.theta
+        mismatch = abs(view.area / ref.area - 1.0)
+        cov = pose_covariance(n_valid, fraction, mismatch, rot.cost, ref.area,
+                              ref.radius_of_gyration, cfg)
+        return Measurement(np.array([*view.centroid, rot.theta]), cov, n_mask, n_valid,
+                           view.area, rot.cost, len(rot.candidates), False)

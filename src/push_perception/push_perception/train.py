@@ -1,0 +1,350 @@
+"""Training of the segmentation CNN (:mod:`push_perception.model`) on generated data.
+
+``pushbot train segmentation --data DIR`` trains both stages jointly on a data set written by
+``pushbot data perception`` and saves the weights and a model card. CPU only, one intra-op
+thread by default (the machine is shared); the default schedule takes about 25 minutes on the
+project's 2-core machine.
+
+Data preparation (cached under ``DIR/prepared_v<N>/`` as ``.npy`` files, reused while the data
+and this version do not change): for every frame the height map (world z of each pixel, from
+depth, K and the extrinsics), the coarse input (colour and height downscaled by
+``coarse_factor``, ``cv2.INTER_AREA``), the coarse target (the mask's area fraction in each
+coarse output cell), and a ``WINDOW`` x ``WINDOW`` full-resolution window centred on the
+object's bounding box (colour, height, mask; a random window when the frame is empty).
+
+Training (one step = one batch): the coarse net sees the whole downscaled frames; the fine net
+sees a random ``CROP`` x ``CROP`` sub-window of each stored window with the coarse logits
+resampled into it (detached: each stage learns its own job). Loss: binary cross-entropy
+(soft targets for the coarse stage) plus a soft Dice term for the fine stage. Adam with cosine
+learning-rate decay; colour augmentation (per-channel gain and offset, same for both stages).
+The last shard of the data set is held out for validation: the full two-stage
+:class:`~push_perception.model.Segmenter` runs on its full frames and reports mask IoU.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import math
+import time
+import zlib
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["TrainConfig", "add_arguments", "evaluate_iou", "prepare", "run", "train"]
+
+#: Side of the stored full-resolution window around the object, px.
+WINDOW = 200
+#: Side of the random sub-window the fine stage is trained on, px.
+CROP = 160
+#: Version of the prepared cache (bump when ``prepare`` changes).
+PREPARED_VERSION = 1
+#: Where the bundled weights live (relative to the package).
+MODELS_DIR = Path(__file__).resolve().parent / "models"
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Hyper-parameters of a training run.
+
+    Attributes
+    ----------
+    steps : int
+        Optimiser steps.
+    batch : int
+        Frames per step.
+    lr : float
+        Peak learning rate of Adam (cosine decay to 1 % of it).
+    weight_decay : float
+        L2 penalty of Adam.
+    seed : int
+        Seed of initialisation, batch order, crops and augmentation.
+    threads : int
+        torch intra-op threads.
+    val_shards : int
+        Number of final shards held out for validation.
+    """
+
+    steps: int = 3000
+    batch: int = 12
+    lr: float = 3e-3
+    weight_decay: float = 1e-4
+    seed: int = 0
+    threads: int = 1
+    val_shards: int = 1
+
+
+# --------------------------------------------------------------------------------------------
+# Data preparation
+# --------------------------------------------------------------------------------------------
+def _shards(data: Path) -> list[Path]:
+    shards = sorted(p for p in Path(data).glob("shard_*.npz") if not p.name.endswith(".tmp.npz"))
+    if not shards:
+        raise ValueError(f"{data}: no shard_*.npz files (run pushbot data perception first)")
+    return shards
+
+
+def prepare(data: Path, shards: list[Path], seed: int = 0) -> dict[str, NDArray[Any]]:
+    """Training arrays of ``shards`` (cached; see the module docstring).
+
+    Returns
+    -------
+    dict
+        ``small_rgb`` (N, h, w, 3) uint8, ``small_height`` (N, h, w) float16 (m),
+        ``coarse_target`` (N, h/2, w/2) uint8 (area fraction x 255), ``win_rgb``
+        (N, WINDOW, WINDOW, 3) uint8, ``win_height`` (N, WINDOW, WINDOW) float16 (m, NaN = no
+        depth), ``win_mask`` (N, WINDOW, WINDOW) bool, ``win_origin`` (N, 2) int (u0, v0) and
+        ``image_size`` (N, 2) int (W, H).
+    """
+    import cv2
+
+    from push_perception.data import decode_depth
+    from push_perception.model import HeightMap, coarse_factor
+
+    key = ",".join(p.name for p in shards).encode()
+    cache = Path(data) / f"prepared_v{PREPARED_VERSION}" / f"{len(shards)}_{zlib.crc32(key):08x}"
+    names = ("small_rgb", "small_height", "coarse_target", "win_rgb", "win_height", "win_mask",
+             "win_origin", "image_size")
+    if all((cache / f"{n}.npy").exists() for n in names):
+        return {n: np.load(cache / f"{n}.npy") for n in names}
+    rng = np.random.default_rng(seed)
+    heights = HeightMap()
+    out: dict[str, list[NDArray[Any]]] = {n: [] for n in names}
+    from tqdm import tqdm
+
+    for path in tqdm(shards, desc="preparing", unit="shard"):
+        with np.load(path) as z:
+            arrays = {k: z[k] for k in ("rgb", "depth", "mask", "camera_matrix",
+                                         "T_world_camera")}
+        for i in range(len(arrays["rgb"])):
+            rgb, mask = arrays["rgb"][i], arrays["mask"][i]
+            height = heights(decode_depth(arrays["depth"][i]), arrays["camera_matrix"][i],
+                             arrays["T_world_camera"][i])
+            h, w = mask.shape
+            s = coarse_factor(w)
+            small = (round(w / s), round(h / s))
+            out["small_rgb"].append(cv2.resize(rgb, small, interpolation=cv2.INTER_AREA))
+            out["small_height"].append(cv2.resize(np.nan_to_num(height, nan=0.0), small,
+                                                  interpolation=cv2.INTER_AREA)
+                                       .astype(np.float16))
+            target = cv2.resize(mask.astype(np.float32), ((small[0] + 1) // 2,
+                                                          (small[1] + 1) // 2),
+                                interpolation=cv2.INTER_AREA)
+            out["coarse_target"].append(np.round(255 * target).astype(np.uint8))
+            if mask.any():
+                v, u = np.nonzero(mask)
+                cu, cv = 0.5 * (u.min() + u.max()), 0.5 * (v.min() + v.max())
+            else:
+                cu, cv = rng.uniform(0, w), rng.uniform(0, h)
+            u0 = int(np.clip(round(cu - WINDOW / 2), 0, w - WINDOW))
+            v0 = int(np.clip(round(cv - WINDOW / 2), 0, h - WINDOW))
+            win = (slice(v0, v0 + WINDOW), slice(u0, u0 + WINDOW))
+            out["win_rgb"].append(rgb[win])
+            out["win_height"].append(height[win].astype(np.float16))
+            out["win_mask"].append(mask[win])
+            out["win_origin"].append(np.array([u0, v0]))
+            out["image_size"].append(np.array([w, h]))
+    result = {n: np.stack(v) for n, v in out.items()}
+    cache.mkdir(parents=True, exist_ok=True)
+    for n, v in result.items():
+        np.save(cache / f"{n}.npy", v)
+    return result
+
+
+# --------------------------------------------------------------------------------------------
+# Training
+# --------------------------------------------------------------------------------------------
+def train(data: Path, cfg: TrainConfig, progress: bool = True) -> tuple[Any, dict[str, Any]]:
+    """Train a :class:`~push_perception.model.SegmentationNet`; returns it and a report.
+
+    The report holds the configuration, the data set's meta data, the number of training and
+    validation frames, the loss curve (every 50 steps), the wall time and the validation
+    metrics of :func:`evaluate_iou`.
+    """
+    import torch
+    import torch.nn.functional as F
+
+    from push_perception.model import HEIGHT_SCALE, SegmentationNet, Segmenter, crop_grid
+
+    torch.set_num_threads(cfg.threads)
+    torch.manual_seed(cfg.seed)
+    shards = _shards(data)
+    if len(shards) <= cfg.val_shards:
+        raise ValueError(f"{data}: {len(shards)} shard(s), need more than val_shards = "
+                         f"{cfg.val_shards}")
+    train_shards, val_shards = shards[:-cfg.val_shards], shards[-cfg.val_shards:]
+    arrays = prepare(data, train_shards, cfg.seed)
+    n = len(arrays["small_rgb"])
+    rng = np.random.default_rng(cfg.seed)
+    net = SegmentationNet()
+    opt = torch.optim.Adam(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    sched = torch.optim.lr_scheduler.LambdaLR(
+        opt, lambda k: 0.01 + 0.99 * 0.5 * (1 + math.cos(math.pi * min(k, cfg.steps) / cfg.steps)))
+    small_rgb = torch.from_numpy(arrays["small_rgb"])
+    small_h = torch.from_numpy(arrays["small_height"])
+    target_c = torch.from_numpy(arrays["coarse_target"])
+    win_rgb = torch.from_numpy(arrays["win_rgb"])
+    win_h = torch.from_numpy(arrays["win_height"])
+    win_m = torch.from_numpy(arrays["win_mask"])
+    curve: list[tuple[int, float, float]] = []
+    started = time.monotonic()
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=cfg.steps, desc="training", unit="step")
+    net.train()
+    run_c = run_f = 0.0
+    for step in range(cfg.steps):
+        idx = torch.from_numpy(rng.integers(0, n, cfg.batch))
+        gain = torch.from_numpy(rng.uniform(0.8, 1.2, (cfg.batch, 3, 1, 1))).float()
+        shift = torch.from_numpy(rng.uniform(-0.08, 0.08, (cfg.batch, 1, 1, 1))).float()
+
+        coarse = net.coarse(_inputs(small_rgb[idx], small_h[idx], gain, shift, HEIGHT_SCALE))
+        loss_c = F.binary_cross_entropy_with_logits(coarse[:, 0], target_c[idx].float() / 255.0)
+        offs = rng.integers(0, WINDOW - CROP + 1, (cfg.batch, 2))
+        rows = [slice(o[1], o[1] + CROP) for o in offs]
+        cols = [slice(o[0], o[0] + CROP) for o in offs]
+        crop_rgb = torch.stack([win_rgb[i, r, c] for i, r, c in zip(idx, rows, cols,
+                                                                       strict=True)])
+        crop_h = torch.stack([win_h[i, r, c] for i, r, c in zip(idx, rows, cols, strict=True)])
+        crop_m = torch.stack([win_m[i, r, c] for i, r, c in zip(idx, rows, cols, strict=True)])
+        grids = []
+        for b, i in enumerate(idx.tolist()):
+            u0 = int(arrays["win_origin"][i, 0] + offs[b, 0])
+            v0 = int(arrays["win_origin"][i, 1] + offs[b, 1])
+            grids.append(crop_grid((u0, v0, u0 + CROP, v0 + CROP),
+                                   tuple(int(v) for v in arrays["image_size"][i])))
+        sampled = F.grid_sample(coarse.detach(), torch.cat(grids), mode="bilinear",
+                                padding_mode="border", align_corners=False)
+        fine = net.fine(torch.cat([_inputs(crop_rgb, crop_h, gain, shift, HEIGHT_SCALE), sampled],
+                                   dim=1))[:, 0]
+        target_f = crop_m.float()
+        prob = torch.sigmoid(fine)
+        dice = 1 - (2 * (prob * target_f).sum((1, 2)) + 1) / (prob.sum((1, 2))
+                                                              + target_f.sum((1, 2)) + 1)
+        loss_f = F.binary_cross_entropy_with_logits(fine, target_f) + 0.5 * dice.mean()
+        loss = loss_c + loss_f
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+        sched.step()
+        run_c += loss_c.item()
+        run_f += loss_f.item()
+        if (step + 1) % 50 == 0:
+            curve.append((step + 1, run_c / 50, run_f / 50))
+            if bar is not None:
+                bar.set_postfix(coarse=f"{run_c / 50:.4f}", fine=f"{run_f / 50:.4f}")
+            run_c = run_f = 0.0
+        if bar is not None:
+            bar.update(1)
+    if bar is not None:
+        bar.close()
+    minutes = (time.monotonic() - started) / 60.0
+    net.eval()
+    metrics = evaluate_iou(Segmenter(net), val_shards)
+    meta = json.loads((Path(data) / "meta.json").read_text()) \
+        if (Path(data) / "meta.json").exists() else {}
+    report = {"train_config": asdict(cfg), "data": str(data), "data_meta": meta,
+              "train_frames": n, "val_shards": [p.name for p in val_shards],
+              "train_minutes": round(minutes, 1), "loss_curve": curve,
+              "validation": metrics,
+              "parameters": sum(p.numel() for p in net.parameters()),
+              "date": datetime.datetime.now(datetime.UTC).date().isoformat()}
+    return net, report
+
+
+def _inputs(rgb: Any, height: Any, gain: Any, shift: Any, height_scale: float) -> Any:
+    """Network input (B, 4, h, w) from uint8 colour (B, h, w, 3) and float16 height (B, h, w)
+    (metres), with the colour augmentation ``gain`` (B, 3, 1, 1) and ``shift`` (B, 1, 1, 1);
+    the same normalisation as :func:`push_perception.model.normalise_inputs`."""
+    import torch
+
+    colour = (rgb.permute(0, 3, 1, 2).float() / 255.0 - 0.5) * gain + shift
+    h = torch.nan_to_num(height.float() / height_scale, nan=0.0).clamp(-1.0, 4.0)
+    return torch.cat([colour, h[:, None]], dim=1)
+
+
+def evaluate_iou(segmenter: Any, shards: list[Path]) -> dict[str, float]:
+    """Mask IoU of ``segmenter`` on every frame of ``shards`` (full frames, full pipeline).
+
+    Frames whose true mask is empty count as correct when the prediction is empty too (IoU
+    1) and wrong otherwise (IoU 0).
+
+    Returns
+    -------
+    dict
+        ``frames``, ``iou_median``, ``iou_mean``, ``iou_p10`` and ``empty_correct`` (the
+        fraction of empty frames predicted empty; NaN without empty frames).
+    """
+    from push_perception.data import decode_depth
+
+    ious, empties = [], []
+    for path in shards:
+        with np.load(path) as z:
+            arrays = {k: z[k] for k in ("rgb", "depth", "mask", "camera_matrix",
+                                         "T_world_camera")}
+        for i in range(len(arrays["rgb"])):
+            truth = arrays["mask"][i]
+            pred = segmenter(arrays["rgb"][i], decode_depth(arrays["depth"][i]),
+                             arrays["camera_matrix"][i], arrays["T_world_camera"][i]).mask
+            union = np.count_nonzero(truth | pred)
+            iou = 1.0 if union == 0 else np.count_nonzero(truth & pred) / union
+            ious.append(iou)
+            if not truth.any():
+                empties.append(not pred.any())
+    a = np.array(ious)
+    return {"frames": len(a), "iou_median": float(np.median(a)), "iou_mean": float(a.mean()),
+            "iou_p10": float(np.quantile(a, 0.1)),
+            "empty_correct": float(np.mean(empties)) if empties else float("nan")}
+
+
+def save(net: Any, report: dict[str, Any], out: Path, command: str) -> None:
+    """Write the weights to ``out`` (a ``.pt`` with ``state_dict`` and ``report``) and the
+    report as JSON next to it (``out`` with suffix ``.json``)."""
+    import torch
+
+    out.parent.mkdir(parents=True, exist_ok=True)
+    report = {**report, "command": command}
+    torch.save({"state_dict": net.state_dict(), "report": report}, out)
+    out.with_suffix(".json").write_text(json.dumps(report, indent=2) + "\n")
+
+
+# --------------------------------------------------------------------------------------------
+# Command line: pushbot train segmentation
+# --------------------------------------------------------------------------------------------
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``pushbot train segmentation``."""
+    d = TrainConfig()
+    parser.add_argument("--data", type=Path, default=Path("out/perception_data"),
+                        help="data set of `pushbot data perception` (default out/perception_data)")
+    parser.add_argument("--out", type=Path, default=MODELS_DIR / "segmentation.pt",
+                        help="weights file (default: the bundled models/segmentation.pt)")
+    parser.add_argument("--steps", type=int, default=d.steps, help=f"steps (default {d.steps})")
+    parser.add_argument("--batch", type=int, default=d.batch, help=f"batch (default {d.batch})")
+    parser.add_argument("--lr", type=float, default=d.lr, help=f"learning rate (default {d.lr})")
+    parser.add_argument("--seed", type=int, default=d.seed, help=f"seed (default {d.seed})")
+    parser.add_argument("--threads", type=int, default=d.threads,
+                        help=f"torch threads (default {d.threads}: the machine is shared)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``pushbot train segmentation``; returns the exit code."""
+    import sys
+
+    cfg = TrainConfig(steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed,
+                      threads=args.threads)
+    net, report = train(args.data, cfg, progress=not args.no_progress)
+    command = "pushbot " + " ".join(sys.argv[1:]) if sys.argv[1:] else "pushbot train segmentation"
+    save(net, report, args.out, command)
+    v = report["validation"]
+    print(f"trained {report['train_minutes']} min on {report['train_frames']} frames; "
+          f"validation IoU median {v['iou_median']:.4f} (mean {v['iou_mean']:.4f}, p10 "
+          f"{v['iou_p10']:.4f}) on {v['frames']} frames; weights: {args.out}")
+    return 0
