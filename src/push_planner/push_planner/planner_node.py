@@ -1,54 +1,561 @@
-"""planner_node: greedy affordance-based push planner (not implemented yet).
+"""``planner_node``: the greedy affordance-based push planner behind ROS 2 topics (issue 6).
 
-Placeholder: the node is tracked in issue 6. ``main()`` says so and exits with status 2; it
-does not pretend to run. The contract below is the one fixed in ``docs/ARCHITECTURE.md``; the
-planner itself will live in ``push_core`` (no ROS imports), this node being a thin wrapper.
+A thin wrapper around :class:`push_core.planner.Planner` (SPEC section 2 steps 4-5; units,
+scores and the algorithm are documented there): it pairs the estimator's outputs into
+estimates, decides when to plan, and converts messages (:mod:`push_planner.conversions`).
 
-Future contract
----------------
-One push per cycle: score every outline point against the desired motion (goal minus current
-estimate), sample contact points, optimise the push with rollouts of the analytical model, and
-send the best push to the sim bridge.
+Subscriptions (names relative and remappable; QoS as in ``docs/ARCHITECTURE.md``):
 
-Subscribes (names relative and remappable except ``/clock``):
+- ``estimator/state`` (std_msgs/Float64MultiArray; reliable): ``x, y, theta, c_x, c_y, l, m``
+  then the 7 x 7 covariance (layout dims ``state`` 7, ``covariance_row_major`` 49).
+- ``estimator/object_pose`` (geometry_msgs/PoseWithCovarianceStamped, ``world``; reliable):
+  the same estimate's pose with its **stamp**; the state message has none.
+- ``perception/outline`` (sensor_msgs/PointCloud2, ``object``; latched): x, y, z, normal_x,
+  normal_y, normal_z float32, counter-clockwise, outward normals.
+- ``goal_pose`` (geometry_msgs/PoseStamped, ``world``; reliable): RViz's "2D Goal Pose". A new
+  goal starts a new episode (step 0).
+- ``pusher/executed`` (nav_msgs/Path, ``world``; reliable): the executed push; its header stamp
+  (= the stamp of its last pose) is the time the push ended.
+- ``/clock`` (``use_sim_time: true`` in the pipeline).
 
-- ``estimator/state`` (std_msgs/Float64MultiArray, layout as in ARCHITECTURE.md; "reliable")
-- ``estimator/object_pose`` (geometry_msgs/PoseWithCovarianceStamped, ``world``; "reliable")
-- ``perception/outline`` (sensor_msgs/PointCloud2, ``object`` frame, outward normals;
-  "latched")
-- ``goal_pose`` (geometry_msgs/PoseStamped, ``world``; "reliable"; RViz "2D Goal Pose")
-- ``/clock`` (rosgraph_msgs/Clock; ``use_sim_time: true``)
+Publications:
 
-Publishes:
+- ``planner/push`` (nav_msgs/Path, ``world``; reliable): 3 poses, approach, contact (pusher
+  axis touching the outline), end; z = 0, oriented along the push, pose stamps = when a pusher
+  moving at ``push_speed`` from the approach point at the path's stamp reaches them.
+- ``planner/affordances`` (visualization_msgs/MarkerArray, ``world``; reliable): outline
+  coloured by eq. (5.1) score (green = best), the sampled candidates, the chosen push
+  (:func:`push_planner.conversions.affordance_markers`).
+- ``planner/status`` (diagnostic_msgs/DiagnosticStatus; latched): ``message`` starts with
+  ``waiting``, ``pushing step n``, ``goal reached`` or ``failed`` (``failed after max steps``,
+  ``failed: no feasible push``), followed by `` - <reason>`` after a refused input; level OK,
+  WARN (input refused, push lost) or ERROR (failed). ``values``: ``state`` (waiting | pushing |
+  reached | failed), ``step``, ``max_steps``, ``goal``, counters (``estimates``,
+  ``planned``, ``ignored_stale``, ``ignored_duplicate``, ``ignored_busy``, ``refused``),
+  ``last_refusal``, ``last_push_end``.
+- ``/diagnostics`` (diagnostic_msgs/DiagnosticArray; reliable): the same status, 1 Hz and on
+  every change.
 
-- ``planner/push`` (nav_msgs/Path, ``world``; "reliable"): 3 poses: approach point, contact
-  point, end point
-- ``planner/affordances`` (visualization_msgs/MarkerArray, ``world``; "reliable")
-- ``planner/status`` (diagnostic_msgs/DiagnosticStatus; "latched"): ``message`` is waiting /
-  pushing step n / goal reached / failed after max steps; ``values`` carry step, max_steps,
-  state
-- ``/diagnostics`` (diagnostic_msgs/DiagnosticArray; one status for this node)
+Services: ``~/reset`` (std_srvs/srv/Trigger): new episode (step 0, no push in flight, estimates
+forgotten); goal and outline are kept (the goal is a one-shot message, the outline latched).
 
-Services: ``~/reset`` (std_srvs/srv/Trigger) starts a new episode.
+When it plans (the stale-estimate rule). An *estimate* is an ``estimator/object_pose``
+message together with the ``estimator/state`` message of the same pose (x, y equal to 1 um,
+theta to 1 urad modulo 2 pi; either may arrive first; the last 10 of each are kept for
+pairing); its time is the pose message's stamp. The node plans **exactly once per estimate**
+that is
 
-Parameters: ``use_sim_time`` (true with sim_bridge); planner parameters (number of sampled
-contact points, lambda, push lengths, tolerances) are added by issue 6 and documented in
-``ros_ws/config/push_planner.yaml``.
+1. newer than every estimate it already used (a re-sent or older estimate is ignored,
+   ``ignored_duplicate``),
+2. not older than the end of the last executed push (``stamp >= pusher/executed`` end stamp;
+   otherwise ``ignored_stale``: it predates the push's effect), and
+3. received while no push of its own is in flight (published but not yet reported on
+   ``pusher/executed``; ``ignored_busy``) -- the newest such estimate is remembered and used
+   as soon as the push is reported, if it satisfies 1-2 then,
+
+and only while an outline and a goal are known and the episode is running. Before planning,
+the goal check: within ``goal_tolerance`` -> ``goal reached``; ``max_steps`` pushes sent ->
+``failed after max steps``. A new goal re-opens the newest estimate once (the same pose, a new
+question; it is still fresh: nothing has moved since). A push that is not reported within
+``push_timeout`` seconds (wall time; e.g. the robot refused it) counts as a step; the node then
+plans again from the newest fresh estimate (nothing has moved, so it is not stale).
+
+Bad input is refused with a warning log, a WARN status and the ``refused`` counter; the node
+keeps running: goals with NaN/inf, non-unit or non-planar quaternions, another frame, or off
+the workspace; outlines that are empty, malformed, in another frame or not a valid polygon;
+states with NaN or a bad layout; estimates a plan cannot use (l <= 0).
+
+Parameters (declared once below with descriptors; documented with defaults and units in
+``ros_ws/config/push_planner.yaml``; all read-only, read at start-up and validated by building
+the :class:`~push_core.planner.PlannerConfig`, so a bad value fails start-up with a message
+naming the parameter): ``method``, ``direct``, ``k``, ``lambda``, ``temperature``,
+``goal_tolerance.xy``, ``goal_tolerance.theta``, ``max_steps``, ``push_speed``,
+``approach_clearance``, ``pusher_radius``, ``workspace.{x_min,x_max,y_min,y_max}``,
+``push_timeout``, ``seed``, ``lrn_weights``.
+
+Frames: ``world`` (table, z up), ``object`` (outline). Time: ``use_sim_time`` (the node's
+clock stamps the plans; estimates and pushes carry their own stamps, which is all the
+stale-estimate rule compares); the push timeout runs on the steady clock.
 """
 
 from __future__ import annotations
 
-import sys
+import math
+from collections import deque
+from dataclasses import dataclass
+from typing import Any
 
-NODE_NAME = 'planner_node'
-ISSUE = 6
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
+from nav_msgs.msg import Path
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.clock import Clock, ClockType
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import PointCloud2
+from std_msgs.msg import Float64MultiArray
+from std_srvs.srv import Trigger
+from visualization_msgs.msg import MarkerArray
+
+from push_core.geometry import wrap_angle
+from push_core.planner import (
+    NoFeasiblePush,
+    Outline,
+    Planner,
+    PlannerConfig,
+    prepare_outline,
+)
+from push_planner.conversions import (
+    affordance_markers,
+    estimate_from_msg,
+    goal_from_msg,
+    outline_from_cloud,
+    push_path,
+    seconds_from_stamp,
+    state_from_msg,
+    status_msg,
+)
+
+__all__ = ["PARAMETERS", "PlannerNode", "PlannerNodeParams", "main"]
+
+RELIABLE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
+                          reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.VOLATILE)
+LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                         reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: Period of /diagnostics and of the push-timeout check, seconds of wall time.
+DIAGNOSTICS_PERIOD_S = 1.0
+#: Pairing tolerances of estimator/object_pose and estimator/state (m, rad).
+PAIR_TOLERANCE_XY = 1e-6
+PAIR_TOLERANCE_THETA = 1e-6
+#: Poses and states kept for pairing.
+PAIR_BUFFER = 10
+
+
+@dataclass(frozen=True)
+class _ParamSpec:
+    name: str
+    default: Any
+    description: str
+    bounds: tuple[float, float] | None = None
+
+
+PARAMETERS: tuple[_ParamSpec, ...] = (
+    _ParamSpec("method", "ana", "Contact selection: ana | lrn (softmax over eq. 5.1 with "
+               "analytical / learned affordances), geo | rdn (geometric / uniform baselines)."),
+    _ParamSpec("direct", False, "Choose the push from the affordances with linear length "
+               "rescaling instead of optimising it with rollouts."),
+    _ParamSpec("k", 3, "Contact points sampled per step.", (1, 1000)),
+    _ParamSpec("lambda", 2.0, "Rotation weight of eq. 5.1, millimetres per degree.",
+               (0.0, 1000.0)),
+    _ParamSpec("temperature", 2.0, "Softmax temperature of the contact sampling, millimetres "
+               "(score units), > 0.", (0.0, 1e6)),
+    _ParamSpec("goal_tolerance.xy", 0.0075, "Goal position tolerance, m.", (1e-4, 1.0)),
+    _ParamSpec("goal_tolerance.theta", math.radians(5.0), "Goal orientation tolerance, rad.",
+               (1e-4, math.pi)),
+    _ParamSpec("max_steps", 30, "Pushes per episode before it fails.", (1, 100000)),
+    _ParamSpec("push_speed", 0.02, "Pusher speed the plan's pose stamps assume, m/s.",
+               (1e-3, 0.5)),
+    _ParamSpec("approach_clearance", 0.005, "Approach point before the touching position, m.",
+               (1e-3, 0.1)),
+    _ParamSpec("pusher_radius", 0.0048, "Radius of the cylindrical pusher, m.", (0.0, 0.05)),
+    _ParamSpec("workspace.x_min", -0.25, "Workspace rectangle in world (goals and every pusher "
+               "point must lie inside), m.", (-10.0, 10.0)),
+    _ParamSpec("workspace.x_max", 0.25, "See workspace.x_min, m.", (-10.0, 10.0)),
+    _ParamSpec("workspace.y_min", -0.3, "See workspace.x_min, m.", (-10.0, 10.0)),
+    _ParamSpec("workspace.y_max", 0.3, "See workspace.x_min, m.", (-10.0, 10.0)),
+    _ParamSpec("push_timeout", 30.0, "Wall-clock seconds to wait for pusher/executed before a "
+               "push counts as lost.", (0.1, 3600.0)),
+    _ParamSpec("seed", 0, "Seed of the contact sampling (re-seeded on ~/reset).", (0, 2**31 - 1)),
+    _ParamSpec("lrn_weights", "", "Weights of the learned affordance model (method lrn); "
+               "empty = the bundled model."),
+)
+
+# PlannerConfig field -> parameter name, for error messages.
+_FIELD_TO_PARAM = {
+    "lam": "lambda", "tolerance_xy": "goal_tolerance.xy",
+    "tolerance_theta": "goal_tolerance.theta", "workspace": "workspace.x_min/x_max/y_min/y_max",
+}
+
+
+@dataclass(frozen=True)
+class PlannerNodeParams:
+    """The node's parameters, typed and validated.
+
+    Attributes
+    ----------
+    planner : PlannerConfig
+        Everything the planning core uses (validated by its constructor).
+    max_steps : int
+        Pushes per episode.
+    push_speed : float
+        m/s.
+    push_timeout : float
+        s of wall time.
+    lrn_weights : str
+        Path of the learned model's weights, "" = bundled.
+    """
+
+    planner: PlannerConfig
+    max_steps: int
+    push_speed: float
+    push_timeout: float
+    lrn_weights: str
+
+    @classmethod
+    def from_values(cls, values: dict[str, Any]) -> PlannerNodeParams:
+        """Build from ``{parameter name: value}``.
+
+        Raises
+        ------
+        ValueError
+            Naming the parameter.
+        """
+        try:
+            config = PlannerConfig(
+                method=str(values["method"]).strip(), direct=bool(values["direct"]),
+                k=int(values["k"]), lam=values["lambda"], temperature=values["temperature"],
+                tolerance_xy=values["goal_tolerance.xy"],
+                tolerance_theta=values["goal_tolerance.theta"],
+                pusher_radius=values["pusher_radius"],
+                approach_clearance=values["approach_clearance"],
+                workspace=((values["workspace.x_min"], values["workspace.x_max"]),
+                           (values["workspace.y_min"], values["workspace.y_max"])),
+                seed=int(values["seed"]))
+        except ValueError as exc:
+            field, _, rest = str(exc).partition(":")
+            raise ValueError(f"parameter '{_FIELD_TO_PARAM.get(field, field)}':{rest}") from None
+        for name in ("max_steps", "push_speed", "push_timeout"):
+            if not values[name] > 0:
+                raise ValueError(f"parameter '{name}': must be > 0, got {values[name]!r}")
+        return cls(planner=config, max_steps=int(values["max_steps"]),
+                   push_speed=float(values["push_speed"]),
+                   push_timeout=float(values["push_timeout"]),
+                   lrn_weights=str(values["lrn_weights"]))
+
+
+def _descriptor(spec: _ParamSpec) -> ParameterDescriptor:
+    desc = ParameterDescriptor(description=spec.description, read_only=True)
+    if spec.bounds is not None:
+        low, high = spec.bounds
+        if isinstance(spec.default, int) and not isinstance(spec.default, bool):
+            desc.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=1)]
+        else:
+            desc.floating_point_range = [
+                FloatingPointRange(from_value=float(low), to_value=float(high), step=0.0)]
+    return desc
+
+
+def _load_learned_model(weights: str) -> Any:
+    """The learned affordance model (``push_core.learned``), ``ValueError`` if unavailable."""
+    try:
+        from push_core.learned import load_affordance_model
+    except ImportError as exc:
+        raise ValueError(f"parameter 'method': lrn needs push_core.learned ({exc})") from None
+    from push_planner.models import default_weights
+
+    path = weights or str(default_weights())
+    try:
+        return load_affordance_model(path)
+    except (OSError, ValueError, RuntimeError) as exc:
+        raise ValueError(f"parameter 'lrn_weights': cannot load {path!r}: {exc}") from None
+
+
+class PlannerNode(Node):
+    """ROS wrapper of :class:`push_core.planner.Planner`; see the module docstring.
+
+    Raises
+    ------
+    ValueError, rclpy.exceptions.ParameterException
+        At construction, if a parameter is invalid (the message names it).
+    """
+
+    def __init__(self, node_name: str = "planner_node", **kwargs: Any) -> None:
+        super().__init__(node_name, **kwargs)
+        for spec in PARAMETERS:
+            self.declare_parameter(spec.name, spec.default, _descriptor(spec))
+        self.params = PlannerNodeParams.from_values(
+            {spec.name: self.get_parameter(spec.name).value for spec in PARAMETERS})
+        model = (_load_learned_model(self.params.lrn_weights)
+                 if self.params.planner.method == "lrn" else None)
+        self._model = model
+        self._planner = Planner(self.params.planner, affordance_model=model)
+
+        self._outline: Outline | None = None
+        self._goal: np.ndarray | None = None
+        self._goal_seq = 0
+        self._poses: deque[tuple[float, np.ndarray]] = deque(maxlen=PAIR_BUFFER)
+        self._states: deque[np.ndarray] = deque(maxlen=PAIR_BUFFER)
+        self._counts = {"estimates": 0, "planned": 0, "ignored_stale": 0,
+                        "ignored_duplicate": 0, "ignored_busy": 0, "refused": 0}
+        self._last_refusal = ""
+        self._last_push_end = -math.inf
+        self._new_episode()
+
+        self._pub_push = self.create_publisher(Path, "planner/push", RELIABLE_QOS)
+        self._pub_markers = self.create_publisher(MarkerArray, "planner/affordances",
+                                                  RELIABLE_QOS)
+        self._pub_status = self.create_publisher(DiagnosticStatus, "planner/status", LATCHED_QOS)
+        self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", RELIABLE_QOS)
+        self.create_subscription(Float64MultiArray, "estimator/state", self._on_state,
+                                 RELIABLE_QOS)
+        self.create_subscription(PoseWithCovarianceStamped, "estimator/object_pose",
+                                 self._on_pose, RELIABLE_QOS)
+        self.create_subscription(PointCloud2, "perception/outline", self._on_outline,
+                                 LATCHED_QOS)
+        self.create_subscription(PoseStamped, "goal_pose", self._on_goal, RELIABLE_QOS)
+        self.create_subscription(Path, "pusher/executed", self._on_executed, RELIABLE_QOS)
+        self.create_service(Trigger, "~/reset", self._on_reset)
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._steady = steady
+        self.create_timer(DIAGNOSTICS_PERIOD_S, self._on_timer, clock=steady)
+        cfg = self.params.planner
+        self.get_logger().info(
+            f"planner ready: method {cfg.method}{' (direct)' if cfg.direct else ''}, k {cfg.k}, "
+            f"lambda {cfg.lam} mm/deg, temperature {cfg.temperature} mm, tolerance "
+            f"{cfg.tolerance_xy} m / {math.degrees(cfg.tolerance_theta):.2f} deg, max steps "
+            f"{self.params.max_steps}")
+        self._publish_status()
+
+    # ---- episode -----------------------------------------------------------------------------
+    def _new_episode(self) -> None:
+        self._state = "waiting"
+        self._failure = ""
+        self._step = 0
+        self._in_flight = False
+        self._in_flight_since = 0.0
+        self._latest: tuple[float, np.ndarray] | None = None
+        self._used_stamp = -math.inf
+        self._used_goal_seq = -1
+        self._note = ""
+        self._level = DiagnosticStatus.OK
+        self._poses.clear()
+        self._states.clear()
+
+    def _on_reset(self, request: Trigger.Request, response: Trigger.Response
+                  ) -> Trigger.Response:
+        self._new_episode()
+        self._planner = Planner(self.params.planner, affordance_model=self._model)
+        self.get_logger().info("reset: new episode (goal and outline kept)")
+        self._publish_status()
+        response.success = True
+        response.message = "new episode: step 0, estimates forgotten, goal and outline kept"
+        return response
+
+    # ---- inputs ------------------------------------------------------------------------------
+    def _refuse(self, what: str, reason: str) -> None:
+        self._counts["refused"] += 1
+        self._last_refusal = f"{what}: {reason}"
+        self._note = f"refused {what}: {reason}"
+        self._level = DiagnosticStatus.WARN
+        self.get_logger().warning(f"refused {what}: {reason}")
+        self._publish_status()
+
+    def _on_goal(self, msg: PoseStamped) -> None:
+        try:
+            goal = goal_from_msg(msg, self.params.planner.workspace)
+        except ValueError as exc:
+            self._refuse("goal_pose", str(exc))
+            return
+        self._goal = goal
+        self._goal_seq += 1
+        self._state, self._step, self._failure = "waiting", 0, ""
+        self._note, self._level = "", DiagnosticStatus.OK
+        self.get_logger().info(f"new goal (x {goal[0]:.4f} m, y {goal[1]:.4f} m, theta "
+                               f"{goal[2]:.4f} rad): new episode")
+        self._try_plan()
+        self._publish_status()
+
+    def _on_outline(self, msg: PointCloud2) -> None:
+        try:
+            points, normals = outline_from_cloud(msg)
+            outline = prepare_outline(points, normals,
+                                      simplify_tolerance=self.params.planner.simplify_tolerance)
+        except ValueError as exc:
+            self._refuse("perception/outline", str(exc))
+            return
+        self._outline = outline
+        self.get_logger().info(f"outline with {len(outline.points)} points "
+                               f"({len(outline.polyline)}-vertex contact polyline)")
+        self._try_plan()
+        self._publish_status()
+
+    def _on_pose(self, msg: PoseWithCovarianceStamped) -> None:
+        try:
+            pose, stamp = estimate_from_msg(msg)
+        except ValueError as exc:
+            self._refuse("estimator/object_pose", str(exc))
+            return
+        self._poses.append((stamp, pose))
+        self._pair()
+
+    def _on_state(self, msg: Float64MultiArray) -> None:
+        try:
+            state, _ = state_from_msg(msg)
+        except ValueError as exc:
+            self._refuse("estimator/state", str(exc))
+            return
+        self._states.append(state)
+        self._pair()
+
+    def _pair(self) -> None:
+        """Pair the newest pose with a state of the same pose; see the module docstring."""
+        for i in range(len(self._poses) - 1, -1, -1):
+            stamp, pose = self._poses[i]
+            for state in reversed(self._states):
+                if (math.hypot(*(state[:2] - pose[:2])) <= PAIR_TOLERANCE_XY
+                        and abs(float(wrap_angle(state[2] - pose[2]))) <= PAIR_TOLERANCE_THETA):
+                    for _ in range(i + 1):  # this pose and older ones are done
+                        self._poses.popleft()
+                    self._on_estimate(stamp, state)
+                    return
+
+    def _on_estimate(self, stamp: float, state: np.ndarray) -> None:
+        self._counts["estimates"] += 1
+        if self._latest is None or stamp >= self._latest[0]:
+            self._latest = (stamp, state.copy())
+        if stamp < self._last_push_end:
+            self._counts["ignored_stale"] += 1
+        elif stamp <= self._used_stamp and self._used_goal_seq == self._goal_seq:
+            self._counts["ignored_duplicate"] += 1
+        elif self._in_flight:
+            self._counts["ignored_busy"] += 1
+        else:
+            self._try_plan()
+        self._publish_status()
+
+    def _on_executed(self, msg: Path) -> None:
+        if msg.header.frame_id != "world" or not msg.poses:
+            self._refuse("pusher/executed", f"expected poses in 'world', got "
+                         f"{len(msg.poses)} poses in {msg.header.frame_id!r}")
+            return
+        end = max([seconds_from_stamp(msg.header.stamp)]
+                  + [seconds_from_stamp(p.header.stamp) for p in msg.poses])
+        self._last_push_end = max(self._last_push_end, end)
+        self._in_flight = False
+        self._try_plan()
+        self._publish_status()
+
+    def _on_timer(self) -> None:
+        if self._in_flight and (self._steady_now() - self._in_flight_since
+                                > self.params.push_timeout):
+            self._in_flight = False
+            self._used_stamp = -math.inf  # nothing moved: the newest estimate is still fresh
+            self._note = (f"push of step {self._step} not reported on pusher/executed within "
+                          f"{self.params.push_timeout} s; counted as a step")
+            self._level = DiagnosticStatus.WARN
+            self.get_logger().warning(self._note)
+            self._try_plan()
+            self._publish_status()
+        self._publish_diagnostics()
+
+    def _steady_now(self) -> float:
+        return self._steady.now().nanoseconds * 1e-9
+
+    # ---- planning ----------------------------------------------------------------------------
+    def _try_plan(self) -> None:
+        """Plan from the newest estimate if the stale-estimate rule allows it."""
+        if self._latest is None or self._goal is None or self._outline is None:
+            return
+        if self._state in ("reached", "failed") or self._in_flight:
+            return
+        stamp, state = self._latest
+        if stamp < self._last_push_end:
+            return
+        if stamp <= self._used_stamp and self._used_goal_seq == self._goal_seq:
+            return
+        self._used_stamp, self._used_goal_seq = stamp, self._goal_seq
+        if self._planner.reached(state[:3], self._goal):
+            self._state, self._note, self._level = "reached", "", DiagnosticStatus.OK
+            self.get_logger().info(f"goal reached after {self._step} pushes")
+            return
+        if self._step >= self.params.max_steps:
+            self._state, self._failure = "failed", "failed after max steps"
+            self._level = DiagnosticStatus.ERROR
+            self.get_logger().error(f"goal not reached after {self._step} pushes")
+            return
+        try:
+            plan = self._planner.plan(self._outline, state, self._goal)
+        except ValueError as exc:
+            self._refuse("estimate", str(exc))
+            return
+        except NoFeasiblePush as exc:
+            self._state, self._failure = "failed", "failed: no feasible push"
+            self._level = DiagnosticStatus.ERROR
+            self.get_logger().error(f"no feasible push: {exc}")
+            return
+        self._step += 1
+        self._state, self._note, self._level = "pushing", "", DiagnosticStatus.OK
+        self._counts["planned"] += 1
+        now = self.get_clock().now()
+        self._pub_push.publish(push_path(plan.approach, plan.contact, plan.end,
+                                         now.nanoseconds * 1e-9, self.params.push_speed))
+        self._pub_markers.publish(affordance_markers(self._outline, state[:3], plan, now.to_msg()))
+        self._in_flight, self._in_flight_since = True, self._steady_now()
+        self.get_logger().info(
+            f"step {self._step}: push at outline point {plan.index}, "
+            f"{math.degrees(plan.angle):+.0f} deg, {1e3 * plan.length:.1f} mm, predicted score "
+            f"{plan.score:.1f} mm (now {plan.current_score:.1f}); approach "
+            f"{np.round(plan.approach, 4)}, contact {np.round(plan.contact, 4)}, end "
+            f"{np.round(plan.end, 4)} m")
+
+    # ---- status ------------------------------------------------------------------------------
+    def _status(self) -> DiagnosticStatus:
+        if self._state == "pushing":
+            message = f"pushing step {self._step}"
+        elif self._state == "reached":
+            message = "goal reached"
+        elif self._state == "failed":
+            message = self._failure
+        else:
+            missing = [name for name, have in (("goal", self._goal is not None),
+                                               ("outline", self._outline is not None),
+                                               ("estimate", self._latest is not None))
+                       if not have]
+            message = "waiting" + (f" for {', '.join(missing)}" if missing else "")
+        if self._note:
+            message += f" - {self._note}"
+        goal = "" if self._goal is None else " ".join(f"{v:.4f}" for v in self._goal)
+        values = {"state": self._state, "step": self._step, "max_steps": self.params.max_steps,
+                  "goal": goal, **self._counts, "last_refusal": self._last_refusal,
+                  "last_push_end": f"{self._last_push_end:.6f}"}
+        return status_msg(self.get_fully_qualified_name(), self._level, message, values)
+
+    def _publish_status(self) -> None:
+        status = self._status()
+        self._pub_status.publish(status)
+        self._publish_diagnostics(status)
+
+    def _publish_diagnostics(self, status: DiagnosticStatus | None = None) -> None:
+        msg = DiagnosticArray()
+        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.status = [status or self._status()]
+        self._pub_diag.publish(msg)
 
 
 def main(args: list[str] | None = None) -> None:
-    """Report that the node does not exist yet and exit with status 2."""
-    print(f'{NODE_NAME} is not implemented yet (tracked in issue {ISSUE})', file=sys.stderr)
-    sys.exit(2)
+    """Entry point of ``planner_node`` (``ros2 run push_planner planner_node`` / ``pushbot run
+    planner_node``)."""
+    rclpy.init(args=args)
+    try:
+        node = PlannerNode()
+    except (ValueError, ParameterException) as exc:
+        rclpy.logging.get_logger("planner_node").fatal(f"invalid configuration: {exc}")
+        rclpy.try_shutdown()
+        raise SystemExit(2) from None
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
 
 
-if __name__ == '__main__':
+if __name__ == "__main__":
     main()

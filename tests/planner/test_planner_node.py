@@ -1,0 +1,367 @@
+"""In-process tests of planner_node: publish an outline, estimates and goals, watch the plans.
+
+The node and a client node share one rclpy context and a single-threaded executor; every wait
+is bounded and event-driven (matched endpoints, received messages, status counters). "No second
+plan" is asserted after the node has *reported* handling the message (its status counters),
+then once more after a bounded extra spin.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path as FilePath
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
+from nav_msgs.msg import Path
+from rclpy.exceptions import ParameterException
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import PointCloud2
+from std_msgs.msg import Float64MultiArray
+from std_srvs.srv import Trigger
+from visualization_msgs.msg import MarkerArray
+
+from push_core.geometry import closest_point_on_polyline
+from push_core.objects import load_object
+from push_planner.conversions import outline_cloud, stamp_from_seconds, state_msg
+from push_planner.planner_node import LATCHED_QOS, PARAMETERS, RELIABLE_QOS, PlannerNode
+
+pytestmark = pytest.mark.ros
+
+SPEC = load_object("rect1")
+L_GUESS = SPEC.limit_surface_guess()
+R_P = 0.0048
+REPO = FilePath(__file__).resolve().parents[2]
+
+
+@dataclass
+class Harness:
+    node: PlannerNode
+    client: Node
+    executor: SingleThreadedExecutor
+    wait_for: Callable[..., bool]
+    pubs: dict[str, Any]
+    pushes: list[Path] = field(default_factory=list)
+    markers: list[MarkerArray] = field(default_factory=list)
+    status: list[DiagnosticStatus] = field(default_factory=list)
+
+    def spin_until(self, predicate: Callable[[], bool], timeout: float = 10.0) -> bool:
+        return self.wait_for(predicate, timeout=timeout, executor=self.executor)
+
+    def values(self) -> dict[str, str]:
+        return {kv.key: kv.value for kv in self.status[-1].values} if self.status else {}
+
+    def count(self, key: str) -> int:
+        return int(self.values().get(key, -1))
+
+    def publish_outline(self, points: np.ndarray, normals: np.ndarray) -> None:
+        self.pubs["outline"].publish(outline_cloud(points, normals))
+
+    def publish_goal(self, x: float, y: float, theta: float, frame: str = "world",
+                     quaternion: tuple[float, float, float, float] | None = None) -> None:
+        msg = PoseStamped()
+        msg.header.frame_id = frame
+        msg.pose.position.x, msg.pose.position.y = float(x), float(y)
+        qx, qy, qz, qw = quaternion or (0.0, 0.0, math.sin(theta / 2), math.cos(theta / 2))
+        o = msg.pose.orientation
+        o.x, o.y, o.z, o.w = qx, qy, qz, qw
+        self.pubs["goal"].publish(msg)
+
+    def publish_estimate(self, pose: tuple[float, float, float], stamp: float,
+                         state_first: bool = True, state: list[float] | None = None) -> None:
+        x, y, theta = pose
+        pose_msg = PoseWithCovarianceStamped()
+        pose_msg.header.frame_id = "world"
+        pose_msg.header.stamp = stamp_from_seconds(stamp)
+        pose_msg.pose.pose.position.x, pose_msg.pose.pose.position.y = float(x), float(y)
+        pose_msg.pose.pose.orientation.z = math.sin(theta / 2)
+        pose_msg.pose.pose.orientation.w = math.cos(theta / 2)
+        values = state if state is not None else [x, y, theta, 0.0, 0.0, L_GUESS, 0.25]
+        s_msg = state_msg(values)
+        first, second = (("state", s_msg), ("pose", pose_msg)) if state_first else (
+            ("pose", pose_msg), ("state", s_msg))
+        self.pubs[first[0]].publish(first[1])
+        self.pubs[second[0]].publish(second[1])
+
+    def publish_executed(self, t_start: float, t_end: float) -> None:
+        msg = Path()
+        msg.header.frame_id = "world"
+        msg.header.stamp = stamp_from_seconds(t_end)
+        for t in (t_start, t_end):
+            p = PoseStamped()
+            p.header.frame_id = "world"
+            p.header.stamp = stamp_from_seconds(t)
+            msg.poses.append(p)
+        self.pubs["executed"].publish(msg)
+
+
+def make_harness(ros_context: Any, wait_for: Callable[..., bool],
+                 overrides: list[Parameter] | None = None) -> Harness:
+    node = PlannerNode(context=ros_context, parameter_overrides=overrides or [])
+    client = Node("planner_test_client", context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    executor.add_node(client)
+    pubs = {
+        "outline": client.create_publisher(PointCloud2, "perception/outline", LATCHED_QOS),
+        "goal": client.create_publisher(PoseStamped, "goal_pose", RELIABLE_QOS),
+        "state": client.create_publisher(Float64MultiArray, "estimator/state", RELIABLE_QOS),
+        "pose": client.create_publisher(PoseWithCovarianceStamped, "estimator/object_pose",
+                                        RELIABLE_QOS),
+        "executed": client.create_publisher(Path, "pusher/executed", RELIABLE_QOS),
+    }
+    h = Harness(node, client, executor, wait_for, pubs)
+    client.create_subscription(Path, "planner/push", h.pushes.append, RELIABLE_QOS)
+    client.create_subscription(MarkerArray, "planner/affordances", h.markers.append,
+                               RELIABLE_QOS)
+    client.create_subscription(DiagnosticStatus, "planner/status", h.status.append, LATCHED_QOS)
+    subs = ("planner/push", "planner/affordances", "planner/status")
+    assert h.spin_until(lambda: all(p.get_subscription_count() > 0 for p in pubs.values())
+                        and all(client.count_publishers(t) > 0 for t in subs)
+                        and len(h.status) > 0)
+    return h
+
+
+@pytest.fixture
+def harness(ros_context: Any, wait_for: Callable[..., bool]) -> Iterator[Harness]:
+    h = make_harness(ros_context, wait_for, [Parameter("k", value=1), Parameter("seed", value=3)])
+    yield h
+    h.executor.shutdown()
+    h.client.destroy_node()
+    h.node.destroy_node()
+
+
+def rect1_outline() -> tuple[np.ndarray, np.ndarray]:
+    return SPEC.outline(0.002)
+
+
+def check_push(path: Path, pose: tuple[float, float, float]) -> np.ndarray:
+    """Assert that ``path`` is a valid push against rect1 at ``pose``; return its points."""
+    assert path.header.frame_id == "world"
+    assert len(path.poses) == 3
+    pts = np.array([[p.pose.position.x, p.pose.position.y] for p in path.poses])
+    assert np.all(np.isfinite(pts))
+    a, c, e = pts
+    stroke = e - a
+    assert abs(stroke[0] * (c - a)[1] - stroke[1] * (c - a)[0]) / np.linalg.norm(stroke) < 1e-6
+    assert 0.0099 <= np.linalg.norm(e - c) <= 0.0501
+    x, y, th = pose
+    rot = np.array([[math.cos(th), math.sin(th)], [-math.sin(th), math.cos(th)]])
+    local = (pts - [x, y]) @ rot.T
+    _, _, dist, _ = closest_point_on_polyline(SPEC.polyline(), local)
+    assert dist[0] >= R_P + 5e-4  # approach clear of the object
+    assert abs(dist[1] - R_P) < 1.5e-3  # contact: the pusher touches the outline
+    stamps = [p.header.stamp.sec + 1e-9 * p.header.stamp.nanosec for p in path.poses]
+    assert stamps[0] < stamps[1] < stamps[2]  # reached in order at push_speed
+    assert (stamps[2] - stamps[0]) == pytest.approx(np.linalg.norm(e - a) / 0.02, rel=1e-6)
+    return pts
+
+
+def test_plans_once_per_fresh_estimate(harness: Harness) -> None:
+    h = harness
+    h.publish_outline(*rect1_outline())
+    h.publish_goal(0.1, 0.0, 0.0)
+    assert h.spin_until(lambda: h.status[-1].message == "waiting for estimate")
+    h.publish_estimate((0.0, 0.0, 0.0), stamp=10.0)
+    assert h.spin_until(lambda: len(h.pushes) == 1 and len(h.markers) == 1)
+    pts = check_push(h.pushes[0], (0.0, 0.0, 0.0))
+    assert (pts[2] - pts[1])[0] > 0.0  # towards the goal in +x
+    assert [m.ns for m in h.markers[0].markers] == [
+        "planner/outline", "planner/candidates", "planner/push", "planner/approach"]
+    assert len(h.markers[0].markers[0].points) == len(rect1_outline()[0])
+    assert h.spin_until(lambda: h.status[-1].message == "pushing step 1")
+
+    # The same estimate again (pose first this time): no second plan.
+    h.publish_estimate((0.0, 0.0, 0.0), stamp=10.0, state_first=False)
+    assert h.spin_until(lambda: h.count("estimates") == 2)
+    assert h.count("ignored_busy") + h.count("ignored_duplicate") == 1
+    assert not h.spin_until(lambda: len(h.pushes) > 1, timeout=0.5)
+
+    # The push is reported (ended at 12 s): the estimate of 10 s predates it, no plan.
+    h.publish_executed(11.0, 12.0)
+    assert h.spin_until(lambda: h.values().get("last_push_end") == "12.000000")
+    h.publish_estimate((0.0, 0.0, 0.0), stamp=11.5)  # also stale
+    assert h.spin_until(lambda: h.count("ignored_stale") == 1)
+    assert not h.spin_until(lambda: len(h.pushes) > 1, timeout=0.5)
+
+    # A fresh estimate: exactly one new plan.
+    h.publish_estimate((0.03, 0.0, 0.0), stamp=13.0, state_first=False)
+    assert h.spin_until(lambda: len(h.pushes) == 2)
+    check_push(h.pushes[1], (0.03, 0.0, 0.0))
+    assert h.spin_until(lambda: h.status[-1].message == "pushing step 2")
+
+    # A fresh estimate that arrives before its push is reported is used when the report comes.
+    h.publish_estimate((0.05, 0.0, 0.0), stamp=16.0)
+    assert h.spin_until(lambda: h.count("ignored_busy") + h.count("ignored_duplicate") == 2)
+    assert len(h.pushes) == 2
+    h.publish_executed(14.0, 15.0)
+    assert h.spin_until(lambda: len(h.pushes) == 3)
+    check_push(h.pushes[2], (0.05, 0.0, 0.0))
+    assert h.spin_until(lambda: h.count("planned") == 3)
+    assert h.values()["step"] == "3"
+
+    # At the goal: no push, status goal reached.
+    h.publish_executed(16.5, 17.0)
+    h.publish_estimate((0.098, 0.002, 0.01), stamp=18.0)
+    assert h.spin_until(lambda: h.status[-1].message == "goal reached")
+    assert h.status[-1].level == DiagnosticStatus.OK
+    assert len(h.pushes) == 3
+
+    # A new goal starts a new episode and re-opens the newest (still fresh) estimate once.
+    h.publish_goal(0.0, 0.0, 0.0)
+    assert h.spin_until(lambda: len(h.pushes) == 4)
+    assert h.spin_until(lambda: h.status[-1].message == "pushing step 1")
+
+
+def test_bad_inputs_are_refused_and_the_node_keeps_working(harness: Harness) -> None:
+    h = harness
+    refused = 0
+
+    def expect_refusal(what: str) -> None:
+        nonlocal refused
+        refused += 1
+        assert h.spin_until(lambda: h.count("refused") == refused), what
+        assert h.status[-1].level == DiagnosticStatus.WARN
+        assert f"refused {what}" in h.status[-1].message
+        assert h.values()["last_refusal"].startswith(what)
+
+    points, normals = rect1_outline()
+    h.pubs["outline"].publish(outline_cloud(points[:0], normals[:0]))
+    expect_refusal("perception/outline")
+    assert "empty" in h.status[-1].message
+    h.publish_outline(points[::-1], -normals[::-1])  # clockwise
+    expect_refusal("perception/outline")
+    h.pubs["outline"].publish(outline_cloud(points, normals, frame_id="world"))
+    expect_refusal("perception/outline")
+
+    h.publish_goal(math.nan, 0.0, 0.0)
+    expect_refusal("goal_pose")
+    h.publish_goal(0.1, 0.0, 0.0, quaternion=(0.0, 0.0, 0.0, 2.0))
+    expect_refusal("goal_pose")
+    assert "unit" in h.status[-1].message
+    h.publish_goal(0.1, 0.0, 0.0, quaternion=(0.7071068, 0.0, 0.0, 0.7071068))  # tilted
+    expect_refusal("goal_pose")
+    h.publish_goal(0.9, 0.0, 0.0)  # off the table
+    expect_refusal("goal_pose")
+    assert "workspace" in h.status[-1].message
+    h.publish_goal(0.1, 0.0, 0.0, frame="camera_color_optical_frame")
+    expect_refusal("goal_pose")
+
+    h.pubs["state"].publish(state_msg([0.0, 0.0, math.nan, 0.0, 0.0, L_GUESS, 0.25]))
+    expect_refusal("estimator/state")
+    bad_layout = state_msg([0.0] * 7)
+    bad_layout.layout.dim[0].label = "x"
+    h.pubs["state"].publish(bad_layout)
+    expect_refusal("estimator/state")
+
+    # Valid input still works, and an estimate a plan cannot use (l = 0) is refused too.
+    h.publish_outline(points, normals)
+    h.publish_goal(0.1, 0.0, 0.0)
+    h.publish_estimate((0.0, 0.0, 0.0), stamp=5.0, state=[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.25])
+    expect_refusal("estimate")
+    assert not h.pushes
+    h.publish_estimate((0.0, 0.0, 0.0), stamp=6.0)
+    assert h.spin_until(lambda: len(h.pushes) == 1)
+    check_push(h.pushes[0], (0.0, 0.0, 0.0))
+    assert h.spin_until(lambda: h.status[-1].message == "pushing step 1")
+    assert h.status[-1].level == DiagnosticStatus.OK
+
+
+def test_max_steps_and_reset(ros_context: Any, wait_for: Callable[..., bool]) -> None:
+    h = make_harness(ros_context, wait_for, [Parameter("max_steps", value=1)])
+    try:
+        h.publish_outline(*rect1_outline())
+        h.publish_goal(0.1, 0.0, 0.0)
+        h.publish_estimate((0.0, 0.0, 0.0), stamp=1.0)
+        assert h.spin_until(lambda: len(h.pushes) == 1)
+        h.publish_executed(1.5, 2.0)
+        h.publish_estimate((0.02, 0.0, 0.0), stamp=3.0)
+        assert h.spin_until(lambda: h.status[-1].message == "failed after max steps")
+        assert h.status[-1].level == DiagnosticStatus.ERROR
+        assert h.values()["state"] == "failed" and h.values()["max_steps"] == "1"
+        assert len(h.pushes) == 1
+
+        reset = h.client.create_client(Trigger, "planner_node/reset")
+        assert reset.wait_for_service(timeout_sec=10.0)
+        future = reset.call_async(Trigger.Request())
+        assert h.spin_until(future.done)
+        assert future.result().success
+        assert h.spin_until(lambda: h.status[-1].message == "waiting for estimate")
+        h.publish_estimate((0.02, 0.0, 0.0), stamp=4.0)  # goal and outline were kept
+        assert h.spin_until(lambda: len(h.pushes) == 2)
+    finally:
+        h.executor.shutdown()
+        h.client.destroy_node()
+        h.node.destroy_node()
+
+
+@pytest.mark.parametrize(("name", "value", "match"), [
+    ("method", "best", "parameter 'method'"),
+    ("temperature", 0.0, "parameter 'temperature'"),
+    ("workspace.x_min", 0.5, "parameter 'workspace"),
+    ("lrn_weights", "/nonexistent/weights.pt", "lrn"),
+])
+def test_bad_parameters_fail_at_start_up(ros_context: Any, name: str, value: Any,
+                                         match: str) -> None:
+    overrides = [Parameter(name, value=value)]
+    if name == "lrn_weights":
+        overrides.append(Parameter("method", value="lrn"))
+    with pytest.raises(ValueError, match=match):
+        PlannerNode(context=ros_context, parameter_overrides=overrides)
+
+
+def test_parameter_ranges_are_declared(ros_context: Any) -> None:
+    with pytest.raises(ParameterException):
+        PlannerNode(context=ros_context, parameter_overrides=[Parameter("k", value=0)])
+
+
+def test_parameter_yaml_documents_every_parameter_with_its_default() -> None:
+    path = REPO / "ros_ws" / "config" / "push_planner.yaml"
+    text = path.read_text()
+    params = yaml.safe_load(text)["planner_node"]["ros__parameters"]
+    assert params["use_sim_time"] is True
+    flat = {f"{k}.{kk}": vv for k, v in params.items() if isinstance(v, dict)
+            for kk, vv in v.items()}
+    flat.update({k: v for k, v in params.items() if not isinstance(v, dict)})
+    for spec in PARAMETERS:
+        assert spec.name in flat, f"{spec.name} is not in {path.name}"
+        value = flat[spec.name]
+        assert value == spec.default and type(value) is type(spec.default), spec.name
+    assert set(flat) == {s.name for s in PARAMETERS} | {"use_sim_time"}
+
+
+@pytest.mark.graph
+@pytest.mark.slow
+def test_node_process_starts_with_the_yaml_and_refuses_bad_parameters(
+        ros_context: Any, wait_for: Callable[..., bool], processes: Any) -> None:
+    config = str(REPO / "ros_ws" / "config" / "push_planner.yaml")
+    bad = processes.node("planner_node", "--ros-args", "--params-file", config,
+                         "-p", "method:=best")
+    assert bad.wait(timeout=60) == 2
+    assert "parameter 'method'" in processes.output(bad)
+
+    proc = processes.node("planner_node", "--ros-args", "--params-file", config,
+                          "-p", "use_sim_time:=false")
+    client = Node("planner_status_probe", context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(client)
+    status: list[DiagnosticStatus] = []
+    client.create_subscription(DiagnosticStatus, "planner/status", status.append, LATCHED_QOS)
+    try:
+        assert wait_for(lambda: bool(status), timeout=60.0, executor=executor), \
+            processes.output(proc)
+        assert status[-1].message == "waiting for goal, outline, estimate"
+        assert status[-1].name == "/planner_node"
+        assert proc.poll() is None
+    finally:
+        executor.shutdown()
+        client.destroy_node()
+    assert processes.stop(proc) == 0
