@@ -57,6 +57,7 @@ status 2). Frames: ``world`` and ``object`` (parameters ``world_frame``, ``objec
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, fields
 from typing import Any
 
@@ -279,6 +280,7 @@ class EkfNode(Node):
         self._last_push: tuple[float, float] | None = None
         self._last_nis = math.nan
         self._problem = ""  # the most recent problem, "" after a good input
+        self._logged: dict[str, tuple[float, int]] = {}  # kind -> (last log time, suppressed)
 
         self._pub_pose = self.create_publisher(PoseWithCovarianceStamped,
                                                "estimator/object_pose", RELIABLE)
@@ -312,10 +314,22 @@ class EkfNode(Node):
         return "tracking" if self._ekf.initialized else "waiting for first observation"
 
     def _drop(self, counter: str, text: str, error: bool = False) -> None:
+        """Count a dropped input, remember it for /diagnostics and log it (at most once per
+        ``LOG_THROTTLE_S`` per kind; the count says how many were not logged)."""
         self._counts[counter] += 1
         self._problem = text
-        log = self.get_logger().error if error else self.get_logger().warning
-        log(text, throttle_duration_sec=LOG_THROTTLE_S)
+        now = time.monotonic()
+        last, suppressed = self._logged.get(counter, (-math.inf, 0))
+        if now - last >= LOG_THROTTLE_S:
+            if suppressed:
+                text += f" ({suppressed} more of this kind since the last message)"
+            if error:
+                self.get_logger().error(text)
+            else:
+                self.get_logger().warning(text)
+            self._logged[counter] = (now, 0)
+        else:
+            self._logged[counter] = (last, suppressed + 1)
         self._publish_diagnostics()
 
     def _new_episode(self) -> None:
