@@ -21,6 +21,7 @@ from push_core.geometry import object_to_world
 from push_core.model import push_twist
 from push_core.objects import load_object
 from push_core.rollout import rollout_push
+from push_estimator import episodes
 
 
 def square(half: float, n_per_side: int = 1) -> np.ndarray:
@@ -205,17 +206,9 @@ def test_push_that_misses_changes_nothing() -> None:
 
 def informative_push(points: np.ndarray, normals: np.ndarray, pose: np.ndarray,
                      rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """Pusher start and end (world) toward the object's centre +-30 deg, 2-4 cm, random gap."""
-    i = rng.integers(len(points))
-    towards = -points[i] / np.linalg.norm(points[i])
-    a = rng.uniform(-np.pi / 6, np.pi / 6)
-    d = np.array([math.cos(a) * towards[0] - math.sin(a) * towards[1],
-                  math.sin(a) * towards[0] + math.cos(a) * towards[1]])
-    if d @ normals[i] > -0.2:
-        d = -normals[i]
-    gap, length = rng.uniform(0.003, 0.015), rng.uniform(0.02, 0.04)
-    start = points[i] + 0.0048 * normals[i] - gap * d
-    return tuple(object_to_world(pose, np.stack([start, start + (gap + length) * d])))
+    """Pusher start and end (world): toward the object's centre +-30 deg, 2-4 cm, random gap."""
+    start, _, end = episodes.informative_push(points, normals, pose, rng)
+    return start, end
 
 
 @pytest.mark.parametrize("name", ["tri1", "butter", "ellip2"])

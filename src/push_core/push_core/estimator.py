@@ -127,7 +127,8 @@ class EKFConfig:
     outline_tolerance : float
         Douglas-Peucker tolerance of the decimated outline used for contacts, m.
     symmetry_order : int
-        Rotational symmetry order of the outline (1 = none, 0 = detect from the outline).
+        Rotational symmetry order of the outline: 1 = none, k = k-fold, 0 (default) = detect
+        it from the outline (:func:`symmetry_order_of_polygon`).
     symmetry_tolerance : float
         Largest outline mismatch (m) for a rotation to count as a symmetry when detecting.
     com_prior_fraction : float
@@ -164,7 +165,7 @@ class EKFConfig:
     substep: float = 0.01
     contact_tol: float = CONTACT_TOL
     outline_tolerance: float = 5e-4
-    symmetry_order: int = 1
+    symmetry_order: int = 0
     symmetry_tolerance: float = 1e-3
     com_prior_fraction: float = 1.0
     l_sigma_fraction: float = 0.25
