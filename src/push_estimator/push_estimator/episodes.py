@@ -217,6 +217,12 @@ class EpisodeResult:
     ----------
     object : str
     com_true : numpy.ndarray, shape (2,)
+        True COM in the object frame of the library.
+    com_reference : numpy.ndarray, shape (K + 1, 2)
+        The true COM in the filter's object frame at every step: ``com_true`` turned by the
+        multiple of the symmetry period by which the filter's orientation differs (zero
+        unless a symmetric object's observation was re-initialised to another equivalent
+        orientation).
     m_true : float
         Simulated pusher-object friction coefficient.
     com : numpy.ndarray, shape (K + 1, 2)
@@ -237,6 +243,7 @@ class EpisodeResult:
 
     object: str
     com_true: NDArray[np.float64]
+    com_reference: NDArray[np.float64]
     m_true: float
     com: NDArray[np.float64]
     l: NDArray[np.float64]  # noqa: E741
@@ -249,8 +256,9 @@ class EpisodeResult:
 
     @property
     def com_error(self) -> NDArray[np.float64]:
-        """|c_estimate - c_true| after the first observation and every push (K + 1,), m."""
-        return np.hypot(*(self.com - self.com_true).T)
+        """|c_estimate - c_true| after the first observation and every push (K + 1,), m;
+        in the filter's frame (see ``com_reference``)."""
+        return np.hypot(*(self.com - self.com_reference).T)
 
 
 def run_physics_episode(name: str, seed: int, n_pushes: int, config: EKFConfig,
@@ -289,6 +297,7 @@ def run_physics_episode(name: str, seed: int, n_pushes: int, config: EKFConfig,
 
         ekf.update_pose(observe())
         com, ls, ms = [ekf.state[3:5]], [ekf.state[5]], [ekf.state[6]]
+        com_ref = [np.asarray(spec.com, dtype=float)]
         nees, nis = [], []
         reinit = touched = 0
         for _ in range(n_pushes):
@@ -311,7 +320,13 @@ def run_physics_episode(name: str, seed: int, n_pushes: int, config: EKFConfig,
             reinit += upd.reinitialized
             nis.append(upd.nis)
             x = ekf.state
-            truth = np.r_[world.object_pose(), spec.com, spec.friction_pusher]
+            truth_pose = world.object_pose()
+            # A symmetric object's frame is defined only up to its symmetry: compare in the
+            # filter's frame (the true one turned by the multiple of the period it chose).
+            shift = ekf.period * round(float(wrap_angle(x[2] - truth_pose[2])) / ekf.period)
+            com_ref.append(rot2(-shift) @ spec.com)
+            truth = np.r_[truth_pose[:2], truth_pose[2] + shift, com_ref[-1],
+                          spec.friction_pusher]
             err = truth - x[[0, 1, 2, 3, 4, 6]]
             err[2] = wrap_angle(err[2])
             nees.append(_nees(err, ekf.P[np.ix_([0, 1, 2, 3, 4, 6], [0, 1, 2, 3, 4, 6])]))
@@ -321,6 +336,7 @@ def run_physics_episode(name: str, seed: int, n_pushes: int, config: EKFConfig,
     finally:
         world.close()
     return EpisodeResult(object=name, com_true=np.asarray(spec.com, dtype=float),
+                         com_reference=np.array(com_ref),
                          m_true=float(spec.friction_pusher), com=np.array(com), l=np.array(ls),
                          m=np.array(ms), nees=np.array(nees), nis=np.array(nis),
                          reinitialized=reinit, touched=touched,
