@@ -434,4 +434,16 @@ def report(episodes: dict[str, list[EpisodeResult]], n_pushes: int, position_noi
             f"{np.mean(nis):.1f} (band {lo3:.1f}-{hi3:.1f}; median {np.median(nis):.1f}) | "
             f"{sum(e.reinitialized for e in eps)} / {pushes} | "
             f"{sum(e.touched for e in eps)} / {pushes} |")
+    lines += [
+        "",
+        "Notes. A k-fold symmetric object's orientation is defined only up to 2 pi / k (the "
+        "perception cannot tell either), so its COM and orientation are compared in the "
+        "filter's frame; after a re-initialisation from a prediction more than pi / k off, "
+        "that frame is another equivalent one and the COM learned so far points the wrong "
+        "way (the hex outliers). The physics differs from the model by construction: "
+        "pybullet supports each convex piece of the object at a few contact points (a "
+        "one-piece triangle at its 3 corners), not with the uniform pressure behind l_0 and "
+        "the ellipsoidal limit surface; l and c absorb the difference, and pushes that the "
+        "model cannot reconcile make the estimate noisy rather than biased.",
+    ]
     return "\n".join(lines)

@@ -61,6 +61,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--angle-noise-deg", type=float, default=1.5,
                         help="observation noise of the orientation, deg (default: "
                              "%(default)s)")
+    parser.add_argument("--iterations", type=int, default=None,
+                        help="linearisations per push (EKFConfig.iterations; default: the "
+                             "filter's default, 2; 1 = plain EKF)")
     parser.add_argument("--write", action="store_true",
                         help=f"write the report into docs/RESULTS.md (section {SECTION_ID})")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -91,6 +94,9 @@ def run(args: argparse.Namespace, argv: Sequence[str] | None = None) -> int:
         print("pushbot eval estimator: --episodes and --pushes must be >= 1 and --objects "
               "non-empty", file=sys.stderr)
         return 2
+    if args.iterations is not None and not 1 <= args.iterations <= 10:
+        print("pushbot eval estimator: --iterations must be in [1, 10]", file=sys.stderr)
+        return 2
     if not (args.position_noise > 0 and args.angle_noise_deg > 0):
         print("pushbot eval estimator: --position-noise and --angle-noise-deg must be > 0",
               file=sys.stderr)
@@ -108,6 +114,7 @@ def run(args: argparse.Namespace, argv: Sequence[str] | None = None) -> int:
             print(f"pushbot eval estimator: {exc}", file=sys.stderr)
             return 2
     angle_noise = math.radians(args.angle_noise_deg)
+    config = EKFConfig() if args.iterations is None else EKFConfig(iterations=args.iterations)
     episodes: dict[str, list] = {n: [] for n in names}
     t0 = time.perf_counter()
     jobs = [(n, args.seed + i) for n in names for i in range(args.episodes)]
@@ -115,7 +122,7 @@ def run(args: argparse.Namespace, argv: Sequence[str] | None = None) -> int:
               file=sys.stderr) as bar:
         for name, seed in bar:
             bar.set_postfix_str(f"{name} seed {seed}")
-            episodes[name].append(run_physics_episode(name, seed, args.pushes, EKFConfig(),
+            episodes[name].append(run_physics_episode(name, seed, args.pushes, config,
                                                       args.position_noise, angle_noise))
     body = report(episodes, args.pushes, args.position_noise, angle_noise,
                   time.perf_counter() - t0)
