@@ -42,10 +42,15 @@ TARGETS: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
     'data': ('generate training data sets', {
         'perception': ('push_perception.data',
                        'render RGB-D frames with masks, poses and outlines (segmentation CNN)'),
+        'affordances': ('push_planner.affordance_data',
+                        'pybullet pushes: 20 contact points x 10 representative pushes per '
+                        'object sample (learned affordances)'),
     }),
     'train': ('train learned models', {
         'segmentation': ('push_perception.train',
                          'train the two-stage segmentation CNN on `pushbot data perception` data'),
+        'affordances': ('push_planner.train_affordances',
+                        'train the learned affordance CNN on `pushbot data affordances` data'),
     }),
 }
 
