@@ -58,6 +58,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, fields
 from typing import Any
 
@@ -332,6 +333,16 @@ class EkfNode(Node):
             self._logged[counter] = (last, suppressed + 1)
         self._publish_diagnostics()
 
+    def _parse(self, parse: Callable[[Any, str], Any], msg: Any, topic: str) -> Any:
+        """``parse(msg, world_frame)``, or None after counting and logging a bad message."""
+        try:
+            return parse(msg, self.params.world_frame)
+        except NonFiniteError as exc:
+            self._drop("dropped_nan", f"dropped {topic}: {exc}")
+        except ValueError as exc:
+            self._drop("dropped_invalid", f"dropped {topic}: {exc}")
+        return None
+
     def _new_episode(self) -> None:
         self._last_event = -math.inf
         self._last_observation = -math.inf
@@ -365,13 +376,8 @@ class EkfNode(Node):
             self._drop("dropped_before_outline", "dropped perception/object_pose: no outline "
                        "yet (waiting for perception/outline)")
             return
-        try:
-            obs = observation_from_msg(msg, self.params.world_frame)
-        except NonFiniteError as exc:
-            self._drop("dropped_nan", f"dropped perception/object_pose: {exc}")
-            return
-        except ValueError as exc:
-            self._drop("dropped_invalid", f"dropped perception/object_pose: {exc}")
+        obs = self._parse(observation_from_msg, msg, "perception/object_pose")
+        if obs is None:
             return
         if obs.stamp == self._last_observation:
             self._counts["dropped_duplicate"] += 1  # normal while the scene is idle: no log
@@ -404,13 +410,8 @@ class EkfNode(Node):
             self._drop("dropped_before_init", "dropped pusher/executed: the filter is not "
                        "initialised yet (needs the outline and a first observation)")
             return
-        try:
-            push = push_from_path(msg, self.params.world_frame)
-        except NonFiniteError as exc:
-            self._drop("dropped_nan", f"dropped pusher/executed: {exc}")
-            return
-        except ValueError as exc:
-            self._drop("dropped_invalid", f"dropped pusher/executed: {exc}")
+        push = self._parse(push_from_path, msg, "pusher/executed")
+        if push is None:
             return
         if self._last_push == (push.t_start, push.t_end):
             self._counts["dropped_duplicate"] += 1
