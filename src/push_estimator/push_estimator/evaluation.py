@@ -127,6 +127,8 @@ def run(args: argparse.Namespace, argv: Sequence[str] | None = None) -> int:
     body = report(episodes, args.pushes, args.position_noise, angle_noise,
                   time.perf_counter() - t0)
     shown = list(argv) if argv is not None else sys.argv[1:]
+    if shown[:2] == ["eval", "estimator"]:  # called as `pushbot eval estimator ...`
+        shown = shown[2:]
     command = " ".join(["pushbot eval estimator", *shown]).strip()
     results = _results_module() if args.write else None
     if args.write and results is None:
