@@ -1,0 +1,51 @@
+"""pushbot eval estimator: one short pybullet episode, the report and the argument checks."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from push_core.estimator import EKFConfig
+from push_estimator.episodes import informative_push, run_physics_episode
+from push_estimator.evaluation import main
+
+
+def test_physics_episode_starts_at_the_centroid_and_learns() -> None:
+    episode = run_physics_episode("tri1", seed=3, n_pushes=4, config=EKFConfig(),
+                                  position_noise=0.002, angle_noise=math.radians(1.5))
+    assert episode.com.shape == (5, 2) and episode.nees.shape == (4,)
+    # The COM starts at the area centroid, so the first error is |c_true|.
+    assert episode.com_error[0] == pytest.approx(float(np.hypot(*episode.com_true)))
+    assert episode.touched == 4
+    assert np.all(np.isfinite(episode.l)) and np.all(episode.m > 0)
+
+
+def test_informative_push_is_collinear_and_points_into_the_object() -> None:
+    from push_core.objects import load_object
+
+    points, normals = load_object("butter").outline(0.002)
+    rng = np.random.default_rng(0)
+    pose = np.array([0.05, -0.02, 0.7])
+    towards = np.array([-1.0, 0.0])
+    for _ in range(20):
+        start, contact, end = informative_push(points, normals, pose, rng)
+        d = (end - start) / np.linalg.norm(end - start)
+        off_line = d[0] * (contact - start)[1] - d[1] * (contact - start)[0]
+        assert abs(off_line) < 1e-12
+        assert 0.025 - 1e-9 <= np.linalg.norm(end - start) <= 0.055 + 1e-9
+        start, _, end = informative_push(points, normals, pose, rng, towards=towards)
+        assert (end - start) @ towards > 0.0  # recentring pushes move the object back
+
+
+def test_cli_prints_the_report(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["--objects", "hex", "--episodes", "1", "--pushes", "2", "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "| hex | 1 |" in out and "NEES" in out and "perception does not exist yet" in out
+
+
+@pytest.mark.parametrize("argv", [["--observations", "perception"], ["--episodes", "0"],
+                                  ["--objects", "no_such_object"], ["--iterations", "0"]])
+def test_cli_rejects_what_it_cannot_do(argv: list[str]) -> None:
+    assert main([*argv, "--no-progress"]) == 2
