@@ -478,6 +478,22 @@ def test_iterated_update_relinearises_at_the_smoothed_pre_push_state() -> None:
     assert not np.allclose(iterated.state, plain.state)
 
 
+def test_snapshot_and_restore_replay_exactly() -> None:
+    ekf = square_ekf()
+    ekf.update_pose([0.0, 0.0, 0.0])
+    saved = ekf.snapshot()
+    start = np.array([-0.03 - 0.0048 - 0.005, 0.01])
+    ekf.predict_push(start, start + [0.025, 0.0])
+    ekf.update_pose([0.02, -0.003, -0.05])
+    after = (ekf.state, ekf.covariance)
+    ekf.restore(saved)
+    np.testing.assert_array_equal(ekf.state, saved[0][:, 0])
+    ekf.predict_push(start, start + [0.025, 0.0])
+    ekf.update_pose([0.02, -0.003, -0.05])
+    np.testing.assert_array_equal(ekf.state, after[0])
+    np.testing.assert_array_equal(ekf.covariance, after[1])
+
+
 def test_reset_starts_a_new_episode() -> None:
     ekf = square_ekf()
     ekf.update_pose([0.1, 0.0, 0.0])

@@ -277,6 +277,35 @@ def test_bad_inputs_are_dropped_diagnosed_and_the_node_keeps_working(tester: Ekf
     assert tester.status.level == DiagnosticStatus.OK and tester.count("gated") == 0
 
 
+def test_a_push_arriving_after_its_observation_is_re_filtered(tester: EkfHarness) -> None:
+    tester.initialised()
+    start = np.array([-HALF - 0.0048 - 0.005, 0.01])
+    end = start + [0.03, 0.0]
+    # The node's outline went through float32 (PointCloud2): the reference uses the same.
+    reference = PushEKF(SQUARE.astype(np.float32), SQUARE_NORMALS.astype(np.float32))
+    truth = np.array([0.0, 0.0, 0.0, 0.004, -0.006, 0.03, 0.3])
+    observed = predict_push(truth, reference.outline, start, end).state[:3]
+    tester.observe(observed, 4.0)  # overtakes its pusher/executed (DDS does not order topics)
+    tester.wait_count("gated", 1)  # without the push the observation is a surprise
+    tester.push(start, end, 2.0, 3.25)
+    tester.wait_count("replayed", 1)
+    assert tester.count("gated") == 0 and tester.count("pushes") == 1
+    assert tester.wait(lambda: len(tester.states) == 3)
+    assert seconds_from(tester.poses[-1]) == 4.0
+    # The same as if the push had arrived first.
+    reference.update_pose([0.0, 0.0, 0.0])
+    reference.predict_push(start, end)
+    reference.update_pose(observed)
+    x, p = state_from_array_msg(tester.states[-1])
+    np.testing.assert_allclose(x, reference.state, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(p, reference.covariance, rtol=1e-9, atol=1e-15)
+    tester.push(start, end, 2.0, 3.25)  # the same push again
+    tester.wait_count("dropped_duplicate", 1)
+    tester.push(start, end, 3.5, 4.5)  # overlaps the observation at 4.0: cannot be placed
+    tester.wait_count("dropped_out_of_order", 1)
+    assert tester.count("pushes") == 1
+
+
 def test_gating_reinitialises_the_pose_and_reports_it(tester: EkfHarness) -> None:
     tester.initialised()
     tester.observe((0.0005, 0.0, 0.0), 2.0)

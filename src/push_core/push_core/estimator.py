@@ -989,6 +989,16 @@ class PushEKF(ExtendedKalmanFilter):
         self.last_prediction = None
         self._before_push = None
 
+    def snapshot(self) -> tuple:
+        """The filter's state at this point, for :meth:`restore` (re-filtering late inputs)."""
+        return (self.x.copy(), self.P.copy(), self.initialized, self._before_push,
+                self.last_prediction)
+
+    def restore(self, snapshot: tuple) -> None:
+        """Return to a :meth:`snapshot` of this filter."""
+        x, p, self.initialized, self._before_push, self.last_prediction = snapshot
+        self.x, self.P = x.copy(), p.copy()
+
     def reset(self) -> None:
         """Forget the episode; the next observation initialises the filter again."""
         self.x = np.zeros((STATE_SIZE, 1))

@@ -22,14 +22,22 @@ Subscriptions (relative names, remappable; QoS as in the README topic table):
   (start, end) each with its stamp; drives the prediction.
 - ``/clock`` (``use_sim_time`` is true by default: the pipeline runs on simulated time).
 
-Inputs are applied in stamp order. Dropped, each with a throttled log line and a counter on
-``/diagnostics``: observations or pushes with NaN/inf values (``dropped_nan``), malformed or
-wrong-frame messages (``dropped_invalid``), an observation with the stamp of the previous one
-(``dropped_duplicate``; the perception re-publishes while the scene is idle), an observation
-older than the last applied input or a push starting before it (``dropped_out_of_order``), a
-push before the filter is initialised (``dropped_before_init``), observations before any
+Inputs are applied in stamp order (an observation at its stamp, a push from its start to its
+end stamp). DDS does not order messages across topics (a reliable sample repaired after a lost
+packet arrives late), so the post-push observation can overtake its ``pusher/executed``: the
+node keeps the last ``HISTORY`` applied inputs with filter snapshots, and a push that arrives
+after inputs it precedes is inserted and the later observations re-applied (``replayed``;
+the estimate is published again). Dropped, each with a log line (at most one per kind every
+``LOG_THROTTLE_S``) and a counter on ``/diagnostics``: observations or pushes with NaN/inf
+values (``dropped_nan``), malformed or wrong-frame messages (``dropped_invalid``), an
+observation with the stamp of the previous one or a push seen before (``dropped_duplicate``;
+the perception re-publishes while the scene is idle, not logged), an observation older than
+the last applied input, or a push that cannot be placed (before the first observation,
+overlapping an observation or another push, older than the history: ``dropped_out_of_order``),
+a push before the filter is initialised (``dropped_before_init``), observations before any
 outline (``dropped_before_outline``), a bad outline (``rejected_outlines``). An observation
-that fails the Mahalanobis gate re-initialises the pose (``gated``, status WARN).
+that fails the Mahalanobis gate re-initialises the pose (``gated``, status WARN; re-filtering
+updates the count).
 
 Publications (after every applied observation, stamped with the observation's stamp):
 
@@ -245,7 +253,34 @@ def _descriptor(description: str, bounds: tuple[float, float] | None, read_only:
     return desc
 
 
-_COUNTERS = ("observations", "pushes", "gated", "resets", "outlines", "rejected_outlines",
+@dataclass
+class _Applied:
+    """An input the filter has applied, with the filter's state around it (for re-filtering).
+
+    ``key``: stamp of an observation, end stamp of a push (s). ``data``: (pose, covariance or
+    None) of an observation, (start, end) of a push. ``push``: (t_start, t_end) of a push,
+    None for an observation. ``before`` / ``after``: filter snapshots. ``gated``: the
+    observation re-initialised the pose.
+    """
+
+    key: float
+    data: tuple
+    before: tuple
+    push: tuple[float, float] | None = None
+    after: tuple = ()
+    gated: bool = False
+
+
+def push_key(push: Any) -> tuple[float, float]:
+    """(t_start, t_end) of an executed push: its identity for duplicate detection."""
+    return (push.t_start, push.t_end)
+
+
+#: Applied inputs kept for re-filtering a push that arrives after later inputs.
+HISTORY = 32
+
+_COUNTERS = ("observations", "pushes", "replayed", "gated", "resets", "outlines",
+             "rejected_outlines",
              "dropped_nan", "dropped_invalid", "dropped_duplicate", "dropped_out_of_order",
              "dropped_before_init", "dropped_before_outline")
 
@@ -276,9 +311,8 @@ class EkfNode(Node):
         self._ekf: PushEKF | None = None
         self._outline: np.ndarray | None = None
         self._counts = dict.fromkeys(_COUNTERS, 0)
-        self._last_event = -math.inf  # stamp (s) of the last applied input
+        self._history: list[_Applied] = []  # the last HISTORY applied inputs, in stamp order
         self._last_observation = -math.inf
-        self._last_push: tuple[float, float] | None = None
         self._last_nis = math.nan
         self._problem = ""  # the most recent problem, "" after a good input
         self._logged: dict[str, tuple[float, int]] = {}  # kind -> (last log time, suppressed)
@@ -344,9 +378,8 @@ class EkfNode(Node):
         return None
 
     def _new_episode(self) -> None:
-        self._last_event = -math.inf
+        self._history.clear()
         self._last_observation = -math.inf
-        self._last_push = None
 
     # ---- callbacks -----------------------------------------------------------------------
     def _on_outline(self, msg: PointCloud2) -> None:
@@ -382,18 +415,17 @@ class EkfNode(Node):
         if obs.stamp == self._last_observation:
             self._counts["dropped_duplicate"] += 1  # normal while the scene is idle: no log
             return
-        if obs.stamp < self._last_event:
+        last = self._history[-1].key if self._history else -math.inf
+        if obs.stamp < last:
             self._drop("dropped_out_of_order", f"dropped perception/object_pose stamped "
-                       f"{obs.stamp:.6f} s: older than the last applied input "
-                       f"({self._last_event:.6f} s)")
+                       f"{obs.stamp:.6f} s: older than the last applied input ({last:.6f} s)")
             return
         cov = obs.covariance if self.params.use_message_covariance else None
-        result = self._ekf.update_pose(obs.pose, cov)
-        self._last_event = self._last_observation = obs.stamp
+        entry = _Applied(obs.stamp, (obs.pose, cov), self._ekf.snapshot())
+        result = self._apply(entry)
+        self._record(entry)
         self._counts["observations"] += 1
-        self._last_nis = result.nis
         if result.reinitialized:
-            self._counts["gated"] += 1
             self._problem = (f"observation at {obs.stamp:.3f} s failed the gate (NIS "
                              f"{result.nis:.1f} > {self._ekf.config.gate_threshold:.1f}): pose "
                              "re-initialised, c, l, m kept")
@@ -413,28 +445,73 @@ class EkfNode(Node):
         push = self._parse(push_from_path, msg, "pusher/executed")
         if push is None:
             return
-        if self._last_push == (push.t_start, push.t_end):
+        if any(e.push == push_key(push) for e in self._history):
             self._counts["dropped_duplicate"] += 1
             return
-        if push.t_start < self._last_event:
-            self._drop("dropped_out_of_order", f"dropped pusher/executed starting at "
-                       f"{push.t_start:.6f} s: before the last applied input "
-                       f"({self._last_event:.6f} s)")
+        # Inputs after which this push belongs: every applied input up to its start.
+        i = len(self._history)
+        while i > 0 and self._history[i - 1].key > push.t_start:
+            i -= 1
+        later = self._history[i:]
+        if later and (i == 0 or any(e.push is not None or e.key < push.t_end for e in later)):
+            self._drop("dropped_out_of_order", f"dropped pusher/executed {push.t_start:.6f} -> "
+                       f"{push.t_end:.6f} s: it cannot be placed among the applied inputs "
+                       "(before the first observation, overlapping an observation or another "
+                       "push, or older than the kept history)")
             return
+        before = later[0].before if later else self._ekf.snapshot()
+        entry = _Applied(push.t_end, (push.start, push.end), before, push=push_key(push))
         try:
-            pred = self._ekf.predict_push(push.start, push.end)
+            self._ekf.restore(before)
+            pred = self._apply(entry)
         except ValueError as exc:
+            self._ekf.restore(self._history[-1].after if later else before)
             self._drop("dropped_invalid", f"dropped pusher/executed: {exc}")
             return
-        self._last_event = push.t_end
-        self._last_push = (push.t_start, push.t_end)
         self._counts["pushes"] += 1
         self._problem = ""
         contact = (f"contact over {1e3 * pred.contact_length:.1f} mm" if pred.touched
                    else "no contact")
         self.get_logger().info(f"push {push.t_start:.3f} -> {push.t_end:.3f} s: {contact}, "
-                               f"{pred.n_substeps} substeps")
+                               f"{pred.n_substeps} substeps"
+                               + (f"; arrived after {len(later)} later input(s), re-filtered"
+                                  if later else ""))
+        self._history.insert(i, entry)
+        if later:  # the push arrived after inputs it precedes: re-apply them after it
+            self._counts["replayed"] += 1
+            for e in later:
+                e.before = self._ekf.snapshot()
+                was_gated = e.gated
+                self._apply(e)
+                self._counts["gated"] += int(e.gated) - int(was_gated)
+            if any(e.gated for e in later):
+                self._problem = ("after re-filtering a late pusher/executed, an observation "
+                                 "still fails the gate")
+            self._publish_estimate(self._last_observation)
+        self._trim_history()
         self._publish_diagnostics()
+
+    def _apply(self, entry: _Applied) -> Any:
+        """Apply one input to the filter; record its outcome in ``entry``."""
+        if entry.push is not None:
+            start, end = entry.data
+            result = self._ekf.predict_push(start, end)
+        else:
+            pose, cov = entry.data
+            result = self._ekf.update_pose(pose, cov)
+            entry.gated = result.reinitialized
+            self._last_nis = result.nis
+            self._last_observation = entry.key
+        entry.after = self._ekf.snapshot()
+        return result
+
+    def _record(self, entry: _Applied) -> None:
+        self._counts["gated"] += int(entry.gated)
+        self._history.append(entry)
+        self._trim_history()
+
+    def _trim_history(self) -> None:
+        del self._history[:-HISTORY]
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response
                   ) -> Trigger.Response:
