@@ -246,3 +246,5 @@ def test_covariance_grows_with_worse_evidence() -> None:
                   sigmas(match_cost=0.002)):
         assert np.all(worse >= base) and np.any(worse > base * 1.5)
     np.testing.assert_allclose(sigmas(n_valid=1250), 2 * base)
+    # The residual a correct match leaves (below the floor) does not widen the yaw.
+    np.testing.assert_allclose(sigmas(match_cost=0.9 * CFG.match_cost_floor), base)
