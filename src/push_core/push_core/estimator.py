@@ -178,9 +178,9 @@ class EKFConfig:
     position_sigma: float = 0.002
     angle_sigma: float = math.radians(1.5)
     position_noise_min: float = 2e-4
-    position_noise_per_metre: float = 0.12
+    position_noise_per_metre: float = 0.15
     angle_noise_min: float = math.radians(0.2)
-    angle_noise_per_metre: float = 2.5
+    angle_noise_per_metre: float = 3.0
     com_noise: float = 5e-4
     l_noise: float = 5e-4
     m_noise: float = 0.01
