@@ -145,7 +145,7 @@ def test_run_unknown_node_exits_2_and_lists_known_nodes() -> None:
         assert f'{node} ({package})' in result.stderr
 
 
-@pytest.mark.parametrize(('node', 'issue'), [('segmentation_node', 4), ('ekf_node', 5)])
+@pytest.mark.parametrize(('node', 'issue'), [('ekf_node', 5)])
 def test_placeholder_nodes_say_they_are_not_implemented(
     node: str, issue: int, processes: Any
 ) -> None:

@@ -1,54 +1,508 @@
-"""segmentation_node: object mask, pose and outline from the RGB-D camera (not implemented yet).
+"""``segmentation_node``: object mask, pose and outline from the RGB-D camera (SPEC 2, steps 1-2).
 
-Placeholder: the node is tracked in issue 4. ``main()`` says so and exits with status 2; it
-does not pretend to run. The contract below is the one fixed in ``docs/ARCHITECTURE.md``.
+A thin ROS wrapper: the CNN is :class:`push_perception.model.Segmenter`, the geometry
+(position, relative orientation, outline, covariance) :class:`push_perception.core.EpisodeTracker`;
+message conversion lives in :mod:`push_perception.conversions` (which reuses
+:mod:`sim_bridge.conversions`).
 
-Future contract
----------------
-Subscribes (all names relative and remappable except ``/clock``):
+Subscriptions (names relative and remappable; "sensor" = ``qos_profile_sensor_data``,
+"latched" = reliable + transient local, depth 1):
 
-- ``camera/color/image_raw`` (sensor_msgs/Image, rgb8; "sensor" QoS)
-- ``camera/aligned_depth_to_color/image_raw`` (sensor_msgs/Image, 32FC1 metres, NaN where there
-  is no return; "sensor" QoS)
-- ``camera/color/camera_info`` (sensor_msgs/CameraInfo, plumb_bob, zero distortion; "sensor")
-- ``camera/color/extrinsics`` (geometry_msgs/TransformStamped, world ->
-  camera_color_optical_frame; "latched" QoS)
-- ``/clock`` (rosgraph_msgs/Clock; ``use_sim_time: true``)
+- ``camera/color/image_raw`` (sensor_msgs/Image, ``rgb8`` or ``bgr8``; sensor)
+- ``camera/aligned_depth_to_color/image_raw`` (sensor_msgs/Image, ``32FC1`` metres or
+  ``16UC1`` millimetres, aligned to colour; sensor)
+- ``camera/color/camera_info`` (sensor_msgs/CameraInfo; sensor). Colour, depth and camera
+  info are matched by identical header stamps (the last ``sync_queue`` stamps are kept).
+- ``camera/color/extrinsics`` (geometry_msgs/TransformStamped, ``world`` ->
+  ``camera_color_optical_frame``; latched). The latest one is used.
+- ``/clock`` (``use_sim_time`` is true by default: with the simulator, stamps are sim time).
 
-Publishes:
+Publications:
 
-- ``perception/mask`` (sensor_msgs/Image, mono8, frame camera_color_optical_frame; "sensor")
+- ``perception/mask`` (sensor_msgs/Image ``mono8``, 255 = object, frame of the colour image;
+  sensor): every frame that was segmented, also when the mask is empty.
 - ``perception/object_pose`` (geometry_msgs/PoseWithCovarianceStamped, frame ``world``;
-  "reliable"): position = centre of the mask's points deprojected with depth and intrinsics;
-  orientation relative to the first frame of the episode (quaternion x, y, z, w)
-- ``perception/outline`` (sensor_msgs/PointCloud2 with float32 x, y, z, normal_x, normal_y,
-  normal_z, frame ``object``; "latched"): the outline counter-clockwise as a closed polyline,
-  outward unit normals
-- ``/diagnostics`` (diagnostic_msgs/DiagnosticArray; one status for this node)
+  reliable, depth 10): position = area centroid of the top-down footprint (the ``object``
+  frame origin), yaw = orientation relative to the first frame of the episode (continuous for
+  symmetric objects: the symmetric equivalent closest to the previous one); covariance over
+  (x, y, z, roll, pitch, yaw) with the model of :mod:`push_perception.core` for x, y, yaw and
+  ``UNMEASURED_VARIANCE`` (1e6) for z, roll, pitch. Stamp = the camera frame's stamp.
+- ``perception/outline`` (sensor_msgs/PointCloud2, float32 ``x, y, z, normal_x, normal_y,
+  normal_z``, frame ``object``; latched): the outline counter-clockwise (a closed polyline,
+  about ``outline_spacing`` apart) with outward unit normals, z = 0. Published once per
+  episode, from its first good frame.
+- ``/diagnostics`` (diagnostic_msgs/DiagnosticArray; reliable): one status named
+  ``<node>: perception``; OK after a frame that gave a pose, WARN after one that did not
+  (message = the reason); values: counters per outcome, last error, median latency, whether
+  the episode has a reference. At 1 Hz (steady clock) and whenever the level changes.
 
-Services: ``~/reset`` (std_srvs/srv/Trigger) starts a new episode (new reference frame for the
-relative orientation, new outline).
+Services: ``~/reset`` (std_srvs/srv/Trigger): new episode. The next good frame becomes the
+orientation reference and its outline is published (the previous outline stays latched
+until then). The geometry parameters are re-read and validated; invalid values refuse the
+reset and keep the old ones.
 
-Parameters: ``use_sim_time`` (true with sim_bridge); the others are added by issue 4 and
-documented in ``ros_ws/config/push_perception.yaml``.
+Bad input never stops the node and never produces a pose for that frame; each class is
+logged (at most once per second per class, with the number suppressed) and counted on
+``/diagnostics``: ``bad_color`` (encoding, step/size), ``bad_depth``, ``size_mismatch``
+(colour vs depth), ``bad_camera_info`` (K, size), ``frame_mismatch`` (image frame vs the
+extrinsics' child frame), ``missing_camera_info`` (colour and depth without camera_info of the
+same stamp), ``no_extrinsics``, ``empty_mask``, ``out_of_view`` (mask on the image border),
+``few_pixels``, ``no_depth`` (too few mask pixels with a valid depth).
 
-Frames: ``camera_color_optical_frame`` (REP 103 optical), ``world`` (table), ``object``.
-QoS names ("sensor", "reliable", "latched") as defined in ARCHITECTURE.md.
+Parameters (declared below with descriptions and ranges; defaults and units commented in
+``ros_ws/config/push_perception.yaml``): ``weights``, ``torch_threads``, ``sync_queue`` (read
+only), ``threshold``, ``min_coarse_cells``, ``publish_mask`` and the geometry of
+:class:`push_perception.core.PerceptionConfig` (``resolution``, ``min_height``,
+``closing_radius``, ``outline_spacing``, ``outline_smoothing``, ``outline_offset``,
+``symmetry_tolerance``, ``min_pixels``, ``min_valid_fraction``, ``max_border_pixels``,
+``sigma_position``, ``sigma_theta``, ``match_cost_floor``). A bad value fails start-up with
+a clear message.
+
+Frames: ``camera_color_optical_frame`` (REP 103 optical), ``world`` (table, z up), ``object``.
+The heavy work (about 25 ms per 640 x 480 frame) runs in the subscription callback of the
+default single-threaded executor; frames that arrive meanwhile wait in the sensor queues
+(depth 5) and the oldest are dropped, which is what a camera stream wants.
 """
 
 from __future__ import annotations
 
-import sys
+import dataclasses
+import math
+import statistics
+import time
+from collections import OrderedDict, deque
+from dataclasses import dataclass
+from typing import Any
 
-NODE_NAME = 'segmentation_node'
-ISSUE = 4
+import cv2
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.clock import Clock, ClockType
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+    qos_profile_sensor_data,
+)
+from sensor_msgs.msg import CameraInfo, Image, PointCloud2
+from std_srvs.srv import Trigger
+
+from push_perception.conversions import (
+    depth_to_metres,
+    mask_image_msg,
+    outline_cloud_msg,
+    pose_with_covariance_msg,
+)
+from push_perception.core import EpisodeTracker, PerceptionConfig, PerceptionError
+from sim_bridge.conversions import (
+    camera_matrix_from_info,
+    image_to_array,
+    matrix_from_transform,
+    seconds_from_stamp,
+)
+
+__all__ = ["PARAMETERS", "SegmentationNode", "SegmentationParams", "main"]
+
+NODE_NAME = "segmentation_node"
+RELIABLE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
+                          reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.VOLATILE)
+LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                         reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: Seconds between two log lines of the same kind (every event is counted on /diagnostics).
+LOG_THROTTLE_S = 1.0
+#: Period of the regular /diagnostics message, seconds of steady time.
+DIAGNOSTICS_PERIOD_S = 1.0
+#: Smallest fraction of valid depth pixels in a frame (below it the camera is blind).
+MIN_VALID_DEPTH = 0.05
+#: Frames whose processing time enters the median latency on /diagnostics.
+LATENCY_WINDOW = 100
+#: Outcome counters reported on /diagnostics, in this order.
+FAILURE_KINDS = ("bad_color", "bad_depth", "size_mismatch", "bad_camera_info",
+                 "frame_mismatch", "missing_camera_info", "no_extrinsics", "empty_mask",
+                 "out_of_view", "few_pixels", "no_depth", "bad_input")
+
+
+# --------------------------------------------------------------------------------------------
+# Parameters
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class _ParamSpec:
+    """One declared parameter: name, default, description, bounds, read-only flag."""
+
+    name: str
+    default: Any
+    description: str
+    bounds: tuple[float, float] | None = None
+    read_only: bool = False
+
+
+_GEOMETRY = {f.name: f.default for f in dataclasses.fields(PerceptionConfig)}
+PARAMETERS: tuple[_ParamSpec, ...] = (
+    _ParamSpec("weights", "", "Segmentation network weights (.pt); empty = the bundled "
+               "push_perception/models/segmentation.pt.", read_only=True),
+    _ParamSpec("torch_threads", 1, "torch intra-op threads for the CNN.", (1, 16),
+               read_only=True),
+    _ParamSpec("sync_queue", 5, "Stamps kept per stream while matching colour, depth and "
+               "camera_info.", (1, 100), read_only=True),
+    _ParamSpec("threshold", 0.5, "Probability above which a pixel is the object.",
+               (0.01, 0.99), read_only=True),
+    _ParamSpec("min_coarse_cells", 3, "Smallest coarse CNN component accepted as the object, "
+               "cells of 8 x 8 px at 640 x 480.", (1, 10000), read_only=True),
+    _ParamSpec("publish_mask", True, "Publish perception/mask."),
+    _ParamSpec("resolution", _GEOMETRY["resolution"], "Cell size of the top-down view, m.",
+               (2e-4, 5e-3)),
+    _ParamSpec("min_height", _GEOMETRY["min_height"], "Mask points lower than this above the "
+               "table are dropped (table pixels), m.", (0.0, 0.05)),
+    _ParamSpec("closing_radius", _GEOMETRY["closing_radius"], "Morphological closing of the "
+               "top-down view, cells.", (0, 10)),
+    _ParamSpec("outline_spacing", _GEOMETRY["outline_spacing"], "Distance between outline "
+               "points, m.", (2e-4, 0.02)),
+    _ParamSpec("outline_smoothing", _GEOMETRY["outline_smoothing"], "Gaussian smoothing "
+               "along the outline (standard deviation), m.", (0.0, 0.01)),
+    _ParamSpec("outline_offset", _GEOMETRY["outline_offset"], "Extra outward offset of the "
+               "outline (calibration), m.", (-0.005, 0.005)),
+    _ParamSpec("symmetry_tolerance", _GEOMETRY["symmetry_tolerance"], "Orientation minima "
+               "within this chamfer cost of the best are symmetric equivalents, m.",
+               (0.0, 0.01)),
+    _ParamSpec("min_pixels", _GEOMETRY["min_pixels"], "Fewer mask pixels (with depth) than "
+               "this: no pose.", (3, 10**7)),
+    _ParamSpec("min_valid_fraction", _GEOMETRY["min_valid_fraction"], "Smaller fraction of "
+               "mask pixels with depth than this: no pose.", (0.0, 1.0)),
+    _ParamSpec("max_border_pixels", _GEOMETRY["max_border_pixels"], "More mask pixels than "
+               "this on the image border: object out of view, no pose.", (0, 10**7)),
+    _ParamSpec("sigma_position", _GEOMETRY["sigma_position"], "Base standard deviation of x "
+               "and y (5000 pixels, full depth), m.", (1e-6, 1.0)),
+    _ParamSpec("sigma_theta", _GEOMETRY["sigma_theta"], "Base standard deviation of the "
+               "relative yaw, rad.", (1e-6, math.pi)),
+    _ParamSpec("match_cost_floor", _GEOMETRY["match_cost_floor"], "Chamfer residual of a "
+               "correct rotation match; only the excess widens the yaw's deviation, m.",
+               (0.0, 0.01)),
+)
+_GEOMETRY_NAMES = tuple(n for n in _GEOMETRY if any(p.name == n for p in PARAMETERS))
+
+
+@dataclass(frozen=True)
+class SegmentationParams:
+    """The node's parameters, typed and validated (see ``PARAMETERS`` for units).
+
+    Attributes
+    ----------
+    weights : str
+        Weights file; "" = bundled.
+    torch_threads, sync_queue, min_coarse_cells : int
+    threshold : float
+    publish_mask : bool
+    geometry : PerceptionConfig
+        The mask-to-state parameters.
+    """
+
+    weights: str
+    torch_threads: int
+    sync_queue: int
+    threshold: float
+    min_coarse_cells: int
+    publish_mask: bool
+    geometry: PerceptionConfig
+
+    @classmethod
+    def from_values(cls, values: dict[str, Any]) -> SegmentationParams:
+        """Build from ``{name: value}``; raises ``ValueError`` naming a bad parameter."""
+        geometry = {n: values[n] for n in _GEOMETRY_NAMES}
+        try:
+            config = PerceptionConfig(**geometry)
+        except ValueError as exc:
+            raise ValueError(f"invalid geometry parameter: {exc}") from None
+        return cls(weights=str(values["weights"]), torch_threads=int(values["torch_threads"]),
+                   sync_queue=int(values["sync_queue"]), threshold=float(values["threshold"]),
+                   min_coarse_cells=int(values["min_coarse_cells"]),
+                   publish_mask=bool(values["publish_mask"]), geometry=config)
+
+
+def _descriptor(spec: _ParamSpec) -> ParameterDescriptor:
+    desc = ParameterDescriptor(description=spec.description, read_only=spec.read_only)
+    if spec.bounds is not None:
+        low, high = spec.bounds
+        if isinstance(spec.default, int) and not isinstance(spec.default, bool):
+            desc.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=1)]
+        else:
+            desc.floating_point_range = [FloatingPointRange(from_value=float(low),
+                                                            to_value=float(high), step=0.0)]
+    return desc
+
+
+class _LogLimiter:
+    """At most one log line per kind every ``period`` seconds (steady time); counts the rest."""
+
+    def __init__(self, period: float) -> None:
+        self.period = period
+        self._state: dict[str, tuple[float, int]] = {}
+
+    def check(self, kind: str) -> tuple[bool, int]:
+        """(log now?, number of suppressed lines of this kind since the last one logged)."""
+        now = time.monotonic()
+        last, suppressed = self._state.get(kind, (-math.inf, 0))
+        if now - last < self.period:
+            self._state[kind] = (last, suppressed + 1)
+            return False, 0
+        self._state[kind] = (now, 0)
+        return True, suppressed
+
+
+# --------------------------------------------------------------------------------------------
+# The node
+# --------------------------------------------------------------------------------------------
+class SegmentationNode(Node):
+    """ROS wrapper of the perception pipeline; see the module docstring.
+
+    Raises
+    ------
+    ValueError, rclpy.exceptions.ParameterException
+        At construction, for an invalid parameter or unreadable weights.
+    """
+
+    def __init__(self, node_name: str = NODE_NAME, **kwargs: Any) -> None:
+        super().__init__(node_name, **kwargs)
+        # use_sim_time defaults to true (the simulator's clock) unless given explicitly on the
+        # command line, in a params file or as an override; rclpy has no public query for
+        # "was this parameter given", hence the look at the overrides it collected.
+        if "use_sim_time" not in self._parameter_overrides:
+            self.set_parameters([Parameter("use_sim_time", value=True)])
+        for spec in PARAMETERS:
+            self.declare_parameter(spec.name, spec.default, _descriptor(spec))
+        self._params = self._read_params()
+
+        import torch
+
+        from push_perception.model import Segmenter
+
+        torch.set_num_threads(self._params.torch_threads)
+        cv2.setNumThreads(1)  # small images: OpenCV's thread pool only adds latency
+        self._segmenter = Segmenter.load(self._params.weights or None,
+                                         threshold=self._params.threshold,
+                                         min_coarse_cells=self._params.min_coarse_cells)
+        self._tracker = EpisodeTracker(self._params.geometry)
+
+        self._pending: OrderedDict[tuple[int, int], dict[str, Any]] = OrderedDict()
+        self._extrinsics: np.ndarray | None = None
+        self._extrinsics_frame = ""
+        self._counts = {"frames": 0, "poses": 0, "resets": 0, **dict.fromkeys(FAILURE_KINDS, 0)}
+        self._last_error = ""
+        self._ok: bool | None = None
+        self._latency: deque[float] = deque(maxlen=LATENCY_WINDOW)
+        self._last_stamp = 0.0
+        self._limiter = _LogLimiter(LOG_THROTTLE_S)
+
+        self._pub_mask = self.create_publisher(Image, "perception/mask",
+                                               qos_profile_sensor_data)
+        self._pub_pose = self.create_publisher(PoseWithCovarianceStamped,
+                                               "perception/object_pose", RELIABLE_QOS)
+        self._pub_outline = self.create_publisher(PointCloud2, "perception/outline",
+                                                  LATCHED_QOS)
+        self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", RELIABLE_QOS)
+        sensor = qos_profile_sensor_data
+        self.create_subscription(Image, "camera/color/image_raw",
+                                 lambda m: self._on_stream("rgb", m), sensor)
+        self.create_subscription(Image, "camera/aligned_depth_to_color/image_raw",
+                                 lambda m: self._on_stream("depth", m), sensor)
+        self.create_subscription(CameraInfo, "camera/color/camera_info",
+                                 lambda m: self._on_stream("info", m), sensor)
+        self.create_subscription(TransformStamped, "camera/color/extrinsics",
+                                 self._on_extrinsics, LATCHED_QOS)
+        self.create_service(Trigger, "~/reset", self._on_reset)
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_diagnostics, clock=steady)
+        self.get_logger().info(
+            f"segmentation node ready (use_sim_time="
+            f"{self.get_parameter('use_sim_time').value}, torch threads "
+            f"{self._params.torch_threads}, weights {self._params.weights or 'bundled'})")
+
+    # ---- parameters --------------------------------------------------------------------------
+    def _read_params(self) -> SegmentationParams:
+        return SegmentationParams.from_values(
+            {spec.name: self.get_parameter(spec.name).value for spec in PARAMETERS})
+
+    # ---- inputs ------------------------------------------------------------------------------
+    def _on_extrinsics(self, msg: TransformStamped) -> None:
+        try:
+            self._extrinsics = matrix_from_transform(msg)
+        except ValueError as exc:
+            self._fail("bad_input", f"rejected camera/color/extrinsics: {exc}")
+            return
+        self._extrinsics_frame = msg.child_frame_id
+
+    def _on_stream(self, stream: str, msg: Any) -> None:
+        """Collect colour, depth and camera_info by stamp; process a complete triple."""
+        key = (msg.header.stamp.sec, msg.header.stamp.nanosec)
+        entry = self._pending.setdefault(key, {})
+        entry[stream] = msg
+        if len(entry) == 3:
+            # Everything older than a complete stamp is stale: drop it (and say why).
+            for old in list(self._pending):
+                if old == key:
+                    break
+                self._evict(old)
+            del self._pending[key]
+            self._process(entry["rgb"], entry["depth"], entry["info"])
+            return
+        while len(self._pending) > self._params.sync_queue:
+            self._evict(next(iter(self._pending)))
+
+    def _evict(self, key: tuple[int, int]) -> None:
+        entry = self._pending.pop(key)
+        if "rgb" in entry and "depth" in entry:  # a whole image pair without camera info
+            self._fail("missing_camera_info", f"colour and depth at t={key[0] + key[1] * 1e-9:.3f}"
+                       " s have no camera_info with the same stamp; frame dropped")
+
+    # ---- processing --------------------------------------------------------------------------
+    def _process(self, rgb_msg: Image, depth_msg: Image, info: CameraInfo) -> None:
+        started = time.perf_counter()
+        self._counts["frames"] += 1
+        stamp = rgb_msg.header.stamp
+        try:
+            rgb = self._decode_color(rgb_msg)
+            try:
+                depth = depth_to_metres(depth_msg)
+            except ValueError as exc:
+                raise PerceptionError("bad_depth", f"depth image: {exc}") from None
+            valid = np.count_nonzero(np.isfinite(depth)) / depth.size
+            if valid < MIN_VALID_DEPTH:
+                raise PerceptionError("no_depth", f"only {100 * valid:.1f} % of the depth image "
+                                      f"is valid (NaN, zero or negative elsewhere; need "
+                                      f"{100 * MIN_VALID_DEPTH:.0f} %)")
+            if rgb.shape[:2] != depth.shape:
+                raise PerceptionError("size_mismatch", f"colour is {rgb.shape[1]}x"
+                                      f"{rgb.shape[0]} but depth is {depth.shape[1]}x"
+                                      f"{depth.shape[0]}; depth must be aligned to colour")
+            try:
+                k = camera_matrix_from_info(info)
+            except ValueError as exc:
+                raise PerceptionError("bad_camera_info", f"camera_info: {exc}") from None
+            if (info.width, info.height) != (depth.shape[1], depth.shape[0]):
+                raise PerceptionError("bad_camera_info", f"camera_info is for {info.width}x"
+                                      f"{info.height} images, the images are "
+                                      f"{depth.shape[1]}x{depth.shape[0]}")
+            if self._extrinsics is None:
+                raise PerceptionError("no_extrinsics", "no camera/color/extrinsics received "
+                                      "yet (latched, from the camera driver or sim_bridge)")
+            frame = rgb_msg.header.frame_id
+            if frame != depth_msg.header.frame_id or (self._extrinsics_frame
+                                                      and frame != self._extrinsics_frame):
+                raise PerceptionError("frame_mismatch", f"colour frame {frame!r}, depth frame "
+                                      f"{depth_msg.header.frame_id!r} and extrinsics child "
+                                      f"{self._extrinsics_frame!r} must be the same frame")
+            seg = self._segmenter(rgb, depth, k, self._extrinsics)
+            if self._params.publish_mask:
+                self._pub_mask.publish(mask_image_msg(seg.mask, stamp, frame))
+            if seg.box is None:
+                raise PerceptionError("empty_mask", "the CNN found no object in the frame")
+            meas = self._tracker.update(seg.mask, depth, k, self._extrinsics)
+        except PerceptionError as exc:
+            self._fail(exc.kind, str(exc))
+            return
+        self._pub_pose.publish(pose_with_covariance_msg(meas.pose, meas.covariance, stamp))
+        if meas.is_reference:
+            points, normals = self._tracker.outline
+            self._pub_outline.publish(outline_cloud_msg(points, normals, stamp))
+            self.get_logger().info(
+                f"new episode reference at t={seconds_from_stamp(stamp):.3f} s: object at "
+                f"({meas.pose[0]:.4f}, {meas.pose[1]:.4f}) m, area "
+                f"{meas.area * 1e4:.1f} cm^2, outline of {len(points)} points")
+        self._counts["poses"] += 1
+        self._latency.append(time.perf_counter() - started)
+        self._last_stamp = seconds_from_stamp(stamp)
+        if self._ok is not True:
+            self._ok = True
+            self._publish_diagnostics()
+
+    def _decode_color(self, msg: Image) -> np.ndarray:
+        if msg.encoding not in ("rgb8", "bgr8"):
+            raise PerceptionError("bad_color", f"colour image encoding {msg.encoding!r}; "
+                                  "expected rgb8 or bgr8")
+        try:
+            rgb = image_to_array(msg)
+        except ValueError as exc:
+            raise PerceptionError("bad_color", f"colour image: {exc}") from None
+        return np.ascontiguousarray(rgb[:, :, ::-1]) if msg.encoding == "bgr8" else rgb
+
+    def _fail(self, kind: str, message: str) -> None:
+        """Count, rate-limit-log and report a frame (or input) that gave no pose."""
+        self._counts[kind] += 1
+        self._last_error = f"{kind}: {message}"
+        log, suppressed = self._limiter.check(kind)
+        if log:
+            if suppressed:
+                message += f" ({suppressed} similar message(s) suppressed)"
+            self.get_logger().warning(f"no pose ({kind}): {message}")
+        if self._ok is not False:
+            self._ok = False
+            self._publish_diagnostics()
+
+    # ---- services and diagnostics ------------------------------------------------------------
+    def _on_reset(self, request: Trigger.Request, response: Trigger.Response
+                  ) -> Trigger.Response:
+        try:
+            params = self._read_params()
+        except ValueError as exc:
+            response.success, response.message = False, f"reset refused: {exc}"
+            self.get_logger().error(response.message)
+            return response
+        self._params = params
+        self._tracker = EpisodeTracker(params.geometry)
+        self._counts["resets"] += 1
+        response.success = True
+        response.message = "new episode: the next good frame becomes the reference"
+        self.get_logger().info(f"~/reset: {response.message}")
+        return response
+
+    def _publish_diagnostics(self) -> None:
+        status = DiagnosticStatus()
+        status.name = f"{self.get_fully_qualified_name()}: perception"
+        status.hardware_id = "rgbd_camera"
+        if self._ok is None:
+            status.level, status.message = DiagnosticStatus.OK, "waiting for camera frames"
+        elif self._ok:
+            status.level, status.message = DiagnosticStatus.OK, "tracking"
+        else:
+            status.level = DiagnosticStatus.WARN
+            status.message = f"no pose for the last frame: {self._last_error}"
+        latency = (f"{1e3 * statistics.median(self._latency):.1f}" if self._latency else "")
+        values = {**{k: str(v) for k, v in self._counts.items()},
+                  "last_error": self._last_error, "latency_ms_median": latency,
+                  "has_reference": str(self._tracker.outline is not None).lower(),
+                  "last_stamp": f"{self._last_stamp:.6f}"}
+        status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
+        array = DiagnosticArray(status=[status])
+        array.header.stamp = self.get_clock().now().to_msg()
+        self._pub_diag.publish(array)
 
 
 def main(args: list[str] | None = None) -> None:
-    """Report that the node does not exist yet and exit with status 2."""
-    print(f'{NODE_NAME} is not implemented yet (tracked in issue {ISSUE})', file=sys.stderr)
-    sys.exit(2)
+    """Entry point of ``segmentation_node`` (``ros2 run`` / ``pushbot run``)."""
+    rclpy.init(args=args)
+    try:
+        node = SegmentationNode()
+    except (ValueError, ParameterException) as exc:
+        rclpy.logging.get_logger(NODE_NAME).fatal(f"invalid configuration: {exc}")
+        rclpy.try_shutdown()
+        raise SystemExit(2) from None
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
 
 
-if __name__ == '__main__':
+if __name__ == "__main__":
     main()

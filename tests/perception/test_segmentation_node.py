@@ -1,0 +1,331 @@
+"""In-process tests of segmentation_node: real rendered frames in, pose/outline/mask out.
+
+The node and a test node share one rclpy context and executor; frames rendered by the pybullet
+world travel as real Image/CameraInfo/TransformStamped messages over DDS (localhost). Camera
+topics are best effort, so the test re-publishes a frame until the node's answer arrives;
+every wait is bounded and event-driven (no sleeps).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from array import array
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+pytestmark = [pytest.mark.ros]
+
+rclpy = pytest.importorskip("rclpy")
+
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.qos import (  # noqa: E402
+    DurabilityPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+    qos_profile_sensor_data,
+)
+from sensor_msgs.msg import CameraInfo, Image, PointCloud2  # noqa: E402
+from std_srvs.srv import Trigger  # noqa: E402
+
+from push_perception.conversions import outline_from_cloud  # noqa: E402
+from push_perception.segmentation_node import PARAMETERS, SegmentationNode  # noqa: E402
+from pushbot.graph import spin_until  # noqa: E402
+from sim_bridge.conversions import (  # noqa: E402
+    CAMERA_FRAME,
+    WORLD_FRAME,
+    camera_info_msg,
+    depth_image_msg,
+    image_to_array,
+    rgb_image_msg,
+    stamp_from_seconds,
+    transform_msg,
+    xytheta_from_pose,
+)
+
+RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+TIMEOUT = 30.0  # s per wait; a frame takes well under a second even on the loaded machine
+NODE = "segmentation_node"
+
+
+@dataclass(frozen=True)
+class Rendered:
+    rgb: np.ndarray
+    depth: np.ndarray
+    mask: np.ndarray
+    k: np.ndarray
+    t: np.ndarray
+    pose: np.ndarray
+
+
+@pytest.fixture(scope="module")
+def frames(world_factory: Callable[..., Any]) -> dict[str, Rendered]:
+    """Butter seen by the default 640 x 480 camera at a few poses (rendered once)."""
+    world = world_factory(object="butter", object_pose=(0.02, -0.05, 0.4))
+    out = {}
+    for name, pose in (("a", (0.02, -0.05, 0.4)), ("b", (0.06, 0.01, 0.95)),
+                       ("gone", (1.4, 0.0, 0.0)), ("edge", (0.0, 0.38, 0.0))):
+        world.set_object_pose(pose)
+        f = world.render()
+        out[name] = Rendered(f.rgb, f.depth, f.mask, f.camera_matrix, f.T_world_camera,
+                             f.object_pose)
+    return out
+
+
+class Harness:
+    """The node under test plus a test node that feeds it and records what it publishes."""
+
+    def __init__(self, context: Any) -> None:
+        self.node = SegmentationNode(context=context)
+        self.client = rclpy.create_node("perception_test_client", context=context)
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(self.node)
+        self.executor.add_node(self.client)
+        c = self.client
+        sensor = qos_profile_sensor_data
+        self.pub_rgb = c.create_publisher(Image, "camera/color/image_raw", sensor)
+        self.pub_depth = c.create_publisher(Image, "camera/aligned_depth_to_color/image_raw",
+                                            sensor)
+        self.pub_info = c.create_publisher(CameraInfo, "camera/color/camera_info", sensor)
+        self.pub_extrinsics = c.create_publisher(TransformStamped, "camera/color/extrinsics",
+                                                 LATCHED)
+        self.poses: list[PoseWithCovarianceStamped] = []
+        self.outlines: list[PointCloud2] = []
+        self.masks: list[Image] = []
+        self.diagnostics: list[dict[str, str]] = []
+        c.create_subscription(PoseWithCovarianceStamped, "perception/object_pose",
+                              self.poses.append, RELIABLE)
+        c.create_subscription(PointCloud2, "perception/outline", self.outlines.append, LATCHED)
+        c.create_subscription(Image, "perception/mask", self.masks.append, sensor)
+        c.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, RELIABLE)
+        self.reset_client = c.create_client(Trigger, f"/{NODE}/reset")
+        self.time = 100.0
+        self.wait(lambda: (self.pub_rgb.get_subscription_count() > 0
+                           and self.pub_depth.get_subscription_count() > 0
+                           and self.pub_info.get_subscription_count() > 0
+                           and self.pub_extrinsics.get_subscription_count() > 0
+                           and self.reset_client.service_is_ready()), "discovery")
+
+    def _on_diag(self, msg: DiagnosticArray) -> None:
+        for status in msg.status:
+            if status.name.startswith(f"/{NODE}:"):
+                values = {kv.key: kv.value for kv in status.values}
+                values["_level"] = str(int.from_bytes(status.level, "little"))
+                values["_message"] = status.message
+                self.diagnostics.append(values)
+
+    def wait(self, predicate: Callable[[], Any], what: str, timeout: float = TIMEOUT,
+             resend: Callable[[], None] | None = None) -> Any:
+        """Spin until ``predicate()``; call ``resend`` about every 0.5 s meanwhile."""
+        deadline = time.monotonic() + timeout
+        while True:
+            if resend is not None:
+                resend()
+            if spin_until(self.executor, predicate, min(deadline, time.monotonic() + 0.5)):
+                return predicate()
+            if time.monotonic() >= deadline:
+                pytest.fail(f"timed out after {timeout:.0f} s waiting for {what}; "
+                            f"diagnostics: {self.diagnostics[-1:] or 'none'}")
+
+    def send_extrinsics(self, t: np.ndarray) -> None:
+        self.pub_extrinsics.publish(transform_msg(t, stamp_from_seconds(self.time), WORLD_FRAME,
+                                                  CAMERA_FRAME))
+
+    def frame_messages(self, f: Rendered) -> tuple[Image, Image, CameraInfo]:
+        """Messages of a frame with a fresh stamp."""
+        self.time += 0.5
+        stamp = stamp_from_seconds(self.time)
+        h, w = f.depth.shape
+        return (rgb_image_msg(f.rgb, stamp), depth_image_msg(f.depth, stamp),
+                camera_info_msg(f.k, w, h, stamp))
+
+    def publish(self, msgs: tuple[Any, ...]) -> None:
+        rgb, depth, info = msgs
+        for pub, msg in ((self.pub_rgb, rgb), (self.pub_depth, depth), (self.pub_info, info)):
+            if msg is not None:
+                pub.publish(msg)
+
+    def pose_for(self, f: Rendered) -> PoseWithCovarianceStamped:
+        """Send a frame (re-sent while lost) and return the pose the node publishes for it."""
+        msgs = self.frame_messages(f)
+        stamp = msgs[0].header.stamp
+        return self.wait(lambda: next((p for p in self.poses if p.header.stamp == stamp), None),
+                         "a pose for the frame", resend=lambda: self.publish(msgs))
+
+    def counter(self, kind: str) -> int:
+        return max((int(d[kind]) for d in self.diagnostics if kind in d), default=0)
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        self.client.destroy_node()
+
+
+@pytest.fixture
+def harness(ros_context: Any) -> Iterator[Harness]:
+    h = Harness(ros_context)
+    try:
+        yield h
+    finally:
+        h.close()
+
+
+def test_parameter_yaml_documents_every_parameter_with_its_default() -> None:
+    import yaml
+
+    path = Path(__file__).resolve().parents[2] / "ros_ws" / "config" / "push_perception.yaml"
+    params = yaml.safe_load(path.read_text())[NODE]["ros__parameters"]
+    assert params["use_sim_time"] is True
+    for spec in PARAMETERS:
+        assert spec.name in params, f"{spec.name} is not in {path.name}"
+        value = params[spec.name]
+        assert value == spec.default and type(value) is type(spec.default), spec.name
+
+
+def test_rendered_frames_give_pose_outline_and_mask(harness: Harness,
+                                                    frames: dict[str, Rendered]) -> None:
+    h, a, b = harness, frames["a"], frames["b"]
+    assert h.node.get_parameter("use_sim_time").value is True  # the default
+    h.send_extrinsics(a.t)
+    first = h.pose_for(a)
+    assert first.header.frame_id == WORLD_FRAME
+    xyt = xytheta_from_pose(first.pose.pose)
+    assert np.linalg.norm(xyt[:2] - a.pose[:2]) < 0.003  # the object frame origin, world
+    assert xyt[2] == pytest.approx(0.0, abs=1e-9)  # the reference frame of the episode
+    cov = np.array(first.pose.covariance).reshape(6, 6)
+    assert 0 < cov[0, 0] == cov[1, 1] < 1e-4 and 0 < cov[5, 5] < 0.01
+    # The outline (latched) and the mask of that frame.
+    outline = h.wait(lambda: h.outlines[-1] if h.outlines else None, "the outline")
+    assert outline.header.frame_id == "object" and outline.header.stamp == first.header.stamp
+    points, normals = outline_from_cloud(outline)
+    assert len(points) > 100
+    np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-5)
+    x, y = points[:, 0], points[:, 1]
+    assert np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y) > 0  # counter-clockwise
+    mask_msg = h.wait(lambda: next((m for m in h.masks
+                                    if m.header.stamp == first.header.stamp), None), "the mask")
+    mask = image_to_array(mask_msg) > 0
+    assert np.count_nonzero(mask & a.mask) / np.count_nonzero(mask | a.mask) > 0.9
+    # A second frame: position against the truth, yaw relative to the first frame.
+    second = xytheta_from_pose(h.pose_for(b).pose.pose)
+    assert np.linalg.norm(second[:2] - b.pose[:2]) < 0.003
+    turn = (b.pose[2] - a.pose[2] + math.pi) % (2 * math.pi) - math.pi
+    assert math.degrees(abs(second[2] - turn)) < 2.0
+    # ~/reset: a new episode, so b becomes the reference (yaw 0) with a new outline.
+    future = h.reset_client.call_async(Trigger.Request())
+    assert h.wait(future.done, "the reset response") and future.result().success
+    n_outlines = len(h.outlines)
+    third = xytheta_from_pose(h.pose_for(b).pose.pose)
+    assert third[2] == pytest.approx(0.0, abs=1e-9)
+    h.wait(lambda: len(h.outlines) > n_outlines, "the new outline")
+
+
+def _bad_color_encoding(h: Harness, f: Rendered) -> tuple[Any, ...]:
+    rgb, depth, info = h.frame_messages(f)
+    rgb.encoding = "rgba8"
+    return rgb, depth, info
+
+
+def _short_color(h: Harness, f: Rendered) -> tuple[Any, ...]:
+    rgb, depth, info = h.frame_messages(f)
+    rgb.data = array("B", bytes(rgb.data)[: -rgb.step])  # one row missing: height * step
+    return rgb, depth, info
+
+
+def _bad_depth_encoding(h: Harness, f: Rendered) -> tuple[Any, ...]:
+    rgb, depth, info = h.frame_messages(f)
+    depth.encoding = "8UC1"
+    return rgb, depth, info
+
+
+def _depth_of_other_size(h: Harness, f: Rendered) -> tuple[Any, ...]:
+    rgb, depth, info = h.frame_messages(f)
+    return rgb, depth_image_msg(f.depth[::2, ::2].copy(), depth.header.stamp), info
+
+
+def _depth_filled_with(value: float) -> Callable[[Harness, Rendered], tuple[Any, ...]]:
+    def make(h: Harness, f: Rendered) -> tuple[Any, ...]:
+        rgb, _, info = h.frame_messages(f)
+        return rgb, depth_image_msg(np.full_like(f.depth, value), rgb.header.stamp), info
+
+    return make
+
+
+def _camera_info_of_other_size(h: Harness, f: Rendered) -> tuple[Any, ...]:
+    rgb, depth, info = h.frame_messages(f)
+    info.width = 320
+    return rgb, depth, info
+
+
+BAD_INPUTS = {
+    "bad_color": _bad_color_encoding,
+    "bad_color_step": _short_color,
+    "bad_depth": _bad_depth_encoding,
+    "size_mismatch": _depth_of_other_size,
+    "no_depth_nan": _depth_filled_with(np.nan),
+    "no_depth_zero": _depth_filled_with(0.0),
+    "bad_camera_info": _camera_info_of_other_size,
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_INPUTS))
+def test_bad_frames_are_reported_and_the_node_keeps_working(
+        case: str, harness: Harness, frames: dict[str, Rendered],
+        capfd: pytest.CaptureFixture[str]) -> None:
+    kind = case.removesuffix("_step").removesuffix("_nan").removesuffix("_zero")
+    kind = "no_depth" if kind.startswith("no_depth") else kind
+    h = harness
+    h.send_extrinsics(frames["a"].t)
+    msgs = BAD_INPUTS[case](h, frames["a"])
+    h.wait(lambda: h.counter(kind) >= 1, f"a {kind} count on /diagnostics",
+           resend=lambda: h.publish(msgs))
+    last = h.diagnostics[-1]
+    assert last["_level"] == "1" and kind in last["_message"]  # WARN, naming the problem
+    assert h.counter("poses") == 0 and not h.poses
+    h.pose_for(frames["a"])  # still working
+    assert f"no pose ({kind})" in capfd.readouterr().err
+
+
+def test_missing_extrinsics_then_recovery(harness: Harness,
+                                          frames: dict[str, Rendered]) -> None:
+    h, a = harness, frames["a"]
+    msgs = h.frame_messages(a)
+    h.wait(lambda: h.counter("no_extrinsics") >= 1, "no_extrinsics",
+           resend=lambda: h.publish(msgs))
+    assert not h.poses
+    h.send_extrinsics(a.t)
+    h.pose_for(a)
+
+
+def test_missing_camera_info_is_reported(harness: Harness, frames: dict[str, Rendered]) -> None:
+    h, a = harness, frames["a"]
+    h.send_extrinsics(a.t)
+
+    def send_without_info() -> None:
+        rgb, depth, _ = h.frame_messages(a)
+        h.publish((rgb, depth, None))
+
+    h.wait(lambda: h.counter("missing_camera_info") >= 1, "missing_camera_info",
+           resend=send_without_info)
+    assert not h.poses
+    h.pose_for(a)
+
+
+@pytest.mark.parametrize(("name", "kind"), [("gone", "empty_mask"), ("edge", "out_of_view")])
+def test_object_out_of_view_gives_no_pose(name: str, kind: str, harness: Harness,
+                                          frames: dict[str, Rendered]) -> None:
+    h, f = harness, frames[name]
+    h.send_extrinsics(f.t)
+    msgs = h.frame_messages(f)
+    h.wait(lambda: h.counter(kind) >= 1, kind, resend=lambda: h.publish(msgs))
+    assert not h.poses
+    h.pose_for(frames["a"])
