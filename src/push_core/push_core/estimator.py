@@ -632,8 +632,7 @@ def _twist_with_jacobian(ux: float, uy: float, rx: float, ry: float, nx: float, 
         dvp0 = [k * p + vx * g for p, g in zip(dvb0, dk, strict=True)]
         dvp1 = [k * q + vy * g for q, g in zip(dvb1, dk, strict=True)]
     else:
-        dvp0 = [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
-        dvp1 = [0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+        dvp0 = dvp1 = None  # sticking: v_p = u, d v_p / d X selects u
 
     # Stage 2: (v_o, omega) = f(v_p, p, l); partials w.r.t. v_p and directly w.r.t. p and l.
     a00, a01, a11 = (l2 + rxx) / d, rxy / d, (l2 + ryy) / d
@@ -650,7 +649,10 @@ def _twist_with_jacobian(ux: float, uy: float, rx: float, ry: float, nx: float, 
     rows = []
     for c0, c1, d_px, d_py, d_l in ((a00, a01, x_px, x_py, x_l), (a01, a11, y_px, y_py, y_l),
                                     (w0, w1, w_px, w_py, w_l)):
-        t = [c0 * p + c1 * q for p, q in zip(dvp0, dvp1, strict=True)]
+        if dvp0 is None:
+            t = (c0, c1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        else:
+            t = [c0 * p + c1 * q for p, q in zip(dvp0, dvp1, strict=True)]
         t2, t3 = t[2] + d_px, t[3] + d_py
         # columns u (2), r (2), n (2), c (2) = -r, l, m = alpha * d alpha / d m
         rows.append((t[0], t[1], t2, t3, t[4], t[5], -t2, -t3, (t[6] + d_l) * dl,
@@ -850,7 +852,9 @@ def _predict_push(x: NDArray[np.float64], outline: ContactOutline, start: NDArra
         if length > 0.0:
             touched = True
             in_contact += length
-            if g is not None:  # chain rule: jp <- G[:, :3] jp + [0 | G[:, 3:]]
+            if g is not None and jp is _EYE_3x7_ROWS:  # first contact: jp = G
+                jp = g
+            elif g is not None:  # chain rule: jp <- G[:, :3] jp + [0 | G[:, 3:]]
                 jp = [[r[0] * a + r[1] * b + r[2] * e + (r[k] if k >= 3 else 0.0)
                        for k, (a, b, e) in enumerate(zip(*jp, strict=True))] for r in g]
     new_state = x.copy()
