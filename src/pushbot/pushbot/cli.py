@@ -52,6 +52,11 @@ TARGETS: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
         'affordances': ('push_planner.train_affordances',
                         'train the learned affordance CNN on `pushbot data affordances` data'),
     }),
+    'eval': ('evaluate components on held-out objects', {
+        'perception': ('push_perception.evaluation',
+                       'mask IoU, pose, orientation, outline accuracy and latency (tri1, butter, '
+                       'hex)'),
+    }),
 }
 
 
