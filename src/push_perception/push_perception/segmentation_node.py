@@ -59,9 +59,15 @@ only), ``threshold``, ``min_coarse_cells``, ``publish_mask`` and the geometry of
 a clear message.
 
 Frames: ``camera_color_optical_frame`` (REP 103 optical), ``world`` (table, z up), ``object``.
-The heavy work (about 25 ms per 640 x 480 frame) runs in the subscription callback of the
-default single-threaded executor; frames that arrive meanwhile wait in the sensor queues
-(depth 5) and the oldest are dropped, which is what a camera stream wants.
+The heavy work (13-21 ms median per 640 x 480 frame, docs/RESULTS.md) runs in the subscription
+callback of the default single-threaded executor; frames that arrive meanwhile wait in the
+sensor queues (depth 5) and the oldest are dropped, which is what a camera stream wants.
+
+Transport note: a 640 x 480 frame is 0.9 MB (colour) + 1.2 MB (depth). Between processes,
+Fast DDS with the project's current profile (``pushbot.dds``) delivered few or none of these
+best-effort samples from ``sim_bridge_node`` in a two-process test (212 KB UDP socket
+buffers, default shared-memory segments); a profile with 16 MB shared-memory segments and
+4 MB UDP buffers delivered every frame at the bridge's 2 Hz. In-process tests re-send.
 """
 
 from __future__ import annotations

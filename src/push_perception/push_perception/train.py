@@ -178,7 +178,9 @@ def train(data: Path, cfg: TrainConfig, progress: bool = True) -> tuple[Any, dic
         raise ValueError(f"{data}: {len(shards)} shard(s), need more than val_shards = "
                          f"{cfg.val_shards}")
     train_shards, val_shards = shards[:-cfg.val_shards], shards[-cfg.val_shards:]
+    prepare_started = time.monotonic()
     arrays = prepare(data, train_shards, cfg.seed)
+    prepare_minutes = (time.monotonic() - prepare_started) / 60.0
     n = len(arrays["small_rgb"])
     rng = np.random.default_rng(cfg.seed)
     net = SegmentationNet()
@@ -252,7 +254,8 @@ def train(data: Path, cfg: TrainConfig, progress: bool = True) -> tuple[Any, dic
         if (Path(data) / "meta.json").exists() else {}
     report = {"train_config": asdict(cfg), "data": str(data), "data_meta": meta,
               "train_frames": n, "val_shards": [p.name for p in val_shards],
-              "train_minutes": round(minutes, 1), "loss_curve": curve,
+              "train_minutes": round(minutes, 1), "prepare_minutes": round(prepare_minutes, 1),
+              "loss_curve": curve,
               "validation": metrics,
               "parameters": sum(p.numel() for p in net.parameters()),
               "date": datetime.datetime.now(datetime.UTC).date().isoformat()}
@@ -349,7 +352,9 @@ docs/RESULTS.md (`eval_perception`, `bench_perception`).
 - command: `{report["command"]}`
 - seed {cfg["seed"]}, {cfg["steps"]} steps of {cfg["batch"]} frames, Adam (lr {cfg["lr"]},
   cosine decay, weight decay {cfg["weight_decay"]}), {cfg["threads"]} torch thread(s), CPU;
-- wall time {report["train_minutes"]} min on the shared 2-core machine ({report["date"]}).
+- wall time {report["train_minutes"]} min of training on the shared 2-core machine
+  ({report["date"]}), after {report.get("prepare_minutes", "?")} min preparing the cached
+  arrays (first run on a data set only).
 
 ## Metrics
 
