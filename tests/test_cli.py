@@ -145,15 +145,6 @@ def test_run_unknown_node_exits_2_and_lists_known_nodes() -> None:
         assert f'{node} ({package})' in result.stderr
 
 
-@pytest.mark.parametrize(('node', 'issue'), [('ekf_node', 5)])
-def test_placeholder_nodes_say_they_are_not_implemented(
-    node: str, issue: int, processes: Any
-) -> None:
-    proc = processes.node(node, '--ros-args', '-p', 'use_sim_time:=true')
-    assert proc.wait(timeout=60) == 2
-    assert f'{node} is not implemented yet (tracked in issue {issue})' in processes.output(proc)
-
-
 class _StubEntryPoint:
     def __init__(self, record: list[list[str]]) -> None:
         self.record = record

@@ -56,6 +56,9 @@ TARGETS: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
         'perception': ('push_perception.evaluation',
                        'mask IoU, pose, orientation, outline accuracy and latency (tri1, butter, '
                        'hex)'),
+        'estimator': ('push_estimator.evaluation',
+                      'COM, l and m estimation and NEES/NIS of the EKF on pybullet (butter, '
+                      'tri1, hex)'),
     }),
 }
 
