@@ -140,7 +140,8 @@ def test_data_generation_and_training_end_to_end(tmp_path: Path):
 
     out = tmp_path / "model" / "w.pt"
     args = argparse.Namespace(data=tmp_path / "train", test_data=tmp_path / "train", out=out,
-                              minutes=5.0, epochs=2, batch=4, lr=1e-3, rotations=2, seed=0)
+                              minutes=5.0, epochs=2, batch=4, lr=1e-3, rotations=2, seed=0,
+                              channels=[4, 8, 8], hidden=16)
     assert run(args) == 0
     model = load_affordance_model(out)
     assert model.meta["epochs"] == 2 and model.meta["samples"] == 2

@@ -32,6 +32,7 @@ from visualization_msgs.msg import MarkerArray
 from push_core.geometry import closest_point_on_polyline
 from push_core.objects import load_object
 from push_planner.conversions import outline_cloud, stamp_from_seconds, state_msg
+from push_planner.models import default_weights
 from push_planner.planner_node import LATCHED_QOS, PARAMETERS, RELIABLE_QOS, PlannerNode
 
 pytestmark = pytest.mark.ros
@@ -365,3 +366,19 @@ def test_node_process_starts_with_the_yaml_and_refuses_bad_parameters(
         executor.shutdown()
         client.destroy_node()
     assert processes.stop(proc) == 0
+
+
+@pytest.mark.skipif(not default_weights().exists(), reason="no bundled weights")
+def test_lrn_method_plans_with_the_bundled_model(ros_context: Any,
+                                                 wait_for: Callable[..., bool]) -> None:
+    h = make_harness(ros_context, wait_for, [Parameter("method", value="lrn")])
+    try:
+        h.publish_outline(*rect1_outline())
+        h.publish_goal(0.0, 0.1, 0.3)
+        h.publish_estimate((0.0, 0.0, 0.0), stamp=1.0)
+        assert h.spin_until(lambda: len(h.pushes) == 1)
+        check_push(h.pushes[0], (0.0, 0.0, 0.0))
+    finally:
+        h.executor.shutdown()
+        h.client.destroy_node()
+        h.node.destroy_node()

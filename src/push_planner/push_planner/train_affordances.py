@@ -184,6 +184,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--lr", type=float, default=2e-3)
     parser.add_argument("--rotations", type=int, default=8,
                         help="rotated copies of every sample (each also mirrored)")
+    parser.add_argument("--channels", type=int, nargs=3, default=[16, 32, 32],
+                        help="channels of the three shape-feature convolutions")
+    parser.add_argument("--hidden", type=int, default=128, help="units of the head's layers")
     parser.add_argument("--seed", type=int, default=0)
 
 
@@ -210,7 +213,8 @@ def run(args: argparse.Namespace) -> int:
           f"{int(data['valid'].sum())} executed pushes; encodings in "
           f"{time.perf_counter() - t0:.0f} s", flush=True)
 
-    cfg = {"channels": [16, 32, 32], "hidden": 128, "grid": 64, "resolution": 0.004}
+    cfg = {"channels": [int(c) for c in args.channels], "hidden": int(args.hidden),
+           "grid": 64, "resolution": 0.004}
     net = AffordanceNet(channels=tuple(cfg["channels"]), hidden=cfg["hidden"])
     opt = torch.optim.AdamW(net.parameters(), lr=args.lr, weight_decay=1e-4)
     steps_per_epoch = math.ceil(len(train_idx) / args.batch)
@@ -264,6 +268,8 @@ def run(args: argparse.Namespace) -> int:
         "machine": f"{platform.node()}, Python {platform.python_version()}, "
                    f"torch {torch.__version__}, 1 thread",
         "lr": args.lr, "batch": args.batch, "rotations": args.rotations,
+        "channels": cfg["channels"], "hidden": cfg["hidden"],
+        "parameters": int(sum(p.numel() for p in net.parameters())),
     }
     out.parent.mkdir(parents=True, exist_ok=True)
     torch.save({"format_version": FORMAT_VERSION, "config": cfg, "state_dict": net.state_dict(),
@@ -285,9 +291,11 @@ def model_card(meta: dict[str, Any], weights_name: str) -> str:
         "",
         "## Model",
         "`push_core.learned.AffordanceNet`: 64 x 64 shape encoding (4 mm pixels; occupancy, "
-        "outline, outward normals) + 2 COM channels -> 3-layer CNN with max-pooling (16/32/32 "
-        "channels), features sampled at each contact point + global max -> 3-layer head "
-        "without pooling (128/128/3) per point x representative push; predicts the COM motion "
+        "outline, outward normals) + 2 COM channels -> 3-layer CNN with max-pooling ("
+        + "/".join(str(c) for c in meta["channels"]) + " channels), features sampled at each "
+        "contact point + global max -> 3-layer head without pooling ("
+        f"{meta['hidden']}/{meta['hidden']}/3) per point x representative push; "
+        f"{meta['parameters']} parameters; predicts the COM motion "
         "in the contact frame and the rotation, converted to the object-frame origin motion. "
         "Does not use l or m.",
         "",
