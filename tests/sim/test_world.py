@@ -337,3 +337,24 @@ def test_worlds_in_one_process_are_independent():
     assert b.sim_time < a.sim_time
     a.close()
     b.close()
+
+
+def test_place_pusher_refuses_overlap_and_parks_again(rect_world):
+    pose = rect_world.object_pose()
+    parked = rect_world.pusher_position()
+    half_x = 0.5 * np.ptp(rect_world.object_spec.shape.vertices[:, 0])
+    inside = object_to_world(pose, np.array([0.0, 0.0]))
+    touching = object_to_world(pose, np.array([half_x + 0.001, 0.0]))  # 1 mm < pusher radius
+    for bad in (inside, touching):
+        with pytest.raises(ValueError, match="overlap"):
+            rect_world.place_pusher(bad)
+    with pytest.raises(ValueError, match="lift"):
+        rect_world.place_pusher(object_to_world(pose, np.array([half_x + 0.02, 0.0])), -0.01)
+    beside = object_to_world(pose, np.array([half_x + 0.02, 0.0]))
+    before = rect_world.render()
+    rect_world.place_pusher(beside)
+    np.testing.assert_allclose(rect_world.pusher_position(), beside, atol=1e-9)
+    assert np.any(rect_world.render().rgb != before.rgb)  # the pusher is in view
+    rect_world.park_pusher()
+    np.testing.assert_allclose(rect_world.pusher_position(), parked, atol=1e-9)
+    np.testing.assert_allclose(rect_world.object_pose(), pose, atol=1e-9)  # never touched

@@ -32,10 +32,10 @@ rendered per scene with the object teleported to random poses. In a fraction of 
 the pusher stands near the object (touching it up to 3 cm away, sometimes raised), elsewhere
 in the workspace, or the object is out of view (empty mask).
 
-The pusher is placed with ``PushWorld._teleport_pusher``, a private method: the world has no
-public way to pose the pusher except by executing a whole push, and frames in which the pusher
-touches the object are what the network must learn to separate. The pusher is parked again
-before the object is moved, so physics never sees the two overlap.
+The pusher is placed with ``PushWorld.place_pusher`` (a teleport, not a push: frames in which
+the pusher touches the object are what the network must learn to separate) and parked again
+with ``PushWorld.park_pusher`` before the object is moved, so physics never sees the two
+overlap.
 
 Reproducibility and files
 -------------------------
@@ -395,7 +395,7 @@ def _scene_config(cfg: DataConfig, rng: np.random.Generator, shard: int, scene: 
 def _render_sample(world: Any, cfg: DataConfig, rng: np.random.Generator, spec: ObjectSpec,
                    name: str, points: NDArray[np.float64],
                    normals: NDArray[np.float64]) -> dict[str, Any]:
-    from sim_bridge.world import PUSHER_GAP, PUSHER_LENGTH
+    from sim_bridge.world import PUSHER_GAP
 
     (x0, x1), (y0, y1) = world.workspace
     pose = np.array([rng.uniform(x0 + 0.03, x1 - 0.03), rng.uniform(y0 + 0.03, y1 - 0.03),
@@ -406,7 +406,6 @@ def _render_sample(world: Any, cfg: DataConfig, rng: np.random.Generator, spec: 
     world.set_object_pose(pose)
     pose = world.object_pose()  # settled (the friction anchor keeps it within ~0.03 mm)
     pusher = np.full(3, np.nan)
-    z_push = PUSHER_GAP + PUSHER_LENGTH / 2.0  # pusher centre height while pushing
     radius = world.config.pusher_radius
     if u_pusher < cfg.pusher_near:
         k = int(rng.integers(len(points)))
@@ -421,10 +420,10 @@ def _render_sample(world: Any, cfg: DataConfig, rng: np.random.Generator, spec: 
         if dist > radius + 3e-4:  # never inside or overlapping the object
             lift = rng.uniform(0.0, 0.05) if rng.random() < 0.2 else 0.0
             pusher = np.array([xy[0], xy[1], PUSHER_GAP + lift])
-            world._teleport_pusher(np.array([xy[0], xy[1], z_push + lift]))  # see docstring
+            world.place_pusher(xy, lift)
     frame = world.render()
     if np.all(np.isfinite(pusher)):
-        world._teleport_pusher(world._park_position())
+        world.park_pusher()
     return {
         "rgb": frame.rgb, "depth": encode_depth(frame.depth), "mask": frame.mask,
         "camera_matrix": frame.camera_matrix, "T_world_camera": frame.T_world_camera,

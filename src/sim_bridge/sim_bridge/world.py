@@ -582,6 +582,26 @@ class PushWorld:
         self._place_object(pose)
         self._step(INITIAL_SETTLE_STEPS)
 
+    def place_pusher(self, xy: ArrayLike, lift: float = 0.0) -> None:
+        """Teleport the pusher to stand at ``xy`` (world, m), its bottom ``PUSHER_GAP + lift``
+        above the table (addition; data generation, tests).
+
+        Not a physical motion and no physics step is run: the caller must make sure the pusher
+        does not overlap the object (``ValueError`` if it would, with 0.3 mm of margin), and
+        park it again (:meth:`park_pusher`) before the object moves.
+        """
+        xy = _finite_vector("xy", xy, 2)
+        if not np.isfinite(lift) or lift < 0.0:
+            raise ValueError(f"lift must be finite and >= 0, got {lift}")
+        _, _, dist, _ = closest_point_on_polyline(self.object_outline(), xy)
+        if dist <= self._config.pusher_radius + 3e-4:  # signed: negative inside
+            raise ValueError(f"pusher at {xy.tolist()} would overlap the object")
+        self._teleport_pusher(np.array([xy[0], xy[1], PUSHER_GAP + PUSHER_LENGTH / 2.0 + lift]))
+
+    def park_pusher(self) -> None:
+        """Teleport the pusher back to its parked position, out of view (addition)."""
+        self._teleport_pusher(self._park_position())
+
     def _place_object(self, pose: NDArray[np.float64]) -> None:
         quat = _yaw_quaternion(pose[2])
         rot = np.array(self._client.getMatrixFromQuaternion(quat)).reshape(3, 3)
