@@ -59,6 +59,9 @@ TARGETS: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
         'estimator': ('push_estimator.evaluation',
                       'COM, l and m estimation and NEES/NIS of the EKF on pybullet (butter, '
                       'tri1, hex)'),
+        'push': ('pushbot.evaluate',
+                 'the closed-loop experiments of SPEC section 5 in-process (success, steps, end '
+                 'error; Figs. 5.5-5.7, Tables 5.1-5.2; --ray, --graph)'),
     }),
 }
 

@@ -26,7 +26,9 @@ Definitions (docs/ARCHITECTURE.md, "Closed loop and evaluation"):
   ``lrn-direct`` (affordances with linear length rescaling instead of rollouts) and
   ``pushnet`` (the Push-Net-style sampling baseline).
 - State sources: ``gt`` (true pose, COM, friction; ``l`` from the uniform-pressure guess) or
-  ``filter`` (rendered RGB-D -> segmentation -> EKF).
+  ``filter`` (rendered RGB-D -> segmentation -> EKF). ``estimate_com = False`` (``filter``
+  only) pins the EKF's COM at the geometric centre: the "without COM estimation" rows of the
+  source's Table 5.2.
 """
 
 from __future__ import annotations
@@ -112,6 +114,9 @@ class Trial:
         Base seed of the evaluation, >= 0.
     max_steps : int
         Pushes allowed (30).
+    estimate_com : bool
+        ``filter``: the EKF estimates the COM (True) or keeps it at the geometric centre.
+        Ignored by ``gt``.
     """
 
     object: str
@@ -124,6 +129,7 @@ class Trial:
     index: int = 0
     seed: int = 0
     max_steps: int = 30
+    estimate_com: bool = True
 
     def __post_init__(self) -> None:
         _check("task", self.task, TASKS)
@@ -137,6 +143,9 @@ class Trial:
             raise ValueError(f"index and seed must be >= 0, got {self.index}, {self.seed}")
         if int(self.max_steps) < 1:
             raise ValueError(f"max_steps must be >= 1, got {self.max_steps}")
+        if not isinstance(self.estimate_com, bool | np.bool_):
+            raise ValueError(f"estimate_com must be a bool, got {self.estimate_com!r}")
+        object.__setattr__(self, "estimate_com", bool(self.estimate_com))
 
     # -- derived quantities -------------------------------------------------------------------
     @property
@@ -215,10 +224,10 @@ class Trial:
 
 def make_trials(objects: list[str], tasks: list[str], methods: list[str], ks: list[int],
                 n: int, *, state: str = "gt", com: str = "centre", region: str = "small",
-                seed: int = 0, max_steps: int = 30) -> list[Trial]:
+                seed: int = 0, max_steps: int = 30, estimate_com: bool = True) -> list[Trial]:
     """The cross product objects x tasks x methods x ks x ``n`` trial indices, in that order."""
     if n < 1:
         raise ValueError(f"the number of trials must be >= 1, got {n}")
     return [Trial(object=o, task=t, method=mth, k=k, state=state, com=com, region=region,
-                  index=i, seed=seed, max_steps=max_steps)
+                  index=i, seed=seed, max_steps=max_steps, estimate_com=estimate_com)
             for o in objects for t in tasks for mth in methods for k in ks for i in range(n)]
