@@ -97,6 +97,19 @@ def test_contact_outline_decimates_and_keeps_the_outline() -> None:
     assert outline.limit_surface == pytest.approx(limit_surface_of_polygon(points))
 
 
+def test_closest_feature_loop_equals_the_vectorised_search(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    import push_core.estimator as estimator
+
+    outline = ContactOutline.from_points(*library_outline("tri1"), tolerance=5e-4)
+    assert len(outline.vertices) <= estimator._SMALL_POLYGON  # the loop is used for tri1
+    queries = np.random.default_rng(7).uniform(-0.12, 0.12, size=(500, 2))
+    queries = np.concatenate([queries, outline.vertices, outline.vertices + 0.01])
+    looped = [outline.closest_feature(*q) for q in queries.tolist()]
+    monkeypatch.setattr(estimator, "_SMALL_POLYGON", 0)
+    assert [outline.closest_feature(*q) for q in queries.tolist()] == looped
+
+
 @pytest.mark.parametrize(("points", "normals", "match"), [
     (square(0.04)[::-1], None, "points"),  # clockwise
     (square(0.04)[:2], None, "points"),
@@ -348,6 +361,24 @@ def test_update_is_the_kalman_update_in_joseph_form() -> None:
     expected_x[6] = np.clip(expected_x[6], *ekf.m_bounds)
     np.testing.assert_allclose(ekf.state, expected_x, rtol=1e-10, atol=1e-14)
     np.testing.assert_allclose(ekf.covariance, expected_p, rtol=1e-10, atol=1e-16)
+
+
+def test_update_sets_filterpy_attributes_like_filterpy_update() -> None:
+    from filterpy.kalman import ExtendedKalmanFilter
+
+    ekf = square_ekf()
+    ekf.update_pose([0.01, 0.0, 0.1])
+    ekf.predict_push([-0.06, 0.0], [-0.02, 0.0])
+    reference = ExtendedKalmanFilter(7, 3)
+    reference.x, reference.P = ekf.x.copy(), ekf.P.copy()
+    r = np.diag([4e-6, 4e-6, 1e-3])
+    z = ekf.state[:3] + [0.001, -0.002, 0.01]
+    ekf.config = EKFConfig(iterations=1)  # one update: compare with one filterpy update
+    ekf.update_pose(z, r)
+    reference.update(z[:, None], lambda x: np.eye(3, 7), lambda x: x[:3], R=r)
+    for name in ("x", "P", "y", "S", "SI", "K", "z", "x_post", "P_post"):
+        np.testing.assert_allclose(getattr(ekf, name), getattr(reference, name), rtol=1e-9,
+                                   atol=1e-15, err_msg=name)
 
 
 def test_covariance_stays_symmetric_positive_definite() -> None:

@@ -108,6 +108,8 @@ STATE_SIZE = len(STATE_LABELS)
 MAX_SYMMETRY_ORDER = 12
 #: Below this distance (m) of the pusher centre from a vertex, use the segment's normal.
 _VERTEX_EPS = 1e-12
+#: Outlines with at most this many segments are searched in a Python loop, larger ones in numpy.
+_SMALL_POLYGON = 16
 _EYE_7 = np.eye(STATE_SIZE)
 _EYE_3x7_ROWS = np.eye(3, STATE_SIZE).tolist()
 
@@ -421,6 +423,7 @@ class ContactOutline:
     #: the arithmetic there): per segment (a_x, a_y, t_x, t_y, n_x, n_y), convex flags.
     _segments: tuple[tuple[float, ...], ...] = field(default=(), repr=False, compare=False)
     _convex: tuple[bool, ...] = field(default=(), repr=False, compare=False)
+    _lengths: tuple[float, ...] = field(default=(), repr=False, compare=False)
     #: Contiguous columns (a_x, a_y, t_x, t_y) for the vectorised closest-feature search.
     _columns: tuple[NDArray[np.float64], ...] = field(default=(), repr=False, compare=False)
 
@@ -429,6 +432,7 @@ class ContactOutline:
             [self.vertices, self.tangents, self.normals]).tolist())
         object.__setattr__(self, "_segments", segments)
         object.__setattr__(self, "_convex", tuple(bool(c) for c in self.convex))
+        object.__setattr__(self, "_lengths", tuple(self.lengths.tolist()))
         object.__setattr__(self, "_columns", tuple(np.ascontiguousarray(a) for a in (
             self.vertices[:, 0], self.vertices[:, 1], self.tangents[:, 0], self.tangents[:, 1])))
 
@@ -501,16 +505,26 @@ class ContactOutline:
         kind, index : int, int
             ``(0, i)``: the interior of segment i; ``(1, i)``: vertex i.
         """
-        ax, ay, ex, ey = self._columns
-        rx, ry = qx - ax, qy - ay
-        s = np.minimum(np.maximum(rx * ex + ry * ey, 0.0), self.lengths)
-        dx, dy = rx - s * ex, ry - s * ey
-        i = int(np.argmin(dx * dx + dy * dy))
-        si = float(s[i])
+        if len(self._segments) <= _SMALL_POLYGON:  # a Python loop beats numpy's overhead
+            best, i, si = math.inf, 0, 0.0
+            for j, (ax, ay, ex, ey, _, _) in enumerate(self._segments):
+                rx, ry = qx - ax, qy - ay
+                s = min(max(rx * ex + ry * ey, 0.0), self._lengths[j])
+                dx, dy = rx - s * ex, ry - s * ey
+                d2 = dx * dx + dy * dy
+                if d2 < best:  # the first of equal minima, as numpy's argmin
+                    best, i, si = d2, j, s
+        else:
+            ax, ay, ex, ey = self._columns
+            rx, ry = qx - ax, qy - ay
+            s = np.minimum(np.maximum(rx * ex + ry * ey, 0.0), self.lengths)
+            dx, dy = rx - s * ex, ry - s * ey
+            i = int(np.argmin(dx * dx + dy * dy))
+            si = float(s[i])
         if si <= 0.0:
             return 1, i
-        if si >= float(self.lengths[i]):
-            return 1, (i + 1) % len(self.lengths)
+        if si >= self._lengths[i]:
+            return 1, (i + 1) % len(self._lengths)
         return 0, i
 
 
@@ -620,17 +634,27 @@ def _twist_with_jacobian(ux: float, uy: float, rx: float, ry: float, nx: float, 
         m00, m01, m11 = l2 + ryy, -rxy, l2 + rxx
         r01, r10 = -sigma * sa, sigma * sa
         gx, gy = -sigma * fy, sigma * fx
-        dvb0 = (0.0, 0.0, -fy * py, fx * py - tau, m00 * ca + m01 * r10, m00 * r01 + m01 * ca,
-                2.0 * l * fx, m00 * gx + m01 * gy)
-        dvb1 = (0.0, 0.0, fy * px + tau, -fx * px, m01 * ca + m11 * r10, m01 * r01 + m11 * ca,
-                2.0 * l * fy, m01 * gx + m11 * gy)
-        # k = (u . n) / (v_b . n)
-        du_n = (nx, ny, 0.0, 0.0, ux, uy, 0.0, 0.0)
-        extra = (0.0, 0.0, 0.0, 0.0, vx, vy, 0.0, 0.0)
-        dk = [(a - k * (nx * p + ny * q + e)) / v_n
-              for a, p, q, e in zip(du_n, dvb0, dvb1, extra, strict=True)]
-        dvp0 = [k * p + vx * g for p, g in zip(dvb0, dk, strict=True)]
-        dvp1 = [k * q + vy * g for q, g in zip(dvb1, dk, strict=True)]
+        # d v_b / d X (zero for u), components p_x, p_y, n_x, n_y, l, alpha
+        b0p, b0q, b0nx, b0ny, b0l, b0a = (-fy * py, fx * py - tau, m00 * ca + m01 * r10,
+                                          m00 * r01 + m01 * ca, 2.0 * l * fx,
+                                          m00 * gx + m01 * gy)
+        b1p, b1q, b1nx, b1ny, b1l, b1a = (fy * px + tau, -fx * px, m01 * ca + m11 * r10,
+                                          m01 * r01 + m11 * ca, 2.0 * l * fy,
+                                          m01 * gx + m11 * gy)
+        # k = (u . n) / (v_b . n): d k = (d(u . n) - k (n . d v_b + v_b . d n)) / (v_b . n)
+        inv, mk = 1.0 / v_n, -k / v_n
+        k_ux, k_uy = nx * inv, ny * inv
+        k_px, k_py = mk * (nx * b0p + ny * b1p), mk * (nx * b0q + ny * b1q)
+        k_nx = ux * inv + mk * (nx * b0nx + ny * b1nx + vx)
+        k_ny = uy * inv + mk * (nx * b0ny + ny * b1ny + vy)
+        k_l, k_a = mk * (nx * b0l + ny * b1l), mk * (nx * b0a + ny * b1a)
+        # v_p = k v_b
+        dvp0 = (vx * k_ux, vx * k_uy, k * b0p + vx * k_px, k * b0q + vx * k_py,
+                k * b0nx + vx * k_nx, k * b0ny + vx * k_ny, k * b0l + vx * k_l,
+                k * b0a + vx * k_a)
+        dvp1 = (vy * k_ux, vy * k_uy, k * b1p + vy * k_px, k * b1q + vy * k_py,
+                k * b1nx + vy * k_nx, k * b1ny + vy * k_ny, k * b1l + vy * k_l,
+                k * b1a + vy * k_a)
     else:
         dvp0 = dvp1 = None  # sticking: v_p = u, d v_p / d X selects u
 
@@ -652,7 +676,7 @@ def _twist_with_jacobian(ux: float, uy: float, rx: float, ry: float, nx: float, 
         if dvp0 is None:
             t = (c0, c1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
         else:
-            t = [c0 * p + c1 * q for p, q in zip(dvp0, dvp1, strict=True)]
+            t = [c0 * p + c1 * q for p, q in zip(dvp0, dvp1)]  # noqa: B905 (8 each)
         t2, t3 = t[2] + d_px, t[3] + d_py
         # columns u (2), r (2), n (2), c (2) = -r, l, m = alpha * d alpha / d m
         rows.append((t[0], t[1], t2, t3, t[4], t[5], -t2, -t3, (t[6] + d_l) * dl,
@@ -725,46 +749,58 @@ def _substep(pose: list[float], c: tuple[float, float], l: float, m: float,  # n
     if not jacobian:
         return new, None, length
 
-    # Partials w.r.t. the pose (x, y, theta) at the substep start, as rows of 3.
+    # Partials w.r.t. the pose (x, y, theta) at the substep start, written out per component
+    # (suffix 0, 1, 2 = x, y, theta): loops and tuples over three numbers cost more than the
+    # arithmetic.
     # q = R^T (w - p): dq/dp = -R^T, dq/dtheta = (q_y, -q_x); d = R^T delta: dd/dtheta = (d_y, -d_x)
-    dqx, dqy = (-ct, -st, qy), (st, -ct, -qx)
+    qx0, qx1, qx2 = -ct, -st, qy  # d q_x
+    qy0, qy1, qy2 = st, -ct, -qx  # d q_y
     if t0 > 0.0:
-        # t0 = gap / approach; gap = sd - r_p with d sd = n_out . dq; approach = -(d . n_out)
-        if kind == 0:
-            dnox = dnoy = (0.0, 0.0, 0.0)
-        else:  # d n_out = sign (I - u u^T) dq / |q - v|, u = (q - v) / |q - v|
+        # t0 = gap / approach; gap = sd - r_p with d sd = n_out . dq; approach = -(d . n_out):
+        # d t0 = (n_out . dq + t0 (n_out . dd + d . dn_out)) / approach
+        a0 = nox * qx0 + noy * qy0
+        a1 = nox * qx1 + noy * qy1
+        a2 = nox * qx2 + noy * qy2 + t0 * (nox * dy - noy * dx)
+        if kind == 1:  # d n_out = sign (I - u u^T) dq / |q - v|, u = (q - v) / |q - v|
             ux_, uy_ = sx / dist, sy / dist
-            f = sign / dist
-            pairs = tuple(zip(dqx, dqy, strict=True))
-            dnox = tuple(f * ((1.0 - ux_ * ux_) * a - ux_ * uy_ * b) for a, b in pairs)
-            dnoy = tuple(f * (-ux_ * uy_ * a + (1.0 - uy_ * uy_) * b) for a, b in pairs)
-        ddx, ddy = (0.0, 0.0, dy), (0.0, 0.0, -dx)
-        dt0 = tuple(
-            ((nox * a + noy * b) + t0 * (nox * e + noy * g + dx * p + dy * q)) / approach
-            for a, b, e, g, p, q in zip(dqx, dqy, ddx, ddy, dnox, dnoy, strict=True))
+            f = t0 * sign / dist
+            # t0 d . d n_out = bx . dq_x + by . dq_y
+            bx = f * ((1.0 - ux_ * ux_) * dx - ux_ * uy_ * dy)
+            by = f * ((1.0 - uy_ * uy_) * dy - ux_ * uy_ * dx)
+            a0 += bx * qx0 + by * qy0
+            a1 += bx * qx1 + by * qy1
+            a2 += bx * qx2 + by * qy2
+        t00, t01, t02 = a0 / approach, a1 / approach, a2 / approach  # d t0
     else:
-        dt0 = (0.0, 0.0, 0.0)
+        t00 = t01 = t02 = 0.0
     # touch point q_t = q + t0 d; pushed part u = (1 - t0) d
-    dtx = (dqx[0] + dx * dt0[0], dqx[1] + dx * dt0[1], dqx[2] + t0 * dy + dx * dt0[2])
-    dty = (dqy[0] + dy * dt0[0], dqy[1] + dy * dt0[1], dqy[2] - t0 * dx + dy * dt0[2])
-    dux = (-dx * dt0[0], -dx * dt0[1], frac * dy - dx * dt0[2])
-    duy = (-dy * dt0[0], -dy * dt0[1], -frac * dx - dy * dt0[2])
-    # d twist / d pose = J_u du + J_r dr + J_n dn (J: the model's Jacobian rows)
+    tx0, tx1, tx2 = qx0 + dx * t00, qx1 + dx * t01, qx2 + t0 * dy + dx * t02
+    ty0, ty1, ty2 = qy0 + dy * t00, qy1 + dy * t01, qy2 - t0 * dx + dy * t02
+    ux0, ux1, ux2 = -dx * t00, -dx * t01, frac * dy - dx * t02
+    uy0, uy1, uy2 = -dy * t00, -dy * t01, -frac * dx - dy * t02
+    # d twist / d pose = J_u du + J_r dr + J_n dn (J: the model's Jacobian rows), written as
+    # J_u du + ca za + cb zb per row
     if kind == 0:  # r = projection of q_t on the segment (dr = t t^T dq_t); n constant
-        e_dt = [ex * a + ey * b for a, b in zip(dtx, dty, strict=True)]
-        rows = [[j[0] * dux[k] + j[1] * duy[k] + (j[2] * ex + j[3] * ey) * e_dt[k]
-                 for k in range(3)] + [j[6], j[7], j[8], j[9]] for j in jt]
-    else:  # r = v; n_in = -sign (q_t - v) / |q_t - v|
+        za0, za1, za2 = ex * tx0 + ey * ty0, ex * tx1 + ey * ty1, ex * tx2 + ey * ty2
+        zb0 = zb1 = zb2 = 0.0
+        coeffs = [(j[2] * ex + j[3] * ey, 0.0) for j in jt]
+    else:  # r = v; n_in = -sign (q_t - v) / |q_t - v|: dn = f (I - h h^T) dq_t
         f = -sign / dist_t
-        dnx = [f * ((1.0 - hx * hx) * a - hx * hy * b) for a, b in zip(dtx, dty, strict=True)]
-        dny = [f * (-hx * hy * a + (1.0 - hy * hy) * b) for a, b in zip(dtx, dty, strict=True)]
-        rows = [[j[0] * dux[k] + j[1] * duy[k] + j[4] * dnx[k] + j[5] * dny[k]
-                 for k in range(3)] + [j[6], j[7], j[8], j[9]] for j in jt]
+        hxx, hxy, hyy = 1.0 - hx * hx, -hx * hy, 1.0 - hy * hy
+        za0, za1, za2 = f * (hxx * tx0 + hxy * ty0), f * (hxx * tx1 + hxy * ty1), \
+            f * (hxx * tx2 + hxy * ty2)
+        zb0, zb1, zb2 = f * (hxy * tx0 + hyy * ty0), f * (hxy * tx1 + hyy * ty1), \
+            f * (hxy * tx2 + hyy * ty2)
+        coeffs = [(j[4], j[5]) for j in jt]
+    rows = [[j[0] * ux0 + j[1] * uy0 + ca * za0 + cb * zb0,
+             j[0] * ux1 + j[1] * uy1 + ca * za1 + cb * zb1,
+             j[0] * ux2 + j[1] * uy2 + ca * za2 + cb * zb2, j[6], j[7], j[8], j[9]]
+            for j, (ca, cb) in zip(jt, coeffs)]  # noqa: B905 (three rows each)
     # new pose = apply_twist(pose, twist, c): partials w.r.t. the twist (A) and directly
     d0, d1, d2 = rows
     s_c = s1 * cx + c1 * cy
-    g0 = [ct * a - st * b + s_c * e for a, b, e in zip(d0, d1, d2, strict=True)]
-    g1 = [st * a + ct * b - rcx * e for a, b, e in zip(d0, d1, d2, strict=True)]
+    g0 = [ct * a - st * b + s_c * e for a, b, e in zip(d0, d1, d2)]  # noqa: B905 (7 each)
+    g1 = [st * a + ct * b - rcx * e for a, b, e in zip(d0, d1, d2)]  # noqa: B905
     g2 = d2
     g0[0] += 1.0
     g0[2] += s_c - (st * ox + ct * oy)
@@ -830,7 +866,8 @@ def _predict_push(x: NDArray[np.float64], outline: ContactOutline, start: NDArra
                   end: NDArray[np.float64], pusher_radius: float, substep: float,
                   contact_tol: float, jacobian: bool) -> PushPrediction:
     """:func:`predict_push` without the input checks (the filter checks once)."""
-    push = end - start
+    # Python floats throughout: numpy scalars would make every operation below slower.
+    push = (float(end[0]) - float(start[0]), float(end[1]) - float(start[1]))
     total = math.hypot(push[0], push[1])
     n_sub = math.ceil(total / substep * (1.0 - 1e-12)) if total > 0.0 else 0
     pose = [float(x[0]), float(x[1]), float(x[2])]
@@ -855,8 +892,16 @@ def _predict_push(x: NDArray[np.float64], outline: ContactOutline, start: NDArra
             if g is not None and jp is _EYE_3x7_ROWS:  # first contact: jp = G
                 jp = g
             elif g is not None:  # chain rule: jp <- G[:, :3] jp + [0 | G[:, 3:]]
-                jp = [[r[0] * a + r[1] * b + r[2] * e + (r[k] if k >= 3 else 0.0)
-                       for k, (a, b, e) in enumerate(zip(*jp, strict=True))] for r in g]
+                j0, j1, j2 = jp
+                jp = []
+                for r in g:
+                    r0, r1, r2 = r[0], r[1], r[2]
+                    row = [r0 * a + r1 * b + r2 * e for a, b, e in zip(j0, j1, j2)]  # noqa: B905
+                    row[3] += r[3]
+                    row[4] += r[4]
+                    row[5] += r[5]
+                    row[6] += r[6]
+                    jp.append(row)
     new_state = x.copy()
     new_state[0:3] = pose
     jac = None
@@ -1107,25 +1152,51 @@ class PushEKF(ExtendedKalmanFilter):
         zc = z[:, None]
         y = self.residual(zc, self.x[0:3])
         s = self.P[0:3, 0:3] + r
-        nis = float(y[:, 0] @ np.linalg.solve(s, y[:, 0]))
+        si = np.linalg.inv(s)
+        nis = float(y[:, 0] @ si @ y[:, 0])
         if nis > self._gate:
             self._reinitialize_pose(self.x[0:3, 0] + y[:, 0], r)
             self._before_push = None
             return UpdateResult(innovation=y[:, 0].copy(), nis=nis, reinitialized=True)
-        self._update(zc, r)
+        innovation = y[:, 0].copy()
+        self._update(zc, r, y, s, si)
         if self._before_push is not None:
             for _ in range(self.config.iterations - 1):
                 self._iterate(zc, r)
         self._before_push = None
-        self.P_post = self.P.copy()
-        self.x_post = self.x.copy()
-        return UpdateResult(innovation=y[:, 0].copy(), nis=nis)
+        return UpdateResult(innovation=innovation, nis=nis)
 
-    def _update(self, zc: NDArray[np.float64], r: NDArray[np.float64]) -> None:
-        """filterpy's update (Joseph form), symmetrised, parameters clipped."""
-        self.update(zc, self._jacobian_h, self._hx, R=r, residual=self.residual)
-        self.P = 0.5 * (self.P + self.P.T)
+    def _update(self, zc: NDArray[np.float64], r: NDArray[np.float64],
+                y: NDArray[np.float64] | None = None, s: NDArray[np.float64] | None = None,
+                si: NDArray[np.float64] | None = None) -> None:
+        """filterpy's ``update`` (Joseph form) for ``H = [I_3 0]``, symmetrised, parameters
+        clipped.
+
+        The same equations as :meth:`filterpy.kalman.ExtendedKalmanFilter.update` with this
+        filter's ``H`` (select the pose) and :meth:`residual`, written for it:
+        ``S = P_pp + R``, ``K = P_:p S^-1``, ``x += K y`` and ``(I - K H) P (I - K H)^T + K R
+        K^T = P - K A^T - A K^T + K S K^T`` with ``A = P H^T = P[:, :3]`` (the Joseph form
+        multiplied out; no 7 x 7 identity products). Sets filterpy's ``y``, ``S``, ``SI``,
+        ``K``, ``z``, ``x_post`` and ``P_post`` as its ``update`` does; about ten times faster.
+        ``y``, ``s`` and ``si`` may be passed when the caller has them for this ``P``.
+        """
+        p = self.P
+        if y is None:
+            y = self.residual(zc, self.x[0:3])
+        if s is None:
+            s = p[0:3, 0:3] + r
+            si = np.linalg.inv(s)
+        a = p[:, 0:3]
+        k = a @ si
+        ka = k @ a.T
+        p = p - ka - ka.T + k @ s @ k.T
+        self.P = 0.5 * (p + p.T)
+        self.x = self.x + k @ y
+        self.S, self.SI, self.K, self.y, self.z = s, si, k, y, zc.copy()
+        self._log_likelihood = self._likelihood = self._mahalanobis = None
         self._clip_parameters()
+        self.x_post = self.x.copy()
+        self.P_post = self.P.copy()
 
     def _iterate(self, zc: NDArray[np.float64], r: NDArray[np.float64]) -> None:
         """One more Gauss-Newton step over the last push: re-linearise, predict, update.
