@@ -6,12 +6,14 @@ so for every child process, which inherits ``os.environ``):
 - ``ROS_DOMAIN_ID`` = 1 + (pid % 100), or ``PUSHBOT_TEST_DOMAIN_ID`` when that is set, so that
   concurrent pytest sessions on one machine do not see each other's graphs;
 - ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``: nothing leaves the machine;
-- ``FASTDDS_BUILTIN_TRANSPORTS=UDPv4``: no shared-memory transport, whose stale ``/dev/shm``
-  segments can silently break discovery between runs;
+- ``FASTDDS_BUILTIN_TRANSPORTS=UDPv4``: only for participants that do not use the bundled
+  profile (a profile set by the user); the bundled profile declares its own transports (shared
+  memory with 32 MB segments and UDPv4 with 4 MB buffers, so camera images reach other
+  processes) and Fast DDS then ignores this variable (docs/ARCHITECTURE.md, "DDS profile");
 - ``ROS_LOCALHOST_ONLY`` removed (deprecated in Jazzy; it conflicts with the range above);
-- ``FASTRTPS_DEFAULT_PROFILES_FILE`` = the bundled profile (``pushbot.dds``) unless set:
-  reliable writers heartbeat every 100 ms, so a sample lost behind camera-image fragments is
-  repaired at once instead of after Fast DDS's default 3 s.
+- ``FASTRTPS_DEFAULT_PROFILES_FILE`` = the bundled profile (``pushbot.dds``) unless set: the
+  transports above, and reliable writers heartbeat every 100 ms, so a sample lost behind
+  camera-image fragments is repaired at once instead of after Fast DDS's default 3 s.
 
 Fixtures:
 
@@ -52,9 +54,9 @@ def _isolate_ros_session() -> int:
     domain = int(override) if override else 1 + os.getpid() % 100
     os.environ['ROS_DOMAIN_ID'] = str(domain)
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-    os.environ['FASTDDS_BUILTIN_TRANSPORTS'] = 'UDPv4'
+    os.environ['FASTDDS_BUILTIN_TRANSPORTS'] = 'UDPv4'  # ignored under the bundled profile
     os.environ.pop('ROS_LOCALHOST_ONLY', None)
-    apply_default_profile()  # 100 ms heartbeats: lost reliable samples are repaired quickly
+    apply_default_profile()  # image-sized transports, 100 ms heartbeats (pushbot.dds)
     return domain
 
 
