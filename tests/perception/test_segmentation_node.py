@@ -229,6 +229,26 @@ def test_rendered_frames_give_pose_outline_and_mask(harness: Harness,
     h.wait(lambda: len(h.outlines) > n_outlines, "the new outline")
 
 
+def test_frames_of_the_previous_episode_are_skipped_after_reset(
+        harness: Harness, frames: dict[str, Rendered]) -> None:
+    # The simulator re-publishes its last frame (same stamp) while idle; after ~/reset such a
+    # frame must not become the new episode's reference (found running the graph, issue 7).
+    h, a, b = harness, frames["a"], frames["b"]
+    h.send_extrinsics(a.t)
+    old = h.frame_messages(a)
+    h.wait(lambda: any(p.header.stamp == old[0].header.stamp for p in h.poses),
+           "a pose for the old frame", resend=lambda: h.publish(old))
+    future = h.reset_client.call_async(Trigger.Request())
+    assert h.wait(future.done, "the reset response") and future.result().success
+    n_poses = len(h.poses)
+    h.wait(lambda: h.counter("previous_episode") >= 1, "a previous_episode count",
+           resend=lambda: h.publish(old))
+    assert len(h.poses) == n_poses  # the repeated old frame gave no pose
+    first = xytheta_from_pose(h.pose_for(b).pose.pose)  # a newer frame: the new reference
+    assert first[2] == pytest.approx(0.0, abs=1e-9)
+    assert np.linalg.norm(first[:2] - b.pose[:2]) < 0.003
+
+
 def _bad_color_encoding(h: Harness, f: Rendered) -> tuple[Any, ...]:
     rgb, depth, info = h.frame_messages(f)
     rgb.encoding = "rgba8"

@@ -38,8 +38,11 @@ Publications:
 
 Services: ``~/reset`` (std_srvs/srv/Trigger): new episode. The next good frame becomes the
 orientation reference and its outline is published (the previous outline stays latched
-until then). The geometry parameters are re-read and validated; invalid values refuse the
-reset and keep the old ones.
+until then). Frames stamped at or before the newest frame processed before the reset belong to
+the previous episode (the simulator re-publishes its last frame while idle, and a camera's
+stamps only grow): they are skipped without a pose and counted (``previous_episode``), so a
+repeated frame of the old scene cannot become the new episode's reference. The geometry
+parameters are re-read and validated; invalid values refuse the reset and keep the old ones.
 
 Bad input never stops the node and never produces a pose for that frame; each class is
 logged (at most once per second per class, with the number suppressed) and counted on
@@ -301,11 +304,14 @@ class SegmentationNode(Node):
         self._pending: OrderedDict[tuple[int, int], dict[str, Any]] = OrderedDict()
         self._extrinsics: np.ndarray | None = None
         self._extrinsics_frame = ""
-        self._counts = {"frames": 0, "poses": 0, "resets": 0, **dict.fromkeys(FAILURE_KINDS, 0)}
+        self._counts = {"frames": 0, "poses": 0, "resets": 0, "previous_episode": 0,
+                        **dict.fromkeys(FAILURE_KINDS, 0)}
         self._last_error = ""
         self._ok: bool | None = None
         self._latency: deque[float] = deque(maxlen=LATENCY_WINDOW)
         self._last_stamp = 0.0
+        self._last_frame = -math.inf  # stamp (s) of the newest frame processed
+        self._episode_after = -math.inf  # frames up to this stamp belong to the last episode
         self._limiter = _LogLimiter(LOG_THROTTLE_S)
 
         self._pub_mask = self.create_publisher(Image, "perception/mask",
@@ -372,8 +378,13 @@ class SegmentationNode(Node):
     # ---- processing --------------------------------------------------------------------------
     def _process(self, rgb_msg: Image, depth_msg: Image, info: CameraInfo) -> None:
         started = time.perf_counter()
-        self._counts["frames"] += 1
         stamp = rgb_msg.header.stamp
+        stamp_s = seconds_from_stamp(stamp)
+        if stamp_s <= self._episode_after:  # a repeated frame of the previous episode
+            self._counts["previous_episode"] += 1
+            return
+        self._last_frame = max(self._last_frame, stamp_s)
+        self._counts["frames"] += 1
         try:
             rgb = self._decode_color(rgb_msg)
             try:
@@ -464,6 +475,7 @@ class SegmentationNode(Node):
             return response
         self._params = params
         self._tracker = EpisodeTracker(params.geometry)
+        self._episode_after = self._last_frame
         self._counts["resets"] += 1
         response.success = True
         response.message = "new episode: the next good frame becomes the reference"
