@@ -295,9 +295,47 @@ def test_max_steps_and_reset(ros_context: Any, wait_for: Callable[..., bool]) ->
         future = reset.call_async(Trigger.Request())
         assert h.spin_until(future.done)
         assert future.result().success
-        assert h.spin_until(lambda: h.status[-1].message == "waiting for estimate")
-        h.publish_estimate((0.02, 0.0, 0.0), stamp=4.0)  # goal and outline were kept
+        # The goal is forgotten (an episode is one goal), the outline kept.
+        assert h.spin_until(lambda: h.status[-1].message == "waiting for goal, estimate")
+        h.publish_estimate((0.02, 0.0, 0.0), stamp=4.0)
+        assert h.spin_until(lambda: h.count("estimates") == 2)
+        assert len(h.pushes) == 1  # no plan against the previous episode's goal
+        h.publish_goal(0.1, 0.0, 0.0)
         assert h.spin_until(lambda: len(h.pushes) == 2)
+    finally:
+        h.executor.shutdown()
+        h.client.destroy_node()
+        h.node.destroy_node()
+
+
+def test_episode_parameters_apply_on_reset(ros_context: Any,
+                                           wait_for: Callable[..., bool]) -> None:
+    h = make_harness(ros_context, wait_for, [Parameter("k", value=1), Parameter("seed", value=3)])
+    try:
+        reset = h.client.create_client(Trigger, "planner_node/reset")
+        assert reset.wait_for_service(timeout_sec=10.0)
+
+        def call_reset() -> Any:
+            future = reset.call_async(Trigger.Request())
+            assert h.spin_until(future.done)
+            return future.result()
+
+        results = h.node.set_parameters([Parameter("k", value=5), Parameter("seed", value=11),
+                                         Parameter("max_steps", value=7),
+                                         Parameter("goal_tolerance.xy", value=0.02)])
+        assert all(r.successful for r in results)
+        assert h.node.params.planner.k == 1  # applied on the next reset, not mid-episode
+        result = call_reset()
+        assert result.success and "k 5" in result.message and "seed 11" in result.message
+        cfg = h.node.params.planner
+        assert (cfg.k, cfg.seed, cfg.tolerance_xy, h.node.params.max_steps) == (5, 11, 0.02, 7)
+        # Structural parameters stay read-only.
+        assert not h.node.set_parameters([Parameter("push_speed", value=0.05)])[0].successful
+        # An invalid combination is refused at the reset and the previous values kept.
+        assert h.node.set_parameters([Parameter("method", value="best")])[0].successful
+        result = call_reset()
+        assert not result.success and "parameter 'method'" in result.message
+        assert h.node.params.planner.method == "ana" and h.node.params.planner.k == 5
     finally:
         h.executor.shutdown()
         h.client.destroy_node()

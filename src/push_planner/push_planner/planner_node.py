@@ -37,7 +37,11 @@ Publications:
   every change.
 
 Services: ``~/reset`` (std_srvs/srv/Trigger): new episode (step 0, no push in flight, estimates
-forgotten); goal and outline are kept (the goal is a one-shot message, the outline latched).
+and goal forgotten, the planner re-seeded); the outline is kept (latched). The episode
+parameters (below) are re-read and validated first; an invalid value refuses the reset and
+keeps the previous ones. The goal is forgotten because an episode is one goal: with the goal
+kept, the first estimate of the next scene would be planned against the previous episode's
+goal before the new one arrives (found driving the graph, issue 7).
 
 When it plans (the stale-estimate rule). An *estimate* is an ``estimator/object_pose``
 message together with the ``estimator/state`` message of the same pose (x, y equal to 1 um,
@@ -66,12 +70,13 @@ the workspace; outlines that are empty, malformed, in another frame or not a val
 states with NaN or a bad layout; estimates a plan cannot use (l <= 0).
 
 Parameters (declared once below with descriptors; documented with defaults and units in
-``ros_ws/config/push_planner.yaml``; all read-only, read at start-up and validated by building
-the :class:`~push_core.planner.PlannerConfig`, so a bad value fails start-up with a message
-naming the parameter): ``method``, ``direct``, ``k``, ``lambda``, ``temperature``,
-``goal_tolerance.xy``, ``goal_tolerance.theta``, ``max_steps``, ``push_speed``,
+``ros_ws/config/push_planner.yaml``; read at start-up and validated by building the
+:class:`~push_core.planner.PlannerConfig`, so a bad value fails start-up with a message naming
+the parameter). Episode parameters, settable and applied on the next ``~/reset``: ``method``,
+``direct``, ``k``, ``lambda``, ``temperature``, ``goal_tolerance.xy``,
+``goal_tolerance.theta``, ``max_steps``, ``seed``. Read-only: ``push_speed``,
 ``approach_clearance``, ``pusher_radius``, ``workspace.{x_min,x_max,y_min,y_max}``,
-``push_timeout``, ``seed``, ``lrn_weights``.
+``push_timeout``, ``lrn_weights``.
 
 Frames: ``world`` (table, z up), ``object`` (outline). Time: ``use_sim_time`` (the node's
 clock stamps the plans; estimates and pushes carry their own stamps, which is all the
@@ -143,22 +148,25 @@ class _ParamSpec:
     default: Any
     description: str
     bounds: tuple[float, float] | None = None
+    episode: bool = False  # settable; applied on ~/reset (read-only otherwise)
 
 
 PARAMETERS: tuple[_ParamSpec, ...] = (
     _ParamSpec("method", "ana", "Contact selection: ana | lrn (softmax over eq. 5.1 with "
-               "analytical / learned affordances), geo | rdn (geometric / uniform baselines)."),
+               "analytical / learned affordances), geo | rdn (geometric / uniform baselines).",
+               episode=True),
     _ParamSpec("direct", False, "Choose the push from the affordances with linear length "
-               "rescaling instead of optimising it with rollouts."),
-    _ParamSpec("k", 3, "Contact points sampled per step.", (1, 1000)),
+               "rescaling instead of optimising it with rollouts.", episode=True),
+    _ParamSpec("k", 3, "Contact points sampled per step.", (1, 1000), episode=True),
     _ParamSpec("lambda", 2.0, "Rotation weight of eq. 5.1, millimetres per degree.",
-               (0.0, 1000.0)),
+               (0.0, 1000.0), episode=True),
     _ParamSpec("temperature", 2.0, "Softmax temperature of the contact sampling, millimetres "
-               "(score units), > 0.", (0.0, 1e6)),
-    _ParamSpec("goal_tolerance.xy", 0.0075, "Goal position tolerance, m.", (1e-4, 1.0)),
+               "(score units), > 0.", (0.0, 1e6), episode=True),
+    _ParamSpec("goal_tolerance.xy", 0.0075, "Goal position tolerance, m.", (1e-4, 1.0),
+               episode=True),
     _ParamSpec("goal_tolerance.theta", math.radians(5.0), "Goal orientation tolerance, rad.",
-               (1e-4, math.pi)),
-    _ParamSpec("max_steps", 30, "Pushes per episode before it fails.", (1, 100000)),
+               (1e-4, math.pi), episode=True),
+    _ParamSpec("max_steps", 30, "Pushes per episode before it fails.", (1, 100000), episode=True),
     _ParamSpec("push_speed", 0.02, "Pusher speed the plan's pose stamps assume, m/s.",
                (1e-3, 0.5)),
     _ParamSpec("approach_clearance", 0.005, "Approach point before the touching position, m.",
@@ -171,7 +179,8 @@ PARAMETERS: tuple[_ParamSpec, ...] = (
     _ParamSpec("workspace.y_max", 0.3, "See workspace.x_min, m.", (-10.0, 10.0)),
     _ParamSpec("push_timeout", 30.0, "Wall-clock seconds to wait for pusher/executed before a "
                "push counts as lost.", (0.1, 3600.0)),
-    _ParamSpec("seed", 0, "Seed of the contact sampling (re-seeded on ~/reset).", (0, 2**31 - 1)),
+    _ParamSpec("seed", 0, "Seed of the contact sampling (re-seeded on ~/reset).", (0, 2**31 - 1),
+               episode=True),
     _ParamSpec("lrn_weights", "", "Weights of the learned affordance model (method lrn); "
                "empty = the bundled model."),
 )
@@ -240,7 +249,7 @@ class PlannerNodeParams:
 
 
 def _descriptor(spec: _ParamSpec) -> ParameterDescriptor:
-    desc = ParameterDescriptor(description=spec.description, read_only=True)
+    desc = ParameterDescriptor(description=spec.description, read_only=not spec.episode)
     if spec.bounds is not None:
         low, high = spec.bounds
         if isinstance(spec.default, int) and not isinstance(spec.default, bool):
@@ -279,12 +288,10 @@ class PlannerNode(Node):
         super().__init__(node_name, **kwargs)
         for spec in PARAMETERS:
             self.declare_parameter(spec.name, spec.default, _descriptor(spec))
-        self.params = PlannerNodeParams.from_values(
-            {spec.name: self.get_parameter(spec.name).value for spec in PARAMETERS})
-        model = (_load_learned_model(self.params.lrn_weights)
-                 if self.params.planner.method == "lrn" else None)
-        self._model = model
-        self._planner = Planner(self.params.planner, affordance_model=model)
+        self.params = self._read_params()
+        self._model = (_load_learned_model(self.params.lrn_weights)
+                       if self.params.planner.method == "lrn" else None)
+        self._planner = Planner(self.params.planner, affordance_model=self._model)
 
         self._outline: Outline | None = None
         self._goal: np.ndarray | None = None
@@ -337,14 +344,32 @@ class PlannerNode(Node):
         self._poses.clear()
         self._states.clear()
 
+    def _read_params(self) -> PlannerNodeParams:
+        return PlannerNodeParams.from_values(
+            {spec.name: self.get_parameter(spec.name).value for spec in PARAMETERS})
+
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response
                   ) -> Trigger.Response:
+        try:
+            params = self._read_params()
+            model = self._model
+            if params.planner.method == "lrn" and model is None:
+                model = _load_learned_model(params.lrn_weights)
+            planner = Planner(params.planner, affordance_model=model)
+        except ValueError as exc:
+            response.success, response.message = False, f"reset refused: {exc}"
+            self.get_logger().error(response.message)
+            return response
+        self.params, self._model, self._planner = params, model, planner
         self._new_episode()
-        self._planner = Planner(self.params.planner, affordance_model=self._model)
-        self.get_logger().info("reset: new episode (goal and outline kept)")
-        self._publish_status()
+        self._goal = None
+        cfg = params.planner
         response.success = True
-        response.message = "new episode: step 0, estimates forgotten, goal and outline kept"
+        response.message = (f"new episode: step 0, estimates and goal forgotten, outline kept; "
+                            f"method {cfg.method}{' (direct)' if cfg.direct else ''}, k {cfg.k}, "
+                            f"seed {cfg.seed}, max steps {params.max_steps}")
+        self.get_logger().info(f"reset: {response.message}")
+        self._publish_status()
         return response
 
     # ---- inputs ------------------------------------------------------------------------------
