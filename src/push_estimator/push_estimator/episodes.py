@@ -239,6 +239,10 @@ class EpisodeResult:
         Pushes on which the simulated pusher touched the object.
     seconds : float
         Wall time of the episode.
+    observations : str
+        Observation source (``"gt-noise"`` or ``"perception"``).
+    missed : int
+        Frames from which the perception gave no pose (their NIS is NaN).
     """
 
     object: str
@@ -253,6 +257,8 @@ class EpisodeResult:
     reinitialized: int
     touched: int
     seconds: float
+    observations: str = "gt-noise"
+    missed: int = 0
 
     @property
     def com_error(self) -> NDArray[np.float64]:
@@ -261,8 +267,90 @@ class EpisodeResult:
         return np.hypot(*(self.com - self.com_reference).T)
 
 
+#: Observation sources of :func:`run_physics_episode`.
+OBSERVATIONS = ("gt-noise", "perception")
+
+
+def load_perception(threads: int = 1) -> object:
+    """The perception's segmentation CNN (bundled weights), for ``observations="perception"``.
+
+    Loaded once per evaluation and passed to every :func:`run_physics_episode`; torch and
+    OpenCV are limited to ``threads`` threads (the machine is shared).
+    """
+    import cv2
+    import torch
+
+    from push_perception.model import Segmenter
+
+    torch.set_num_threads(threads)
+    cv2.setNumThreads(1)
+    return Segmenter.load(None)
+
+
+class _Observer:
+    """Pose observations of one episode and the frame they are in.
+
+    ``gt-noise``: the ground-truth pose of the library's object frame plus Gaussian noise
+    (covariance ``r``), the library outline. ``perception``: a 640 x 480 frame rendered by the
+    world (pusher parked out of view), segmented by the CNN and measured by
+    :class:`push_perception.core.EpisodeTracker`; the outline and the ``object`` frame are the
+    perception's (origin at the footprint centroid, axes = the world axes at the episode's
+    first frame), so the filter's orientation is the true one minus the true yaw of the first
+    frame (``theta_ref``) and the true COM in the filter's frame is the library COM turned by
+    ``theta_ref``.
+    """
+
+    def __init__(self, world: object, kind: str, rng: np.random.Generator,
+                 r: NDArray[np.float64], name: str, segmenter: object | None) -> None:
+        self.world, self.kind, self.rng, self.r = world, kind, rng, r
+        self.failures = 0
+        self.theta_ref = 0.0
+        if kind == "gt-noise":
+            self.outline = load_object(name).outline(0.002)
+            return
+        from push_perception.core import EpisodeTracker
+
+        if segmenter is None:
+            segmenter = load_perception()
+        self.segmenter, self.tracker = segmenter, EpisodeTracker()
+        self.theta_ref = float(world.object_pose()[2])  # type: ignore[attr-defined]
+        first = self()
+        if first is None:
+            raise RuntimeError(f"{name}: the perception found no object in the first frame")
+        self.first = first
+        self.outline = self.tracker.outline
+
+    def __call__(self) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+        """The next observation (pose (3,), covariance (3, 3)); None if the frame gave none."""
+        if self.kind == "gt-noise":
+            pose = self.world.object_pose()  # type: ignore[attr-defined]
+            return pose + self.rng.multivariate_normal(np.zeros(3), self.r), self.r
+        if getattr(self, "first", None) is not None:  # the reference frame, measured once
+            first, self.first = self.first, None
+            return first
+        from push_perception.core import PerceptionError
+
+        frame = self.world.render()  # type: ignore[attr-defined]
+        seg = self.segmenter(frame.rgb, frame.depth, frame.camera_matrix,  # type: ignore
+                             frame.T_world_camera)
+        try:
+            meas = self.tracker.update(seg.mask, frame.depth, frame.camera_matrix,
+                                       frame.T_world_camera)
+        except PerceptionError:
+            self.failures += 1
+            return None
+        return meas.pose, meas.covariance
+
+    def truth(self) -> NDArray[np.float64]:
+        """The true pose in the filter's frame (x, y, theta - theta_ref)."""
+        pose = self.world.object_pose()  # type: ignore[attr-defined]
+        return np.array([pose[0], pose[1], pose[2] - self.theta_ref])
+
+
 def run_physics_episode(name: str, seed: int, n_pushes: int, config: EKFConfig,
-                        position_noise: float, angle_noise: float) -> EpisodeResult:
+                        position_noise: float, angle_noise: float,
+                        observations: str = "gt-noise",
+                        segmenter: object | None = None) -> EpisodeResult:
     """One episode in pybullet with a randomised object; see the module docstring.
 
     Parameters
@@ -273,12 +361,21 @@ def run_physics_episode(name: str, seed: int, n_pushes: int, config: EKFConfig,
         Seeds the world's randomisation, the initial orientation, the pushes and the noise.
     n_pushes : int
     config : EKFConfig
-        Filter settings; its observation noise is replaced by the noise used here.
+        Filter settings; for ``gt-noise`` its observation noise is replaced by the noise used
+        here.
     position_noise, angle_noise : float
-        Observation noise standard deviations, m and rad.
+        ``gt-noise`` observation noise standard deviations, m and rad.
+    observations : str
+        ``"gt-noise"`` (ground truth + noise, the library outline) or ``"perception"`` (the
+        perception pipeline on rendered frames: its poses, covariances and outline; see
+        :class:`_Observer`).
+    segmenter : push_perception.model.Segmenter, optional
+        For ``perception``; default :func:`load_perception` (load it once for many episodes).
     """
     from sim_bridge.world import PushWorld, WorldConfig  # pybullet: imported only here
 
+    if observations not in OBSERVATIONS:
+        raise ValueError(f"observations must be one of {OBSERVATIONS}, got {observations!r}")
     t0 = time.perf_counter()
     rng = np.random.default_rng([seed, sum(name.encode())])
     cfg = replace(config, position_sigma=position_noise, angle_sigma=angle_noise)
@@ -288,16 +385,16 @@ def run_physics_episode(name: str, seed: int, n_pushes: int, config: EKFConfig,
                                       randomize=True, seed=seed))
     try:
         spec = world.object_spec
-        points, normals = load_object(name).outline(0.002)
+        observe = _Observer(world, observations, rng, cfg.observation_noise, name, segmenter)
+        points, normals = observe.outline
         ekf = PushEKF(points, normals, cfg)
-        r = cfg.observation_noise
-
-        def observe() -> NDArray[np.float64]:
-            return world.object_pose() + rng.multivariate_normal(np.zeros(3), r)
-
-        ekf.update_pose(observe())
+        first = observe()
+        assert first is not None  # the perception's first frame was measured above
+        ekf.update_pose(*first)
+        # The true COM in the filter's object frame (before any symmetric re-labelling).
+        com_frame = rot2(observe.theta_ref) @ np.asarray(spec.com, dtype=float)
         com, ls, ms = [ekf.state[3:5]], [ekf.state[5]], [ekf.state[6]]
-        com_ref = [np.asarray(spec.com, dtype=float)]
+        com_ref = [com_frame]
         nees, nis = [], []
         reinit = touched = 0
         for _ in range(n_pushes):
@@ -316,15 +413,19 @@ def run_physics_episode(name: str, seed: int, n_pushes: int, config: EKFConfig,
             result = world.execute_push(start, contact, end)
             touched += bool(result.touched)
             ekf.predict_push(result.pusher_start, result.pusher_end)
-            upd = ekf.update_pose(observe())
-            reinit += upd.reinitialized
-            nis.append(upd.nis)
+            obs = observe()
+            if obs is None:  # no pose from this frame: the prediction stands
+                nis.append(math.nan)
+            else:
+                upd = ekf.update_pose(*obs)
+                reinit += upd.reinitialized
+                nis.append(upd.nis)
             x = ekf.state
-            truth_pose = world.object_pose()
+            truth_pose = observe.truth()
             # A symmetric object's frame is defined only up to its symmetry: compare in the
             # filter's frame (the true one turned by the multiple of the period it chose).
             shift = ekf.period * round(float(wrap_angle(x[2] - truth_pose[2])) / ekf.period)
-            com_ref.append(rot2(-shift) @ spec.com)
+            com_ref.append(rot2(-shift) @ com_frame)
             truth = np.r_[truth_pose[:2], truth_pose[2] + shift, com_ref[-1],
                           spec.friction_pusher]
             err = truth - x[[0, 1, 2, 3, 4, 6]]
@@ -340,7 +441,8 @@ def run_physics_episode(name: str, seed: int, n_pushes: int, config: EKFConfig,
                          m_true=float(spec.friction_pusher), com=np.array(com), l=np.array(ls),
                          m=np.array(ms), nees=np.array(nees), nis=np.array(nis),
                          reinitialized=reinit, touched=touched,
-                         seconds=time.perf_counter() - t0)
+                         seconds=time.perf_counter() - t0, observations=observations,
+                         missed=observe.failures)
 
 
 @contextlib.contextmanager
@@ -367,20 +469,35 @@ def _mm(values: NDArray[np.float64]) -> str:
 
 
 def report(episodes: dict[str, list[EpisodeResult]], n_pushes: int, position_noise: float,
-           angle_noise: float, elapsed: float) -> str:
-    """Markdown body of the results section."""
+           angle_noise: float, elapsed: float, observations: str = "gt-noise") -> str:
+    """Markdown body of the results section for one observation source."""
     checkpoints = [k for k in (0, 1, 2, 3, 5, n_pushes) if k <= n_pushes]
     checkpoints = sorted(set(checkpoints))
+    if observations == "perception":
+        missed = sum(e.missed for eps in episodes.values() for e in eps)
+        frames = sum(len(e.nis) + 1 for eps in episodes.values() for e in eps)
+        source = (
+            "Observations: the perception (`push_perception`: segmentation CNN `Segmenter` + "
+            "`core.EpisodeTracker`, as in `pushbot eval perception`) on a 640 x 480 frame "
+            "rendered after every push (nominal appearance, noise-free depth, pusher parked out "
+            "of view), with the perception's covariance as R; the filter gets the perception's "
+            "outline (first frame) and works in its `object` frame (origin at the footprint "
+            "centroid, orientation relative to the episode's first frame), so the truth is "
+            "compared there: orientation = true yaw - true yaw of the first frame, COM = "
+            "library COM turned by that yaw. Frames without a pose (the prediction stands): "
+            f"{missed} of {frames}.")
+    else:
+        source = (
+            f"Observations: ground truth + Gaussian noise ({1e3 * position_noise:g} mm per "
+            f"axis, {math.degrees(angle_noise):g} deg; the filter's R matches) and the library "
+            "outline sampled every 2 mm.")
     lines = [
         f"Physics: pybullet (`sim_bridge.world`), randomised object per episode (mass x[0.5, 2],"
         f" COM uniform over the outline shrunk by 30 %, table friction 0.15-0.4, pusher friction"
         f" 0.15-0.5), random initial orientation. {n_pushes} informative pushes per episode "
         f"(random outline point, toward the object's centre +-30 deg, 2-4 cm, planned at the "
-        f"estimated pose). Observations: ground truth + Gaussian noise "
-        f"({1e3 * position_noise:g} mm per axis, {math.degrees(angle_noise):g} deg); the real "
-        f"perception does not exist yet (issue 4): rerun with `--observations perception` "
-        f"once it does. Filter: default `EKFConfig` (symmetry detected from the outline). "
-        f"Wall time {elapsed:.0f} s.",
+        f"estimated pose). {source} Filter: default `EKFConfig` (symmetry detected from the "
+        f"outline). Wall time {elapsed:.0f} s.",
         "",
         f"COM error in mm, median (mean +- std) over episodes, after k pushes; target after "
         f"{n_pushes}: median <= {1e3 * TARGET_COM_ERROR:g} mm on butter and tri1 (source: 17.7 "
@@ -423,6 +540,7 @@ def report(episodes: dict[str, list[EpisodeResult]], n_pushes: int, position_noi
         mk = np.array([abs(e.m[-1] - e.m_true) for e in eps])
         nees = np.concatenate([e.nees for e in eps])
         nis = np.concatenate([e.nis for e in eps])
+        nis = nis[np.isfinite(nis)]  # NaN: no observation
         lo6, hi6 = chi2_band(6, len(eps))
         lo3, hi3 = chi2_band(3, len(eps))
         pushes = len(eps) * n_pushes

@@ -11,10 +11,17 @@ observation. The filter (:class:`push_core.estimator.PushEKF`, default settings)
 robot would get: the object's outline (library shape sampled every 2 mm with outward normals,
 object frame), the executed pusher motion and the observed pose.
 
-Observations (``--observations``): ``gt-noise`` = ground-truth pose plus Gaussian noise, 2 mm
-per position axis and 1.5 deg by default (``--position-noise``, ``--angle-noise-deg``; the
-filter's R matches). ``perception`` is the hook for the real perception (issue 4): it exits
-with a message until the perception is wired in here.
+Observations (``--observations``, one or both, comma-separated; each gets its own tables):
+``gt-noise`` = ground-truth pose plus Gaussian noise, 2 mm per position axis and 1.5 deg by
+default (``--position-noise``, ``--angle-noise-deg``; the filter's R matches), with the library
+outline. ``perception`` = the perception pipeline of issue 4 in this process, as ``pushbot eval
+perception`` runs it: after the first observation and every push the world renders a 640 x 480
+RGB-D frame (pusher parked out of view), the segmentation CNN (``push_perception.model.
+Segmenter``, bundled weights, one torch thread) finds the object and
+``push_perception.core.EpisodeTracker`` measures its pose (footprint centroid, orientation
+relative to the episode's first frame) with its covariance, which the filter uses as R; the
+filter's outline is the perception's (first frame). The truth is compared in the perception's
+frame (orientation minus the true yaw of the first frame, library COM turned by that yaw).
 
 Reported per object: COM error after 0, 1, 2, 3, 5 and all pushes (median, mean +- std) against
 the "without estimation" baseline |c_true| (COM assumed at the centroid) and the target (median
@@ -53,9 +60,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "%(default)s)")
     parser.add_argument("--seed", type=int, default=0, help="first seed; episode i uses "
                         "seed + i (default: %(default)s)")
-    parser.add_argument("--observations", choices=("gt-noise", "perception"),
-                        default="gt-noise", help="pose observations: ground truth + noise, or "
-                        "the real perception (not wired in yet)")
+    parser.add_argument("--observations", default="gt-noise",
+                        help="pose observations, comma-separated: gt-noise (ground truth + "
+                        "noise), perception (segmentation + pose on rendered frames) or both "
+                        "(default: %(default)s)")
     parser.add_argument("--position-noise", type=float, default=0.002,
                         help="observation noise per position axis, m (default: %(default)s)")
     parser.add_argument("--angle-noise-deg", type=float, default=1.5,
@@ -84,10 +92,12 @@ def _results_module() -> ModuleType | None:
 
 def run(args: argparse.Namespace, argv: Sequence[str] | None = None) -> int:
     """Run the evaluation for parsed ``args``; returns the exit code (2 on bad arguments)."""
-    if args.observations == "perception":
-        print("pushbot eval estimator: --observations perception is not wired in yet (the "
-              "perception of issue 4 has to run on the episode's rendered frames); use "
-              "gt-noise", file=sys.stderr)
+    from push_estimator.episodes import OBSERVATIONS
+
+    sources = [o.strip() for o in args.observations.split(",") if o.strip()]
+    if not sources or any(o not in OBSERVATIONS for o in sources):
+        print(f"pushbot eval estimator: --observations must be a comma-separated list of "
+              f"{', '.join(OBSERVATIONS)}, got {args.observations!r}", file=sys.stderr)
         return 2
     names = [n.strip() for n in args.objects.split(",") if n.strip()]
     if args.episodes < 1 or args.pushes < 1 or not names:
@@ -105,7 +115,7 @@ def run(args: argparse.Namespace, argv: Sequence[str] | None = None) -> int:
 
     from push_core.estimator import EKFConfig
     from push_core.objects import load_object
-    from push_estimator.episodes import report, run_physics_episode
+    from push_estimator.episodes import load_perception, report, run_physics_episode
 
     for name in names:
         try:
@@ -115,17 +125,23 @@ def run(args: argparse.Namespace, argv: Sequence[str] | None = None) -> int:
             return 2
     angle_noise = math.radians(args.angle_noise_deg)
     config = EKFConfig() if args.iterations is None else EKFConfig(iterations=args.iterations)
-    episodes: dict[str, list] = {n: [] for n in names}
-    t0 = time.perf_counter()
-    jobs = [(n, args.seed + i) for n in names for i in range(args.episodes)]
-    with tqdm(jobs, desc="episodes", unit="ep", disable=args.no_progress,
-              file=sys.stderr) as bar:
-        for name, seed in bar:
-            bar.set_postfix_str(f"{name} seed {seed}")
-            episodes[name].append(run_physics_episode(name, seed, args.pushes, config,
-                                                      args.position_noise, angle_noise))
-    body = report(episodes, args.pushes, args.position_noise, angle_noise,
-                  time.perf_counter() - t0)
+    bodies = []
+    for source in sources:
+        segmenter = load_perception() if source == "perception" else None
+        episodes: dict[str, list] = {n: [] for n in names}
+        t0 = time.perf_counter()
+        jobs = [(n, args.seed + i) for n in names for i in range(args.episodes)]
+        with tqdm(jobs, desc=f"episodes ({source})", unit="ep", disable=args.no_progress,
+                  file=sys.stderr) as bar:
+            for name, seed in bar:
+                bar.set_postfix_str(f"{name} seed {seed}")
+                episodes[name].append(run_physics_episode(
+                    name, seed, args.pushes, config, args.position_noise, angle_noise,
+                    observations=source, segmenter=segmenter))
+        body = report(episodes, args.pushes, args.position_noise, angle_noise,
+                      time.perf_counter() - t0, observations=source)
+        bodies.append(body if len(sources) == 1 else f"### Observations: {source}\n\n{body}")
+    body = "\n\n".join(bodies)
     shown = list(argv) if argv is not None else sys.argv[1:]
     if shown[:2] == ["eval", "estimator"]:  # called as `pushbot eval estimator ...`
         shown = shown[2:]
