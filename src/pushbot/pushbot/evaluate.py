@@ -470,7 +470,8 @@ def _plot_versus(records: list[dict[str, Any]], x_field: str, x_values: list[Any
     import matplotlib.pyplot as plt
 
     tasks = [t for t in TASKS if _select(records, task=t)]
-    fig, axes = plt.subplots(2, len(tasks), figsize=(4.2 * len(tasks), 6.4), squeeze=False)
+    fig, axes = plt.subplots(2, len(tasks), figsize=(max(4.2 * len(tasks), 7.0), 6.4),
+                             squeeze=False)
     xs = list(range(len(x_values)))
     for j, task in enumerate(tasks):
         for method in methods:
@@ -491,7 +492,7 @@ def _plot_versus(records: list[dict[str, Any]], x_field: str, x_values: list[Any
             axes[i, j].set_xlabel(x_label)
             axes[i, j].grid(alpha=0.3)
     axes[0, 0].legend()
-    fig.suptitle(title)
+    fig.suptitle(title, fontsize=11)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
