@@ -1,0 +1,723 @@
+"""Protocol trials through the real ROS graph: four node processes over DDS (issue 7).
+
+:func:`run_graph_trials` (``pushbot eval push --graph``) and the demo (``pushbot demo``) start
+``sim_bridge_node``, ``segmentation_node``, ``ekf_node`` and ``planner_node`` as separate
+processes (``pushbot run <node>``, simulated time from the bridge's ``/clock``, the bundled DDS
+profile of :mod:`pushbot.dds`) once, and run every trial through them. A hidden client node in
+this process drives the episodes only through the nodes' public interfaces:
+
+1. **Episode parameters.** ``planner_node``: ``method``, ``direct``, ``k``,
+   ``goal_tolerance.{xy,theta}``, ``max_steps``, ``seed`` (:meth:`Trial.planner_kwargs`), via
+   its ``set_parameters`` service; then ``/planner_node/reset`` (applies them, forgets the goal
+   and estimates), ``/ekf_node/reset`` and ``/segmentation_node/reset`` (the next *new* frame
+   becomes the episode's reference; repeated frames of the old scene are skipped).
+2. **Scene.** ``sim_bridge_node``: ``object``, ``initial_pose.{x,y,theta}``, ``com_offset``
+   (``[0, 0]`` for COM at the centre, empty = the randomised COM), ``seed``, ``randomize``
+   (:meth:`Trial.world_kwargs`), then ``/sim_bridge_node/reset``, which rebuilds the scene and
+   publishes its first frame (stamps strictly later than the previous scene's).
+3. **Goal.** The first ``estimator/object_pose`` of the new scene plus
+   :meth:`Trial.goal_offset` (ARCHITECTURE "Goal frame": yaw in the episode frame) on
+   ``goal_pose``.
+4. **Run** until ``planner/status`` (with this goal) says ``goal reached`` or ``failed``.
+5. **Record** (ARCHITECTURE "Episode record"): ground truth from ``sim/object_pose`` (the
+   pose at the stamp of each frame the pipeline saw), estimates from
+   ``estimator/object_pose``, pushes from ``planner/push``; success from the *true* pose
+   against the true initial pose plus the offset, orientation modulo the object's symmetry
+   (:func:`pushbot.episode.true_errors`); ``com_error`` from ``estimator/center_of_mass``
+   against the true COM (parsed from the bridge's reset message, 0.1 mm resolution) turned into
+   the episode frame. ``planning_ms`` is empty (planning happens inside ``planner_node``);
+   ``step_latency_ms`` holds, per step, the wall time from ``pusher/executed`` to the next
+   ``planner/push`` as seen here (perception + estimation + planning + DDS).
+
+Every wait has a deadline and names what it waited for; a node process that exits is reported
+with the tail of its log. Node processes run in their own process groups with a parent-death
+signal (SIGTERM); :meth:`GraphNodes.stop` sends SIGINT (what rclpy shuts down cleanly on),
+then SIGTERM, then SIGKILL to each group, so Ctrl-C leaves no process behind.
+
+Only ``state="filter"`` trials with ``estimate_com`` and planner methods (``ana``, ``lrn``,
+``geo``, ``rdn`` and the ``-direct`` variants) can run in the graph: it has no ground-truth
+state source, no COM pinning and no Push-Net node.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import os
+import re
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pushbot.dds import apply_default_profile
+from pushbot.protocol import Trial
+
+__all__ = ["GraphError", "GraphNodes", "GraphRunner", "run_graph_trials"]
+
+NODES = ("sim_bridge_node", "segmentation_node", "ekf_node", "planner_node")
+#: Seconds for the four processes to start and discover each other (torch, pybullet, DDS).
+STARTUP_TIMEOUT = 180.0
+#: Seconds for a service call (the bridge's reset rebuilds the pybullet scene).
+SERVICE_TIMEOUT = 60.0
+#: Seconds from the scene reset to the first estimate (segmentation of the first frame).
+FIRST_ESTIMATE_TIMEOUT = 90.0
+#: Seconds without any progress (push, executed push, status change) before an episode fails.
+STEP_TIMEOUT = 90.0
+#: planner_node's wait for a push the bridge never reports (it refused it), wall seconds.
+PUSH_TIMEOUT = 10.0
+#: Grace periods of the shutdown: SIGINT, then SIGTERM, then SIGKILL.
+STOP_GRACE = (10.0, 5.0)
+
+_COM_RE = re.compile(r"COM \((-?[0-9.]+), (-?[0-9.]+)\) m")
+
+
+class GraphError(RuntimeError):
+    """The graph did not do what an episode needs (a timeout, a refused call, a dead node)."""
+
+
+# --------------------------------------------------------------------------------------------
+# Processes
+# --------------------------------------------------------------------------------------------
+def _parent_death_signal() -> None:  # pragma: no cover - runs in the child before exec
+    """Ask Linux to SIGTERM the child when this process dies (even by SIGKILL)."""
+    try:
+        libc = ctypes.CDLL("libc.so.6", use_errno=True)
+        libc.prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    except OSError:
+        pass
+
+
+class GraphNodes:
+    """The four node processes, started with ``pushbot run`` in their own process groups.
+
+    Parameters
+    ----------
+    log_dir : Path
+        One ``<node>.log`` per node (stdout and stderr).
+    node_args : dict, optional
+        Extra ``-p name:=value`` strings per node name.
+    """
+
+    def __init__(self, log_dir: Path, node_args: dict[str, Sequence[str]] | None = None) -> None:
+        self.log_dir = Path(log_dir)
+        self.node_args = {n: list((node_args or {}).get(n, ())) for n in NODES}
+        self.procs: dict[str, subprocess.Popen] = {}
+
+    def start(self) -> None:
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        env = dict(os.environ, PYTHONUNBUFFERED="1")
+        apply_default_profile(env)
+        exe = Path(sys.executable).parent / "pushbot"
+        base = [str(exe)] if exe.exists() else [sys.executable, "-m", "pushbot.cli"]
+        for name in NODES:
+            params = ["-p", "use_sim_time:=true"] if name != "sim_bridge_node" else []
+            if name == "planner_node":
+                params += ["-p", f"push_timeout:={PUSH_TIMEOUT}"]
+            for value in self.node_args[name]:
+                params += ["-p", value]
+            with open(self.log_dir / f"{name}.log", "wb") as log:
+                self.procs[name] = subprocess.Popen(
+                    [*base, "run", name, "--ros-args", *params], stdout=log,
+                    stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env,
+                    start_new_session=True, preexec_fn=_parent_death_signal)
+
+    def log_tail(self, name: str, chars: int = 1500) -> str:
+        try:
+            return (self.log_dir / f"{name}.log").read_text(errors="replace")[-chars:]
+        except OSError:
+            return ""
+
+    def check_alive(self) -> None:
+        """Raise :class:`GraphError` naming a node process that exited."""
+        for name, proc in self.procs.items():
+            if proc.poll() is not None:
+                raise GraphError(f"{name} exited with status {proc.returncode}; the end of "
+                                 f"{self.log_dir / (name + '.log')}:\n{self.log_tail(name)}")
+
+    def stop(self) -> None:
+        """SIGINT each process group, then SIGTERM, then SIGKILL (newest node first)."""
+        procs = [p for p in reversed(list(self.procs.values())) if p.poll() is None]
+        for sig, grace in ((signal.SIGINT, STOP_GRACE[0]), (signal.SIGTERM, STOP_GRACE[1]),
+                           (signal.SIGKILL, 5.0)):
+            for proc in procs:
+                if proc.poll() is None:
+                    try:
+                        os.killpg(proc.pid, sig)
+                    except ProcessLookupError:
+                        pass
+            deadline = time.monotonic() + grace
+            for proc in procs:
+                try:
+                    proc.wait(timeout=max(0.0, deadline - time.monotonic()))
+                except subprocess.TimeoutExpired:
+                    pass
+            procs = [p for p in procs if p.poll() is None]
+            if not procs:
+                break
+        self.procs.clear()
+
+    @property
+    def pids(self) -> list[int]:
+        return [p.pid for p in self.procs.values()]
+
+
+@contextmanager
+def _sigterm_as_keyboard_interrupt() -> Iterator[None]:
+    """Treat SIGTERM like Ctrl-C while the graph runs (main thread only)."""
+    try:
+        previous = signal.signal(signal.SIGTERM, signal.default_int_handler)
+    except ValueError:  # not the main thread
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+# --------------------------------------------------------------------------------------------
+# The client
+# --------------------------------------------------------------------------------------------
+@dataclass
+class Recorded:
+    """What the client received, in arrival order (wall time of arrival in ``*_t``)."""
+
+    true: list[tuple[float, np.ndarray]] = field(default_factory=list)  # (stamp, x y theta)
+    est: list[tuple[float, np.ndarray]] = field(default_factory=list)
+    com: list[tuple[float, np.ndarray]] = field(default_factory=list)
+    pushes: list[tuple[float, np.ndarray]] = field(default_factory=list)  # (wall, 3x2)
+    executed: list[tuple[float, float, float]] = field(default_factory=list)  # (wall, t0, t1)
+    status: list[dict[str, str]] = field(default_factory=list)
+    frames: dict[float, np.ndarray] = field(default_factory=dict)  # stamp -> rgb
+    masks: dict[float, np.ndarray] = field(default_factory=dict)  # stamp -> bool mask
+    outline: np.ndarray | None = None
+    camera_matrix: np.ndarray | None = None
+    t_world_camera: np.ndarray | None = None
+
+
+class GraphRunner:
+    """The graph (processes + client node); a context manager. See the module docstring.
+
+    Parameters
+    ----------
+    log_dir : Path, optional
+        Node logs (default: a temporary directory).
+    record_frames : bool
+        Also keep every new camera frame and perception mask (the demo's video).
+    node_args : dict, optional
+        Extra start-up parameters per node (``"name:=value"`` strings).
+    """
+
+    def __init__(self, log_dir: Path | None = None, record_frames: bool = False,
+                 node_args: dict[str, Sequence[str]] | None = None) -> None:
+        self._tmp = None
+        if log_dir is None:
+            self._tmp = tempfile.TemporaryDirectory(prefix="pushbot_graph_")
+            log_dir = Path(self._tmp.name)
+        self.log_dir = Path(log_dir)
+        self.record_frames = record_frames
+        self.nodes = GraphNodes(self.log_dir, node_args)
+        self.rec = Recorded()
+        self._context: Any = None
+        self._node: Any = None
+        self._executor: Any = None
+        self._com_true: np.ndarray | None = None
+        self._goal_seq = 0
+
+    # ---- lifecycle ---------------------------------------------------------------------------
+    def __enter__(self) -> GraphRunner:
+        try:
+            self.start()
+        except BaseException:
+            self.close()
+            raise
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    def start(self) -> None:
+        """Start the processes and the client; wait until every endpoint is discovered."""
+        self.nodes.start()
+        self._start_client()
+        self._wait_ready()
+
+    def close(self) -> None:
+        """Stop the client and every node process (idempotent)."""
+        try:
+            if self._executor is not None:
+                self._executor.shutdown(timeout_sec=1.0)
+            if self._node is not None:
+                self._node.destroy_node()
+            if self._context is not None:
+                import rclpy
+
+                rclpy.try_shutdown(context=self._context)
+        finally:
+            self._executor = self._node = self._context = None
+            self.nodes.stop()
+            if self._tmp is not None:
+                self._tmp.cleanup()
+                self._tmp = None
+
+    def restart(self) -> None:
+        """Stop everything and start again (after a failed episode)."""
+        self.close()
+        self.rec = Recorded()
+        self.nodes = GraphNodes(self.log_dir, self.nodes.node_args)
+        self.start()
+
+    def _start_client(self) -> None:
+        import rclpy
+        from diagnostic_msgs.msg import DiagnosticStatus
+        from geometry_msgs.msg import (
+            PointStamped,
+            PoseStamped,
+            PoseWithCovarianceStamped,
+            TransformStamped,
+        )
+        from nav_msgs.msg import Path as PathMsg
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.node import Node
+        from rclpy.qos import (
+            DurabilityPolicy,
+            QoSProfile,
+            ReliabilityPolicy,
+            qos_profile_sensor_data,
+        )
+        from sensor_msgs.msg import CameraInfo, Image, PointCloud2
+
+        apply_default_profile()
+        self._context = Context()
+        rclpy.init(args=[], context=self._context)
+        node = Node(f"_pushbot_graph_{os.getpid()}", context=self._context,
+                    enable_rosout=False, start_parameter_services=False)
+        self._node = node
+        self._executor = SingleThreadedExecutor(context=self._context)
+        self._executor.add_node(node)
+        reliable = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        sub = node.create_subscription
+        sub(PoseStamped, "sim/object_pose", self._on_true, reliable)
+        sub(PoseWithCovarianceStamped, "estimator/object_pose", self._on_est, reliable)
+        sub(PointStamped, "estimator/center_of_mass", self._on_com, reliable)
+        sub(PathMsg, "planner/push", self._on_push, reliable)
+        sub(PathMsg, "pusher/executed", self._on_executed, reliable)
+        sub(DiagnosticStatus, "planner/status", self._on_status, latched)
+        if self.record_frames:
+            sub(Image, "camera/color/image_raw", self._on_rgb, qos_profile_sensor_data)
+            sub(Image, "perception/mask", self._on_mask, qos_profile_sensor_data)
+            sub(CameraInfo, "camera/color/camera_info", self._on_info, qos_profile_sensor_data)
+            sub(TransformStamped, "camera/color/extrinsics", self._on_extrinsics, latched)
+            sub(PointCloud2, "perception/outline", self._on_outline, latched)
+        self._pub_goal = node.create_publisher(PoseStamped, "goal_pose", reliable)
+        from rcl_interfaces.srv import SetParameters
+        from std_srvs.srv import Trigger
+
+        self._reset = {n: node.create_client(Trigger, f"/{n}/reset") for n in NODES}
+        self._set_params = {n: node.create_client(SetParameters, f"/{n}/set_parameters")
+                            for n in ("sim_bridge_node", "planner_node")}
+
+    # ---- callbacks ---------------------------------------------------------------------------
+    def _on_true(self, msg: Any) -> None:
+        from sim_bridge.conversions import seconds_from_stamp, xytheta_from_pose
+
+        self.rec.true.append((seconds_from_stamp(msg.header.stamp), xytheta_from_pose(msg)))
+
+    def _on_est(self, msg: Any) -> None:
+        from sim_bridge.conversions import seconds_from_stamp, xytheta_from_pose
+
+        self.rec.est.append((seconds_from_stamp(msg.header.stamp),
+                             xytheta_from_pose(msg.pose.pose)))
+
+    def _on_com(self, msg: Any) -> None:
+        from sim_bridge.conversions import seconds_from_stamp
+
+        self.rec.com.append((seconds_from_stamp(msg.header.stamp),
+                             np.array([msg.point.x, msg.point.y])))
+
+    def _on_push(self, msg: Any) -> None:
+        from sim_bridge.conversions import points_from_path
+
+        self.rec.pushes.append((time.monotonic(), np.asarray(points_from_path(msg))[:, :2]))
+
+    def _on_executed(self, msg: Any) -> None:
+        from sim_bridge.conversions import seconds_from_stamp
+
+        stamps = [seconds_from_stamp(p.header.stamp) for p in msg.poses]
+        if stamps:
+            self.rec.executed.append((time.monotonic(), stamps[0], stamps[-1]))
+
+    def _on_status(self, msg: Any) -> None:
+        values = {kv.key: kv.value for kv in msg.values}
+        values["_message"] = msg.message
+        self.rec.status.append(values)
+
+    def _on_rgb(self, msg: Any) -> None:
+        from sim_bridge.conversions import image_to_array, seconds_from_stamp
+
+        stamp = seconds_from_stamp(msg.header.stamp)
+        if stamp not in self.rec.frames:
+            self.rec.frames[stamp] = image_to_array(msg).copy()
+
+    def _on_mask(self, msg: Any) -> None:
+        from sim_bridge.conversions import image_to_array, seconds_from_stamp
+
+        stamp = seconds_from_stamp(msg.header.stamp)
+        if stamp not in self.rec.masks:
+            self.rec.masks[stamp] = image_to_array(msg) > 0
+
+    def _on_info(self, msg: Any) -> None:
+        from sim_bridge.conversions import camera_matrix_from_info
+
+        self.rec.camera_matrix = camera_matrix_from_info(msg)
+
+    def _on_extrinsics(self, msg: Any) -> None:
+        from sim_bridge.conversions import matrix_from_transform
+
+        self.rec.t_world_camera = matrix_from_transform(msg)
+
+    def _on_outline(self, msg: Any) -> None:
+        from push_planner.conversions import outline_from_cloud
+
+        self.rec.outline = outline_from_cloud(msg)[0]
+
+    # ---- waiting -----------------------------------------------------------------------------
+    def wait(self, predicate: Callable[[], Any], timeout: float, what: str) -> Any:
+        """Spin until ``predicate()`` returns something other than None or False;
+        :class:`GraphError` after ``timeout`` s or as soon as a node process exits."""
+        deadline = time.monotonic() + timeout
+        while True:
+            value = predicate()
+            if value is not None and value is not False:
+                return value
+            self.nodes.check_alive()
+            if time.monotonic() > deadline:
+                raise GraphError(f"timed out after {timeout:.0f} s waiting for {what}; node "
+                                 f"logs in {self.log_dir}")
+            self._executor.spin_once(timeout_sec=0.05)
+
+    def _wait_ready(self) -> None:
+        node = self._node
+        links = {  # topic -> node names that must subscribe to it
+            "camera/color/image_raw": ["segmentation_node"],
+            "perception/object_pose": ["ekf_node"],
+            "perception/outline": ["ekf_node", "planner_node"],
+            "pusher/executed": ["ekf_node", "planner_node"],
+            "estimator/object_pose": ["planner_node"],
+            "estimator/state": ["planner_node"],
+            "planner/push": ["sim_bridge_node"],
+            "goal_pose": ["planner_node"],
+        }
+
+        def missing() -> list[str]:
+            out = [f"/{n}/reset" for n, c in self._reset.items() if not c.service_is_ready()]
+            out += [f"/{n}/set_parameters" for n, c in self._set_params.items()
+                    if not c.service_is_ready()]
+            for topic, subscribers in links.items():
+                have = {i.node_name for i in node.get_subscriptions_info_by_topic(topic)}
+                out += [f"{s} on {topic}" for s in subscribers if s not in have]
+            if self._pub_goal.get_subscription_count() == 0:
+                out.append("goal_pose matched")
+            for topic in ("sim/object_pose", "estimator/object_pose", "planner/status"):
+                if node.count_publishers(topic) == 0:
+                    out.append(f"publisher of {topic}")
+            return out
+
+        self.wait(lambda: not missing(), STARTUP_TIMEOUT,
+                  "the four nodes to start and discover each other (still missing: "
+                  f"{', '.join(missing()) or 'nothing'})")
+
+    # ---- service calls -----------------------------------------------------------------------
+    def _call(self, client: Any, request: Any, what: str) -> Any:
+        future = client.call_async(request)
+        self.wait(future.done, SERVICE_TIMEOUT, f"the response of {what}")
+        if future.exception() is not None:
+            raise GraphError(f"{what} failed: {future.exception()}")
+        return future.result()
+
+    def reset(self, node_name: str) -> str:
+        from std_srvs.srv import Trigger
+
+        response = self._call(self._reset[node_name], Trigger.Request(), f"/{node_name}/reset")
+        if not response.success:
+            raise GraphError(f"/{node_name}/reset refused: {response.message}")
+        return response.message
+
+    def set_parameters(self, node_name: str, values: dict[str, Any]) -> None:
+        from rcl_interfaces.srv import SetParameters
+        from rclpy.parameter import Parameter
+
+        params = []
+        for name, value in values.items():
+            if isinstance(value, list | tuple):
+                param = Parameter(name, Parameter.Type.DOUBLE_ARRAY, [float(v) for v in value])
+            else:
+                param = Parameter(name, value=value)
+            params.append(param.to_parameter_msg())
+        response = self._call(self._set_params[node_name],
+                              SetParameters.Request(parameters=params),
+                              f"/{node_name}/set_parameters")
+        for name, result in zip(values, response.results, strict=True):
+            if not result.successful:
+                raise GraphError(f"{node_name} refused parameter {name!r} = {values[name]!r}: "
+                                 f"{result.reason}")
+
+    # ---- one episode -------------------------------------------------------------------------
+    def run(self, trial: Trial) -> dict[str, Any]:
+        """Run ``trial`` through the graph; returns its episode record (module docstring)."""
+        check_trial(trial)
+        t_start = time.perf_counter()
+        rec: dict[str, Any] = {"trial": trial.as_dict(), "success": False, "steps": 0,
+                               "end_error_xy": None, "end_error_theta": None,
+                               "com_error": None, "planning_ms": [], "poses_true": [],
+                               "poses_est": [], "pushes": [], "refused": 0,
+                               "step_latency_ms": [], "wall_s": 0.0, "reason": "",
+                               "engine": "graph"}
+        self._setup_episode(trial)
+        first_stamp, first_est = self._first_estimate()
+        pose0_true = self._true_at(first_stamp)
+        goal = trial.goal(first_est)
+        n_push, n_exec, n_status = (len(self.rec.pushes), len(self.rec.executed),
+                                    len(self.rec.status))
+        goal_text = self._publish_goal(goal)
+        status = self._wait_end(goal_text, n_status, trial)
+        pushes = self.rec.pushes[n_push:]
+        executed = [e for e in self.rec.executed[n_exec:] if e[1] >= first_stamp]
+        rec["steps"] = int(status.get("step", len(pushes)))
+        rec["refused"] = max(0, rec["steps"] - len(executed))
+        rec["reason"] = _reason(status["_message"])
+        if executed:  # the truth after the last push has arrived too
+            t_last = executed[-1][2]
+            self.wait(lambda: any(s >= t_last for s, _ in self.rec.true), STEP_TIMEOUT,
+                      "sim/object_pose after the last push")
+        rec["pushes"] = [p.tolist() for _, p in pushes]
+        rec["poses_true"] = [pose0_true.tolist()] + [
+            self._true_after(t1).tolist() for _, _, t1 in executed]
+        rec["poses_est"] = [first_est.tolist()] + [
+            self._est_after(t1, first_est).tolist() for _, _, t1 in executed]
+        rec["step_latency_ms"] = _latencies(executed, pushes)
+        end_true = self._true_after(executed[-1][2]) if executed else pose0_true
+        order = _symmetry_order(trial.object)
+        from pushbot.episode import true_errors
+
+        exy, eth = true_errors(end_true, pose0_true + trial.goal_offset(), order)
+        tol_xy, tol_theta = trial.tolerances
+        rec["end_error_xy"], rec["end_error_theta"] = exy, eth
+        rec["success"] = bool(exy <= tol_xy and eth <= tol_theta)
+        rec["com_error"] = self._com_error(pose0_true, end_true, order)
+        rec["goal"] = goal.tolist()
+        rec["com_true"] = None if self._com_true is None else self._com_true.tolist()
+        rec["com_est"] = self.rec.com[-1][1].tolist() if self.rec.com else None
+        rec["wall_s"] = time.perf_counter() - t_start
+        return rec
+
+    def _setup_episode(self, trial: Trial) -> None:
+        kw = trial.planner_kwargs()
+        self.set_parameters("planner_node", {
+            "method": kw["method"], "direct": bool(kw["direct"]), "k": int(kw["k"]),
+            "goal_tolerance.xy": float(kw["tolerance_xy"]),
+            "goal_tolerance.theta": float(kw["tolerance_theta"]),
+            "max_steps": int(trial.max_steps), "seed": int(kw["seed"])})
+        for name in ("planner_node", "ekf_node", "segmentation_node"):
+            self.reset(name)
+        world = trial.world_kwargs()
+        x, y, theta = world["object_pose"]
+        com = world.get("com_offset")
+        self._last_stamp = max([s for s, _ in self.rec.true] + [-math.inf])
+        self.set_parameters("sim_bridge_node", {
+            "object": str(world["object"]), "initial_pose.x": float(x),
+            "initial_pose.y": float(y), "initial_pose.theta": math.remainder(theta, 2 * math.pi),
+            "com_offset": [] if com is None else [float(v) for v in com],
+            "seed": int(world["seed"]), "randomize": bool(world["randomize"])})
+        message = self.reset("sim_bridge_node")
+        match = _COM_RE.search(message)
+        self._com_true = (np.array([float(match.group(1)), float(match.group(2))])
+                          if match else None)
+
+    def _first_estimate(self) -> tuple[float, np.ndarray]:
+        after = self._last_stamp
+
+        def first() -> tuple[float, np.ndarray] | None:
+            return next(((s, p) for s, p in self.rec.est if s > after), None)
+
+        return self.wait(first, FIRST_ESTIMATE_TIMEOUT,
+                         "the first estimate of the new scene on estimator/object_pose")
+
+    def _true_at(self, stamp: float) -> np.ndarray:
+        def at() -> np.ndarray | None:
+            return next((p for s, p in reversed(self.rec.true) if s == stamp), None)
+
+        return self.wait(at, STEP_TIMEOUT, f"sim/object_pose stamped {stamp:.3f} s")
+
+    def _true_after(self, stamp: float) -> np.ndarray:
+        return next(p for s, p in self.rec.true if s >= stamp)
+
+    def _est_after(self, stamp: float, default: np.ndarray) -> np.ndarray:
+        """The last estimate of the frame after the push that ended at ``stamp``."""
+        later = [(s, p) for s, p in self.rec.est if s >= stamp]
+        if not later:
+            return default
+        first = later[0][0]
+        return [p for s, p in later if s == first][-1]
+
+    def _publish_goal(self, goal: np.ndarray) -> str:
+        from geometry_msgs.msg import PoseStamped
+
+        msg = PoseStamped()
+        msg.header.frame_id = "world"
+        msg.pose.position.x, msg.pose.position.y = float(goal[0]), float(goal[1])
+        msg.pose.orientation.z = math.sin(goal[2] / 2.0)
+        msg.pose.orientation.w = math.cos(goal[2] / 2.0)
+        self._pub_goal.publish(msg)
+        self._goal_seq += 1
+        from push_core.geometry import wrap_angle
+
+        # planner_node reports the goal it works on in its status, 4 decimals (theta wrapped).
+        return " ".join(f"{v:.4f}" for v in (goal[0], goal[1], float(wrap_angle(goal[2]))))
+
+    def _wait_end(self, goal_text: str, n_status: int, trial: Trial) -> dict[str, str]:
+        """Wait for ``goal reached`` / ``failed`` for this goal; fail after STEP_TIMEOUT s
+        without progress."""
+        progress = [None, time.monotonic()]
+
+        def done() -> dict[str, str] | None:
+            mine = [s for s in self.rec.status[n_status:] if _same_goal(s.get("goal", ""),
+                                                                        goal_text)]
+            key = (len(self.rec.pushes), len(self.rec.executed), len(mine))
+            if key != progress[0]:
+                progress[0], progress[1] = key, time.monotonic()
+            end = next((s for s in reversed(mine) if s.get("state") in ("reached", "failed")),
+                       None)
+            if end is not None:
+                return end
+            if time.monotonic() - progress[1] > STEP_TIMEOUT:
+                last = mine[-1]["_message"] if mine else "no status for this goal"
+                raise GraphError(f"no progress for {STEP_TIMEOUT:.0f} s (planner: {last!r}); "
+                                 f"node logs in {self.log_dir}")
+            return None
+
+        limit = STEP_TIMEOUT * (trial.max_steps + 2)
+        return self.wait(done, limit, f"the end of the episode ({trial.max_steps} steps max)")
+
+    def _com_error(self, pose0_true: np.ndarray, end_true: np.ndarray, order: int
+                   ) -> float | None:
+        """|c_est - c_true| in the episode frame (as :mod:`pushbot.episode`), metres."""
+        if self._com_true is None or not self.rec.com or not self.rec.est:
+            return None
+        from push_core.geometry import rot2, wrap_angle
+
+        theta_est = self.rec.est[-1][1][2]
+        theta0 = float(pose0_true[2])
+        period = 2.0 * math.pi / max(order, 1)
+        shift = period * round(float(wrap_angle(theta_est - (end_true[2] - theta0))) / period)
+        c_true = rot2(theta0 - shift) @ self._com_true
+        return float(math.hypot(*(self.rec.com[-1][1] - c_true)))
+
+
+def _same_goal(a: str, b: str) -> bool:
+    try:
+        va, vb = [float(v) for v in a.split()], [float(v) for v in b.split()]
+    except ValueError:
+        return False
+    return len(va) == len(vb) == 3 and all(abs(x - y) < 2e-4 for x, y in zip(va, vb,
+                                                                              strict=True))
+
+
+def _reason(message: str) -> str:
+    if message.startswith("goal reached"):
+        return "goal reached"
+    if message.startswith("failed after max steps"):
+        return "max steps"
+    if message.startswith("failed: no feasible push"):
+        return "no feasible push"
+    return message
+
+
+def _latencies(executed: list[tuple[float, float, float]],
+               pushes: list[tuple[float, np.ndarray]]) -> list[float]:
+    """Wall ms from each pusher/executed to the next planner/push (as received here)."""
+    out = []
+    for t_exec, _, _ in executed:
+        following = [t for t, _ in pushes if t > t_exec]
+        if following:
+            out.append(1e3 * (following[0] - t_exec))
+    return out
+
+
+def _symmetry_order(obj: str) -> int:
+    from push_core.estimator import symmetry_order_of_polygon
+    from push_core.objects import load_object
+
+    return int(symmetry_order_of_polygon(load_object(obj).polyline()))
+
+
+def check_trial(trial: Trial) -> None:
+    """``ValueError`` for trials the graph cannot run (module docstring)."""
+    if not isinstance(trial, Trial):
+        raise ValueError(f"expected a pushbot.protocol.Trial, got {type(trial).__name__}")
+    if trial.state != "filter":
+        raise ValueError(f"the graph estimates the state from images: state must be 'filter', "
+                         f"got {trial.state!r}")
+    if trial.method == "pushnet":
+        raise ValueError("the graph has no Push-Net node: method 'pushnet' runs in-process only")
+    if not getattr(trial, "estimate_com", True):
+        raise ValueError("estimate_com=False (COM pinned) is not available in the graph")
+
+
+def run_graph_trials(trials: list[Trial], *, out_dir: Path | str | None = None,
+                     progress: bool = True) -> list[dict[str, Any]]:
+    """Run ``trials`` through the ROS graph (four node processes, started once) in order.
+
+    Parameters
+    ----------
+    trials : list of Trial
+        ``state="filter"`` trials (see :func:`check_trial`).
+    out_dir : path, optional
+        The node logs go to ``out_dir/graph_logs``; default: a temporary directory.
+    progress : bool
+        One line per trial on stderr.
+
+    Returns
+    -------
+    list of dict
+        One episode record per trial (docs/ARCHITECTURE.md). A trial that breaks the graph (a
+        timeout, a node that died) gets ``success=False`` and the error as ``reason``; the
+        graph is then restarted for the next trial.
+    """
+    for trial in trials:
+        check_trial(trial)
+    log_dir = Path(out_dir) / "graph_logs" if out_dir is not None else None
+    records: list[dict[str, Any]] = []
+    with _sigterm_as_keyboard_interrupt(), GraphRunner(log_dir=log_dir) as graph:
+        for i, trial in enumerate(trials):
+            try:
+                record = graph.run(trial)
+            except GraphError as exc:
+                record = {"trial": trial.as_dict(), "success": False, "steps": 0,
+                          "end_error_xy": None, "end_error_theta": None, "com_error": None,
+                          "planning_ms": [], "poses_true": [], "poses_est": [], "pushes": [],
+                          "wall_s": 0.0, "reason": f"graph error: {exc}", "engine": "graph"}
+                graph.restart()
+            records.append(record)
+            if progress:
+                err = record["end_error_xy"]
+                print(f"graph trial {i + 1}/{len(trials)}: {trial.object} {trial.task} "
+                      f"{trial.method} k={trial.k} #{trial.index}: {record['reason']}, "
+                      f"{record['steps']} steps"
+                      + (f", end error {1e3 * err:.1f} mm / "
+                         f"{math.degrees(record['end_error_theta']):.1f} deg" if err is not None
+                         else "")
+                      + f", {record['wall_s']:.1f} s", file=sys.stderr, flush=True)
+    return records
