@@ -6,6 +6,7 @@ subprocesses inherit it.
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import secrets
@@ -106,26 +107,37 @@ def test_doctor_reports_a_missing_module_without_traceback() -> None:
 
 @pytest.mark.ros
 @pytest.mark.slow
-def test_demo_runs_doctor_then_pushes_through_the_sim_bridge(tmp_path: Path) -> None:
-    result = pushbot('demo', '--object', 'rect1', '--out', str(tmp_path))
+@pytest.mark.graph
+def test_demo_runs_doctor_then_the_closed_loop_through_the_graph(tmp_path: Path) -> None:
+    result = pushbot('demo', '--object', 'rect1', '--com', 'centre', '--out', str(tmp_path),
+                     timeout=300)
     assert result.returncode == 0, result.stdout + result.stderr
-    assert 'checks passed' in result.stdout
-    rows = {}
-    for line in result.stdout.splitlines():
-        match = re.match(r'^(through the COM|2\.5 cm off the COM|at 30 deg to the normal)\s+'
-                         r'(.*?)\s+(\S+) / \s*(\S+)$', line)
-        if match:
-            numbers = [float(v) for v in re.findall(r'-?\d+\.\d', match.group(2))]
-            rows[match.group(1)] = (numbers, float(match.group(3)), float(match.group(4)))
-    assert len(rows) == 3, result.stdout
-    # The push through the COM of rect1 (from its -x side, object at the origin) continues 4 cm
-    # past the contact point, so the object moves ~4 cm along +x with little rotation; the
-    # model agrees within a few mm.
-    (dx, dy, dth, *_), err_mm, _ = rows['through the COM']
-    assert 25.0 < dx < 45.0 and abs(dy) < 5.0 and abs(dth) < 3.0, result.stdout
-    assert err_mm < 10.0, result.stdout
-    assert (tmp_path / 'last_frame.png').stat().st_size > 0
-    assert (tmp_path / 'poses.png').stat().st_size > 0
+    out = result.stdout
+    assert 'checks passed' in out
+    # The four nodes ran as processes: each wrote its log.
+    for name in NODES:
+        assert (tmp_path / 'graph_logs' / f'{name}.log').stat().st_size > 0, name
+    record = json.loads((tmp_path / 'episode.json').read_text())
+    assert record['trial']['object'] == 'rect1' and record['trial']['task'] == 'mixed'
+    assert record['reason'] == 'goal reached' and record['success'], out
+    assert 1 <= record['steps'] == len(record['pushes']) == len(record['poses_true']) - 1
+    # The summary prints the ground-truth figures of the record.
+    match = re.search(r'^result: goal reached after (\d+) pushes \(success by ground truth\)$',
+                      out, re.M)
+    assert match and int(match.group(1)) == record['steps'], out
+    match = re.search(r'^true end-pose error: ([\d.]+) mm, ([\d.]+) deg', out, re.M)
+    assert match, out
+    assert float(match.group(1)) == pytest.approx(1e3 * record['end_error_xy'], abs=0.06)
+    assert float(match.group(1)) <= 7.5 and float(match.group(2)) <= 5.0
+    assert re.search(r'^centre of mass \(object frame, mm\): estimated \(.*\), true \(.*\), '
+                     r'error [\d.]+ mm$', out, re.M), out
+    match = re.search(r'^wall time: ([\d.]+) s in all', out, re.M)
+    assert match and float(match.group(1)) < 120.0, out
+    from PIL import Image
+
+    with Image.open(tmp_path / 'episode.gif') as gif:  # a frame lost in transport is skipped
+        assert 2 <= gif.n_frames <= record['steps'] + 1
+    assert (tmp_path / 'trajectory.png').stat().st_size > 10_000
 
 
 # --- run ------------------------------------------------------------------------------------

@@ -98,7 +98,8 @@ def build_parser() -> argparse.ArgumentParser:
         ('topic', topic, topic.run_topic,
          'inspect topics: list, echo, hz, info (like `ros2 topic`)', {}),
         ('demo', demo, demo.run_demo,
-         'what `make demo` runs (for now: doctor and the object library)', {}),
+         'what `make demo` runs: doctor, then one pushing episode through the ROS graph',
+         {}),
     ):
         p = sub.add_parser(name, help=summary, description=module.__doc__,
                            formatter_class=argparse.RawDescriptionHelpFormatter, **extra)

@@ -231,6 +231,7 @@ class GraphRunner:
         self._node: Any = None
         self._executor: Any = None
         self._com_true: np.ndarray | None = None
+        self._c_true_episode: np.ndarray | None = None
         self._goal_seq = 0
 
     # ---- lifecycle ---------------------------------------------------------------------------
@@ -507,6 +508,9 @@ class GraphRunner:
             self._true_after(t1).tolist() for _, _, t1 in executed]
         rec["poses_est"] = [first_est.tolist()] + [
             self._est_after(t1, first_est).tolist() for _, _, t1 in executed]
+        # Stamps of the camera frames the estimates came from (before the first push, after each).
+        rec["frame_stamps"] = [first_stamp] + [
+            next((st for st, _ in self.rec.est if st >= t1), t1) for _, _, t1 in executed]
         rec["step_latency_ms"] = _latencies(executed, pushes)
         end_true = self._true_after(executed[-1][2]) if executed else pose0_true
         order = _symmetry_order(trial.object)
@@ -519,6 +523,8 @@ class GraphRunner:
         rec["com_error"] = self._com_error(pose0_true, end_true, order)
         rec["goal"] = goal.tolist()
         rec["com_true"] = None if self._com_true is None else self._com_true.tolist()
+        rec["com_true_episode"] = (None if self._c_true_episode is None
+                                   else self._c_true_episode.tolist())
         rec["com_est"] = self.rec.com[-1][1].tolist() if self.rec.com else None
         rec["wall_s"] = time.perf_counter() - t_start
         return rec
@@ -562,7 +568,7 @@ class GraphRunner:
         return self.wait(at, STEP_TIMEOUT, f"sim/object_pose stamped {stamp:.3f} s")
 
     def _true_after(self, stamp: float) -> np.ndarray:
-        return next(p for s, p in self.rec.true if s >= stamp)
+        return next((p for s, p in self.rec.true if s >= stamp), self.rec.true[-1][1])
 
     def _est_after(self, stamp: float, default: np.ndarray) -> np.ndarray:
         """The last estimate of the frame after the push that ended at ``stamp``."""
@@ -614,6 +620,7 @@ class GraphRunner:
     def _com_error(self, pose0_true: np.ndarray, end_true: np.ndarray, order: int
                    ) -> float | None:
         """|c_est - c_true| in the episode frame (as :mod:`pushbot.episode`), metres."""
+        self._c_true_episode = None
         if self._com_true is None or not self.rec.com or not self.rec.est:
             return None
         from push_core.geometry import rot2, wrap_angle
@@ -623,6 +630,7 @@ class GraphRunner:
         period = 2.0 * math.pi / max(order, 1)
         shift = period * round(float(wrap_angle(theta_est - (end_true[2] - theta0))) / period)
         c_true = rot2(theta0 - shift) @ self._com_true
+        self._c_true_episode = c_true
         return float(math.hypot(*(self.rec.com[-1][1] - c_true)))
 
 
