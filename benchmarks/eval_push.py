@@ -109,14 +109,33 @@ def _failures(records: list[dict]) -> str:
         if key == "goal reached":
             key = "estimate within tolerance, truth not"
         reasons[key] = reasons.get(key, 0) + 1
-    return "Failures by reason: " + ", ".join(f"{k} {v}" for k, v in sorted(reasons.items())) \
+    refused = sum(r.get("refused", 0) for r in records)
+    stuck = [r for r in bad if r.get("refused", 0) >= r["steps"] // 2 and r["steps"] > 2]
+    text = "Failures by reason: " + ", ".join(f"{k} {v}" for k, v in sorted(reasons.items())) \
         + "."
+    if refused:
+        text += (f" Pushes refused by the world: {refused} in total"
+                 + (f"; {len(stuck)} failed trial(s) spent most steps on refused pushes "
+                    "(" + ", ".join(f"{r['trial']['object']} {r['trial']['task']} #"
+                                    f"{r['trial']['index']}: {r['refused']} of {r['steps']}"
+                                    for r in stuck) + ")" if stuck else "") + ".")
+    return text
+
+
+#: Set by --reuse: load out/eval/<name>/results.json instead of running when its options match.
+REUSE = False
 
 
 def _run(name: str, opts: EvalOptions, workers: int) -> dict:
+    out = OUT / name
+    saved = out / "results.json"
+    if REUSE and saved.is_file():
+        doc = json.loads(saved.read_text())
+        if doc["config"] == json.loads(json.dumps(opts.as_dict())):
+            print(f"{name}: reusing {saved}", file=sys.stderr)
+            return doc
     doc = evaluate(opts, workers=workers, progress=True)
     doc["timing"]["command"] = f"benchmarks/eval_push.py {name}"
-    out = OUT / name
     written = write_outputs(doc, out)
     FIGURES.mkdir(parents=True, exist_ok=True)
     for p in written:
@@ -153,6 +172,15 @@ def exp_full(trials: int, workers: int, seed: int) -> tuple[str, str]:
         *_task_object_table(doc["trials"]),
         "",
         _failures(doc["trials"]),
+        "",
+        "Diagnosis of the refused pushes (replayed tri1 mixed #11 in-process): the world refuses "
+        "the approach point as 5.2 mm from the *true* outline where it needs 5.3 mm (pusher "
+        "radius + 0.5 mm); the planner checks that clearance on the *perceived* outline (plus "
+        "its 0.5 mm simplification tolerance), which is rounded and about 0.6 mm off at tri1's "
+        "sharp corners. A refused push moves nothing, so the estimate and hence the plan stay "
+        "the same and the episode spends its remaining steps on it. The graph would behave "
+        "alike (sim_bridge_node refuses the same push). Not tuned here: the fix belongs to the "
+        "planner (a clearance margin for the perception error, or excluding a refused push).",
     ])
     return body, "Full protocol wall time and results (`eval_push_full`)"
 
@@ -217,6 +245,15 @@ def exp_table51(trials: int, workers: int, seed: int) -> tuple[str, str]:
             f"{'met' if mm <= 5 else 'NOT met'}; source 8.7) and {deg:.1f} deg (target <= 2 deg: "
             f"{'met' if deg <= 2 else 'NOT met'}; source 3.0)",
         ]
+        for st in ("gt", "filter"):
+            ok = [r for r in _sel(records, state=st) if r["success"]]
+            xy = np.array([r["end_error_xy"] for r in _sel(records, state=st)]) * 1e3
+            if ok:
+                checks.append(
+                    f"- {st}: over the successful trials only "
+                    f"{np.mean([r['end_error_xy'] for r in ok]) * 1e3:.1f} mm / "
+                    f"{math.degrees(np.mean([r['end_error_theta'] for r in ok])):.1f} deg; "
+                    f"median over all trials {np.median(xy):.1f} mm, max {xy.max():.1f} mm")
     per_obj = ["| state | object | trials | success | steps | end mm | end deg |",
                "| --- | --- | --- | --- | --- | --- | --- |"]
     for st in ("gt", "filter"):
@@ -349,7 +386,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--no-write", action="store_true")
+    parser.add_argument("--reuse", action="store_true",
+                        help="re-render the sections from out/eval/<name>/results.json when its "
+                             "options match (no new trials)")
     args = parser.parse_args(argv)
+    global REUSE
+    REUSE = args.reuse
     for name in args.experiments:
         trials = args.trials or DEFAULT_TRIALS[name]
         t0 = time.perf_counter()
