@@ -74,6 +74,8 @@ FIRST_ESTIMATE_TIMEOUT = 90.0
 STEP_TIMEOUT = 90.0
 #: planner_node's wait for a push the bridge never reports (it refused it), wall seconds.
 PUSH_TIMEOUT = 10.0
+#: Scenes and seconds per scene to wait for the first estimate at the planner at start-up.
+WARM_UP_ATTEMPTS, WARM_UP_TIMEOUT = 4, 30.0
 #: Grace periods of the shutdown: SIGINT, then SIGTERM, then SIGKILL.
 STOP_GRACE = (10.0, 5.0)
 
@@ -247,10 +249,12 @@ class GraphRunner:
         self.close()
 
     def start(self) -> None:
-        """Start the processes and the client; wait until every endpoint is discovered."""
+        """Start the processes and the client; wait until every endpoint is discovered and an
+        estimate has gone all the way from the bridge's camera to the planner."""
         self.nodes.start()
         self._start_client()
         self._wait_ready()
+        self._warm_up()
 
     def close(self) -> None:
         """Stop the client and every node process (idempotent)."""
@@ -439,6 +443,30 @@ class GraphRunner:
         self.wait(lambda: not missing(), STARTUP_TIMEOUT,
                   "the four nodes to start and discover each other (still missing: "
                   f"{', '.join(missing()) or 'nothing'})")
+
+    def _planner_estimates(self) -> int:
+        return max((int(s.get("estimates", 0)) for s in self.rec.status), default=0)
+
+    def _warm_up(self) -> None:
+        """Wait until planner_node counts an estimate: the whole chain bridge -> perception ->
+        estimator -> planner is matched. Seeing an endpoint in the graph does not mean every
+        other participant has matched it yet, and a reliable, volatile sample published before
+        the match is lost (found on a loaded machine: the planner never got the first estimate
+        of the first episode, and the estimator publishes one estimate per new frame). If no
+        estimate arrives, the scene is rebuilt (new frames, so a new estimate) and the wait
+        repeated."""
+        for _ in range(WARM_UP_ATTEMPTS):
+            before = self._planner_estimates()
+            for name in ("planner_node", "ekf_node", "segmentation_node", "sim_bridge_node"):
+                self.reset(name)
+            try:
+                self.wait(lambda b=before: self._planner_estimates() > b or None,
+                          WARM_UP_TIMEOUT, "planner_node to count an estimate")
+                return
+            except GraphError:
+                self.nodes.check_alive()
+        raise GraphError(f"planner_node received no estimate in {WARM_UP_ATTEMPTS} scenes of "
+                         f"{WARM_UP_TIMEOUT:.0f} s; node logs in {self.log_dir}")
 
     # ---- service calls -----------------------------------------------------------------------
     def _call(self, client: Any, request: Any, what: str) -> Any:
