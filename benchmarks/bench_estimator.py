@@ -128,8 +128,9 @@ def main(argv: list[str] | None = None) -> int:
         f"informative pushes x {args.repeats} repeats per row after a warm-up (2-4 cm pushes "
         f"after a 0.5-1.5 cm approach; substeps of 1 cm). Prediction = pushing model with its "
         f"closed-form Jacobian over the substeps (contact search on the decimated outline); "
-        f"update = gate + filterpy Joseph update (+ for 2 iterations: re-linearised prediction "
-        f"and a second update). 1-minute load average {load_before:.2f} before, "
+        f"update = gate + Joseph-form update (filterpy's equations for H = [I 0], written out) "
+        f"(+ for 2 iterations: re-linearised prediction and a second update). 1-minute load "
+        f"average {load_before:.2f} before, "
         f"{load_after:.2f} after (2 cores shared with other jobs: medians are the figure, "
         f"tails are noise). Target: median <= {TARGET_MS} ms.",
         "",

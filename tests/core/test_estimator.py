@@ -453,6 +453,29 @@ def test_parameters_are_clipped_to_physical_ranges() -> None:
     assert ekf.state[6] == pytest.approx(ekf.m_bounds[0])
 
 
+def test_com_is_clipped_to_the_convex_hull_of_the_outline() -> None:
+    # Right triangle with legs 0.12 m, centroid at the origin: vertices (-0.04, -0.04),
+    # (0.08, -0.04), (-0.04, 0.08); hypotenuse x + y = 0.04.
+    tri = np.array([[-0.04, -0.04], [0.08, -0.04], [-0.04, 0.08]])
+    outline = ContactOutline.from_points(tri)
+    assert outline.clip_to_hull(0.01, -0.02) == (0.01, -0.02)  # inside: unchanged
+    np.testing.assert_allclose(outline.clip_to_hull(0.05, 0.05), [0.02, 0.02], atol=1e-15)
+    np.testing.assert_allclose(outline.clip_to_hull(0.0, -0.1), [0.0, -0.04], atol=1e-15)
+    np.testing.assert_allclose(outline.clip_to_hull(0.2, -0.2), [0.08, -0.04], atol=1e-15)
+    # A non-convex outline: the hull bridges the notch (COM of an L-shape may lie in it).
+    ell = np.array([[0, 0], [0.1, 0], [0.1, 0.03], [0.03, 0.03], [0.03, 0.1], [0, 0.1]]) - 0.03
+    notch = ContactOutline.from_points(ell).clip_to_hull(0.02, 0.02)
+    assert notch == (0.02, 0.02)
+    # The filter applies it after an update that drags the COM out of the triangle.
+    ekf = PushEKF(tri)
+    ekf.update_pose([0.0, 0.0, 0.0])
+    v = np.zeros(7)
+    v[[0, 3, 4]] = [0.002, 0.03, 0.03]
+    ekf.P = np.diag(np.diag(ekf.covariance)) * 1e-3 + np.outer(v, v)
+    ekf.update_pose([0.006, 0.0, 0.0], np.diag([1e-10, 1e-10, 1e-10]))
+    np.testing.assert_allclose(ekf.state[3:5], [0.02, 0.02], atol=1e-12)
+
+
 def test_process_noise_grows_with_the_push() -> None:
     cfg = EKFConfig()
     q0, q1 = cfg.process_noise(0.0), cfg.process_noise(0.03)
