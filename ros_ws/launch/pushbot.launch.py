@@ -11,6 +11,12 @@ Each node gets its commented parameter file ``<package>.yaml``, taken from ``con
 ``share/<package>/config``, which is used when ``config_dir`` has none), and ``use_sim_time``
 (default true: sim_bridge publishes ``/clock``). sim_bridge itself, the clock source, keeps
 the ``use_sim_time`` of its own parameter file (false).
+
+Every node also gets the project's Fast DDS profile (``FASTRTPS_DEFAULT_PROFILES_FILE``, unless
+it is already set in the environment): 32 MB shared-memory segments and 4 MB UDP buffers, without
+which most 640 x 480 camera images never reach segmentation_node in another process
+(docs/ARCHITECTURE.md, "DDS profile"). It is the ``pushbot`` package's
+``pushbot/data/fastdds.xml``, found through the installed package or next to this workspace.
 """
 
 from __future__ import annotations
@@ -31,6 +37,22 @@ NODES = (
 )
 CLOCK_SOURCE = 'sim_bridge'  # publishes /clock; keeps use_sim_time from its own file (false)
 DEFAULT_CONFIG_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', 'config')
+PROFILE_ENV = 'FASTRTPS_DEFAULT_PROFILES_FILE'
+SOURCE_PROFILE = os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', '..', 'src',
+                              'pushbot', 'pushbot', 'data', 'fastdds.xml')
+
+
+def _dds_environment() -> dict[str, str]:
+    """``{FASTRTPS_DEFAULT_PROFILES_FILE: <the bundled profile>}`` unless already set."""
+    if os.environ.get(PROFILE_ENV):
+        return {}
+    try:
+        from pushbot.dds import profile_path
+
+        path = str(profile_path())
+    except ImportError:
+        path = os.path.normpath(SOURCE_PROFILE)
+    return {PROFILE_ENV: path} if os.path.isfile(path) else {}
 
 
 def _parameter_file(package: str, config_dir: str) -> str | None:
@@ -53,6 +75,7 @@ def _nodes(context: LaunchContext, *args: object, **kwargs: object) -> list[Node
     config_dir = LaunchConfiguration('config_dir').perform(context)
     use_sim_time = LaunchConfiguration('use_sim_time').perform(context).lower() == 'true'
     actions = []
+    env = _dds_environment()
     for package, executable in NODES:
         parameters: list = []
         path = _parameter_file(package, config_dir)
@@ -67,6 +90,7 @@ def _nodes(context: LaunchContext, *args: object, **kwargs: object) -> list[Node
             output='screen',
             emulate_tty=True,
             parameters=parameters,
+            additional_env=env,
         ))
     return actions
 
