@@ -30,8 +30,10 @@ and its application to the pose) and chained over the substeps. Tests check it a
 finite differences and the model part against ``torch.func.jacfwd`` through
 :func:`push_core.model.push_twist`; the values equal ``push_twist`` / ``apply_twist`` to
 rounding. Cost: ``torch.func.jacfwd`` through the torch model takes about 10 ms per substep,
-the closed form about 0.03 ms (numpy calls on 2-vectors cost more than the arithmetic, so the
-scalar model runs on Python floats and only the contact search is vectorised).
+the closed form about 0.02 ms with the contact search (numpy calls on 2-vectors cost more than
+the arithmetic, so the scalar model and its derivatives run on Python floats, written out per
+component; the contact search is a Python loop over outlines of at most ``_SMALL_POLYGON``
+segments and vectorised over larger ones).
 
 Process noise (per push, :meth:`EKFConfig.process_noise`): pose, world frame, isotropic in x
 and y, standard deviations ``position_noise_min + position_noise_per_metre * L`` and
@@ -44,20 +46,24 @@ object with ``symmetry_order`` k (its outline looks the same after a rotation by
 taken modulo 2 pi / k, i.e. the observed orientation closest to the prediction among the k
 equivalent ones. ``symmetry_order`` = 1 means no symmetry; 0 means "detect it from the outline"
 (:func:`symmetry_order_of_polygon`, rotations that map the outline onto itself within
-``symmetry_tolerance``). The update is filterpy's Joseph form, then symmetrised; ``l`` and ``m``
-are clipped to physical ranges (``l`` in ``[l_min_fraction * l_0, r_max]`` with ``l_0`` the
+``symmetry_tolerance``). The update is filterpy's Joseph form with these ``H`` and residual,
+written out for ``H = [I_3 0]`` (:meth:`PushEKF._update`: the same equations and filterpy
+attributes, without filterpy's generic 7 x 7 products), then symmetrised; ``l`` and ``m`` are
+clipped to physical ranges (``l`` in ``[l_min_fraction * l_0, r_max]`` with ``l_0`` the
 uniform-pressure guess and ``r_max`` the largest distance of the outline from its centroid,
-``m`` in ``m_range``) and ``c`` to the disc of radius ``r_max``.
+``m`` in ``m_range``) and ``c`` to the convex hull of the outline (a rigid object's COM lies
+inside it; :meth:`ContactOutline.clip_to_hull`).
 
 Iterated update (``EKFConfig.iterations``, default 2): the model is strongly nonlinear in
 ``c`` and ``l``, and the first pushes are linearised at the prior (``c = 0``). After the
 update, the push is linearised again at the smoothed pre-push state (one Rauch-Tung-Striebel /
 Gauss-Newton step, :meth:`PushEKF._iterate`) and the update is redone from the pre-push
 estimate: an iterated EKF for the process nonlinearity. On the pybullet benchmark (50
-episodes, 10 pushes, ``pushbot eval estimator --iterations 1`` vs the default) it lowers
-butter's median COM error from 10.6 to 6.5 mm, tri1's and hex's stay about equal (11.3 and
-4.9 -> 4.6 mm), and the NEES comes inside its chi-square band; it doubles the cost of an
-update.
+episodes, 10 pushes, ``pushbot eval estimator --iterations 1`` vs the default) it lowered
+butter's median COM error from 10.6 to 6.5 mm, tri1's and hex's stayed about equal (11.3 and
+4.9 -> 4.6 mm), and the NEES came inside its chi-square band; it doubles the cost of a
+push (two model evaluations with Jacobian and two updates; figures in ``docs/RESULTS.md``,
+``bench_estimator``).
 
 Initialisation: the pose from the first observation (covariance R), ``c = 0`` with covariance
 ``com_prior_fraction^2`` times the second moment matrix of the outline's area (the COM anywhere

@@ -469,8 +469,10 @@ def _mm(values: NDArray[np.float64]) -> str:
 
 
 def report(episodes: dict[str, list[EpisodeResult]], n_pushes: int, position_noise: float,
-           angle_noise: float, elapsed: float, observations: str = "gt-noise") -> str:
-    """Markdown body of the results section for one observation source."""
+           angle_noise: float, elapsed: float, observations: str = "gt-noise",
+           notes: bool = True) -> str:
+    """Markdown body of the results section for one observation source (``notes``: with the
+    closing notes, once per section)."""
     checkpoints = [k for k in (0, 1, 2, 3, 5, n_pushes) if k <= n_pushes]
     checkpoints = sorted(set(checkpoints))
     if observations == "perception":
@@ -552,6 +554,8 @@ def report(episodes: dict[str, list[EpisodeResult]], n_pushes: int, position_noi
             f"{np.mean(nis):.1f} (band {lo3:.1f}-{hi3:.1f}; median {np.median(nis):.1f}) | "
             f"{sum(e.reinitialized for e in eps)} / {pushes} | "
             f"{sum(e.touched for e in eps)} / {pushes} |")
+    if not notes:
+        return "\n".join(lines)
     lines += [
         "",
         "Notes. A k-fold symmetric object's orientation is defined only up to 2 pi / k (the "

@@ -139,7 +139,8 @@ def run(args: argparse.Namespace, argv: Sequence[str] | None = None) -> int:
                     name, seed, args.pushes, config, args.position_noise, angle_noise,
                     observations=source, segmenter=segmenter))
         body = report(episodes, args.pushes, args.position_noise, angle_noise,
-                      time.perf_counter() - t0, observations=source)
+                      time.perf_counter() - t0, observations=source,
+                      notes=source == sources[-1])
         bodies.append(body if len(sources) == 1 else f"### Observations: {source}\n\n{body}")
     body = "\n\n".join(bodies)
     shown = list(argv) if argv is not None else sys.argv[1:]
