@@ -130,13 +130,20 @@ def _alive(pid: int) -> bool:
         return False
 
 
+def _other_domain() -> int:
+    """A domain id outside the sessions' 1-100 (tests/conftest.py), so the demo's graph does not
+    meet this module's graph (same node names, same services)."""
+    return 101 + int(os.environ["ROS_DOMAIN_ID"]) % 100
+
+
 def test_ctrl_c_stops_every_process(tmp_path: Path) -> None:
     exe = Path(sys.executable).parent / "pushbot"
     log = tmp_path / "demo.log"
     with open(log, "wb") as out:
         demo = subprocess.Popen([str(exe), "demo", "--skip-doctor", "--out", str(tmp_path)],
                                 stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                env={**os.environ, "PYTHONUNBUFFERED": "1"})
+                                env={**os.environ, "PYTHONUNBUFFERED": "1",
+                                     "ROS_DOMAIN_ID": str(_other_domain())})
     try:
         deadline = time.monotonic() + 180.0
         while "graph up after" not in log.read_text() and time.monotonic() < deadline:
