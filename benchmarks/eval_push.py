@@ -41,6 +41,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import format_section, update_section  # noqa: E402
 
 from pushbot.evaluate import (  # noqa: E402
+    SOURCE_TABLE_5_2,
     EvalOptions,
     evaluate,
     stats,
@@ -116,12 +117,15 @@ def _failures(records: list[dict]) -> str:
     if refused:
         text += (f" Pushes refused by the world: {refused} in total"
                  + (f"; {len(stuck)} failed trial(s) spent most steps on refused pushes "
-                    "(" + ", ".join(f"{r['trial']['object']} {r['trial']['task']} #"
+                    "(" + ", ".join(f"{r['trial']['object']} {r['trial']['task']} "
+                                    f"{r['trial']['method']} #"
                                     f"{r['trial']['index']}: {r['refused']} of {r['steps']}"
                                     for r in stuck) + ")" if stuck else "") + ".")
     return text
 
 
+#: Experiments whose figures are copied to docs/figures (the others vary too few options).
+FIGURE_EXPERIMENTS = ("regions", "ksweep")
 #: Set by --reuse: load out/eval/<name>/results.json instead of running when its options match.
 REUSE = False
 
@@ -139,7 +143,7 @@ def _run(name: str, opts: EvalOptions, workers: int) -> dict:
     written = write_outputs(doc, out)
     FIGURES.mkdir(parents=True, exist_ok=True)
     for p in written:
-        if p.suffix == ".png":
+        if p.suffix == ".png" and name in FIGURE_EXPERIMENTS:
             shutil.copy(p, FIGURES / f"eval_{name}_{p.name}")
     return doc
 
@@ -281,8 +285,12 @@ def exp_table52(trials: int, workers: int, seed: int) -> tuple[str, str]:
         for obj in OBJECTS:
             s = stats(_sel(recs, method=method, object=obj, estimate_com=True))
             if s["n"]:
+                src_steps = SOURCE_TABLE_5_2[(method, True)][obj][1]
+                fewer = s["steps_mean"] is not None and s["steps_mean"] < src_steps
                 checks.append(f"{method} + COM on {obj}: {s['success_rate']:.3f} "
-                              f"({'met' if s['success_rate'] >= 0.95 else 'NOT met'})")
+                              f"({'met' if s['success_rate'] >= 0.95 else 'NOT met'}), "
+                              f"{_f(s['steps_mean'], '.1f')} steps vs source {src_steps:g} "
+                              f"({'fewer' if fewer else 'NOT fewer'})")
     com = ["| method | COM estimation | object | COM error mm (mean +- std) |",
            "| --- | --- | --- | --- |"]
     for method in ("ana", "lrn"):

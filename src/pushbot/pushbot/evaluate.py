@@ -444,14 +444,14 @@ def table_5_2(records: list[dict[str, Any]]) -> str | None:
             rows.append(f"| {method}{' + COM' if est else ''} | " + " | ".join(cells) + " |")
     if not rows:
         return None
-    n = {len(_select(records, task="mixed", com="random", state="filter", object=o))
-         for o in objects}
+    n = {len(_select(records, task="mixed", com="random", state="filter", region="small",
+                     object=o, method=m, estimate_com=e))
+         for o in objects for m in ("ana", "lrn") for e in (False, True)} - {0}
     return "\n".join([
         "Table 5.2 (mixed task, random COM, EKF state, small goal region): success rate / mean "
         "steps of the successful trials per object; \"+ COM\" = full EKF, without = the EKF "
         "with the COM pinned at the geometric centre. The source's figures in brackets "
-        f"(trials per method and object: {', '.join(map(str, sorted(n)))} in total over the "
-        "rows).",
+        f"(trials per method and object: {', '.join(map(str, sorted(n)))}).",
         "",
         "| method | " + " | ".join(objects) + " |",
         "| --- | " + " | ".join("---" for _ in objects) + " |",
