@@ -68,8 +68,9 @@ NODES = ("sim_bridge_node", "segmentation_node", "ekf_node", "planner_node")
 STARTUP_TIMEOUT = 180.0
 #: Seconds for a service call (the bridge's reset rebuilds the pybullet scene).
 SERVICE_TIMEOUT = 60.0
-#: Seconds from the scene reset to the first estimate (segmentation of the first frame).
-FIRST_ESTIMATE_TIMEOUT = 90.0
+#: Seconds from the scene reset to the first estimate (segmentation of the first frame), and
+#: how often the episode set-up is repeated when none arrives.
+FIRST_ESTIMATE_TIMEOUT, FIRST_ESTIMATE_ATTEMPTS = 30.0, 3
 #: Seconds without any progress (push, executed push, status change) before an episode fails.
 STEP_TIMEOUT = 90.0
 #: planner_node's wait for a push the bridge never reports (it refused it), wall seconds.
@@ -126,7 +127,9 @@ class GraphNodes:
                 params += ["-p", f"push_timeout:={PUSH_TIMEOUT}"]
             for value in self.node_args[name]:
                 params += ["-p", value]
-            with open(self.log_dir / f"{name}.log", "wb") as log:
+            with open(self.log_dir / f"{name}.log", "ab") as log:  # a restart appends
+                log.write(f"=== pushbot run {name}, started {time.ctime()} ===\n".encode())
+                log.flush()
                 self.procs[name] = subprocess.Popen(
                     [*base, "run", name, "--ros-args", *params], stdout=log,
                     stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env,
@@ -448,20 +451,23 @@ class GraphRunner:
         return max((int(s.get("estimates", 0)) for s in self.rec.status), default=0)
 
     def _warm_up(self) -> None:
-        """Wait until planner_node counts an estimate: the whole chain bridge -> perception ->
-        estimator -> planner is matched. Seeing an endpoint in the graph does not mean every
-        other participant has matched it yet, and a reliable, volatile sample published before
-        the match is lost (found on a loaded machine: the planner never got the first estimate
-        of the first episode, and the estimator publishes one estimate per new frame). If no
-        estimate arrives, the scene is rebuilt (new frames, so a new estimate) and the wait
-        repeated."""
+        """Wait until planner_node counts an estimate and this client received one: the whole
+        chain bridge -> perception -> estimator -> planner (and this client) is matched.
+
+        Seeing an endpoint in the graph does not mean every other participant has matched it
+        yet, and a reliable, volatile sample published before the match is lost (found on a
+        loaded machine: the planner never got the first estimate of the first episode, and
+        the estimator publishes one estimate per new frame). If no estimate arrives, the
+        scene is rebuilt (new frames, so a new estimate) and the wait repeated.
+        """
         for _ in range(WARM_UP_ATTEMPTS):
-            before = self._planner_estimates()
+            before, n_est = self._planner_estimates(), len(self.rec.est)
             for name in ("planner_node", "ekf_node", "segmentation_node", "sim_bridge_node"):
                 self.reset(name)
             try:
-                self.wait(lambda b=before: self._planner_estimates() > b or None,
-                          WARM_UP_TIMEOUT, "planner_node to count an estimate")
+                self.wait(lambda b=before, n=n_est: (self._planner_estimates() > b
+                                                     and len(self.rec.est) > n) or None,
+                          WARM_UP_TIMEOUT, "an estimate at planner_node and at this client")
                 return
             except GraphError:
                 self.nodes.check_alive()
@@ -514,8 +520,7 @@ class GraphRunner:
                                "poses_est": [], "pushes": [], "refused": 0,
                                "step_latency_ms": [], "wall_s": 0.0, "reason": "",
                                "engine": "graph"}
-        self._setup_episode(trial)
-        first_stamp, first_est = self._first_estimate()
+        first_stamp, first_est = self._first_estimate(trial)
         pose0_true = self._true_at(first_stamp)
         goal = trial.goal(first_est)
         n_push, n_exec, n_status = (len(self.rec.pushes), len(self.rec.executed),
@@ -580,14 +585,26 @@ class GraphRunner:
         self._com_true = (np.array([float(match.group(1)), float(match.group(2))])
                           if match else None)
 
-    def _first_estimate(self) -> tuple[float, np.ndarray]:
-        after = self._last_stamp
+    def _first_estimate(self, trial: Trial) -> tuple[float, np.ndarray]:
+        """Set the episode up and wait for the first estimate of the new scene. The estimator
+        publishes one estimate per new frame; should it be lost, the set-up (resets, a new
+        scene with new frames) is repeated."""
+        for attempt in range(1, FIRST_ESTIMATE_ATTEMPTS + 1):
+            self._setup_episode(trial)
+            after = self._last_stamp
 
-        def first() -> tuple[float, np.ndarray] | None:
-            return next(((s, p) for s, p in self.rec.est if s > after), None)
+            def first(after: float = after) -> tuple[float, np.ndarray] | None:
+                return next(((s, p) for s, p in self.rec.est if s > after), None)
 
-        return self.wait(first, FIRST_ESTIMATE_TIMEOUT,
-                         "the first estimate of the new scene on estimator/object_pose")
+            try:
+                return self.wait(first, FIRST_ESTIMATE_TIMEOUT, "the first estimate of the new "
+                                 f"scene on estimator/object_pose (attempt {attempt} of "
+                                 f"{FIRST_ESTIMATE_ATTEMPTS})")
+            except GraphError:
+                self.nodes.check_alive()
+                if attempt == FIRST_ESTIMATE_ATTEMPTS:
+                    raise
+        raise AssertionError("unreachable")
 
     def _true_at(self, stamp: float) -> np.ndarray:
         def at() -> np.ndarray | None:
