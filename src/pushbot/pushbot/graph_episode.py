@@ -73,8 +73,10 @@ SERVICE_TIMEOUT = 60.0
 FIRST_ESTIMATE_TIMEOUT, FIRST_ESTIMATE_ATTEMPTS = 30.0, 3
 #: Seconds without any progress (push, executed push, status change) before an episode fails.
 STEP_TIMEOUT = 90.0
-#: planner_node's wait for a push the bridge never reports (it refused it), wall seconds.
-PUSH_TIMEOUT = 10.0
+#: planner_node's wait for a push the bridge never reports (it refused it, e.g. an approach
+#: point inside the object), wall seconds; the push then counts as a step and nothing moved, as
+#: in-process. A push takes well under a second of wall time (the physics runs ~100x real time).
+PUSH_TIMEOUT = 5.0
 #: Scenes and seconds per scene to wait for the first estimate at the planner at start-up.
 WARM_UP_ATTEMPTS, WARM_UP_TIMEOUT = 4, 30.0
 #: Grace periods of the shutdown: SIGINT, then SIGTERM, then SIGKILL.
@@ -600,10 +602,12 @@ class GraphRunner:
                 return self.wait(first, FIRST_ESTIMATE_TIMEOUT, "the first estimate of the new "
                                  f"scene on estimator/object_pose (attempt {attempt} of "
                                  f"{FIRST_ESTIMATE_ATTEMPTS})")
-            except GraphError:
+            except GraphError as exc:
                 self.nodes.check_alive()
                 if attempt == FIRST_ESTIMATE_ATTEMPTS:
                     raise
+                print(f"pushbot graph: {exc}; repeating the episode set-up", file=sys.stderr,
+                      flush=True)
         raise AssertionError("unreachable")
 
     def _true_at(self, stamp: float) -> np.ndarray:
