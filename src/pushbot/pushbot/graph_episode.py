@@ -151,7 +151,19 @@ class GraphNodes:
                                  f"{self.log_dir / (name + '.log')}:\n{self.log_tail(name)}")
 
     def stop(self) -> None:
-        """SIGINT each process group, then SIGTERM, then SIGKILL (newest node first)."""
+        """SIGINT each process group, then SIGTERM, then SIGKILL (newest node first). A second
+        Ctrl-C meanwhile does not interrupt the shutdown."""
+        try:
+            previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        except ValueError:  # not the main thread
+            previous = None
+        try:
+            self._stop()
+        finally:
+            if previous is not None:
+                signal.signal(signal.SIGINT, previous)
+
+    def _stop(self) -> None:
         procs = [p for p in reversed(list(self.procs.values())) if p.poll() is None]
         for sig, grace in ((signal.SIGINT, STOP_GRACE[0]), (signal.SIGTERM, STOP_GRACE[1]),
                            (signal.SIGKILL, 5.0)):
