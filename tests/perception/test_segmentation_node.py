@@ -247,6 +247,16 @@ def test_frames_of_the_previous_episode_are_skipped_after_reset(
     first = xytheta_from_pose(h.pose_for(b).pose.pose)  # a newer frame: the new reference
     assert first[2] == pytest.approx(0.0, abs=1e-9)
     assert np.linalg.norm(first[:2] - b.pose[:2]) < 0.003
+    # A restarted clock (older stamps than before the reset) is not mistaken for the old scene.
+    future = h.reset_client.call_async(Trigger.Request())
+    assert h.wait(future.done, "the reset response") and future.result().success
+    rgb, depth, info = h.frame_messages(a)
+    for msg in (rgb, depth, info):
+        msg.header.stamp = stamp_from_seconds(1.0)
+    restarted = h.wait(lambda: next((p for p in h.poses if p.header.stamp == rgb.header.stamp),
+                                    None), "a pose for an older-stamped frame",
+                       resend=lambda: h.publish((rgb, depth, info)))
+    assert xytheta_from_pose(restarted.pose.pose)[2] == pytest.approx(0.0, abs=1e-9)
 
 
 def _bad_color_encoding(h: Harness, f: Rendered) -> tuple[Any, ...]:

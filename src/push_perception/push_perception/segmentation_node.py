@@ -38,10 +38,11 @@ Publications:
 
 Services: ``~/reset`` (std_srvs/srv/Trigger): new episode. The next good frame becomes the
 orientation reference and its outline is published (the previous outline stays latched
-until then). Frames stamped at or before the newest frame processed before the reset belong to
-the previous episode (the simulator re-publishes its last frame while idle, and a camera's
-stamps only grow): they are skipped without a pose and counted (``previous_episode``), so a
-repeated frame of the old scene cannot become the new episode's reference. The geometry
+until then). Frames with the stamp of the newest frame processed before the reset belong to
+the previous episode (the simulator re-publishes its last frame, same stamp, while idle; older
+frames cannot follow a newer one on a topic): they are skipped without a pose and counted
+(``previous_episode``), so a repeated frame of the old scene cannot become the new episode's
+reference. Older stamps (a restarted clock) are processed. The geometry
 parameters are re-read and validated; invalid values refuse the reset and keep the old ones.
 
 Bad input never stops the node and never produces a pose for that frame; each class is
@@ -310,8 +311,8 @@ class SegmentationNode(Node):
         self._ok: bool | None = None
         self._latency: deque[float] = deque(maxlen=LATENCY_WINDOW)
         self._last_stamp = 0.0
-        self._last_frame = -math.inf  # stamp (s) of the newest frame processed
-        self._episode_after = -math.inf  # frames up to this stamp belong to the last episode
+        self._last_frame = -math.inf  # stamp (s) of the last frame processed
+        self._episode_after = -math.inf  # frames with this stamp belong to the last episode
         self._limiter = _LogLimiter(LOG_THROTTLE_S)
 
         self._pub_mask = self.create_publisher(Image, "perception/mask",
@@ -380,10 +381,10 @@ class SegmentationNode(Node):
         started = time.perf_counter()
         stamp = rgb_msg.header.stamp
         stamp_s = seconds_from_stamp(stamp)
-        if stamp_s <= self._episode_after:  # a repeated frame of the previous episode
+        if stamp_s == self._episode_after:  # a repeated frame of the previous episode
             self._counts["previous_episode"] += 1
             return
-        self._last_frame = max(self._last_frame, stamp_s)
+        self._last_frame = stamp_s
         self._counts["frames"] += 1
         try:
             rgb = self._decode_color(rgb_msg)
