@@ -332,6 +332,9 @@ def test_reset_service_starts_a_new_episode(tester: EkfHarness) -> None:
     assert future.result().success
     assert "first observation" in future.result().message
     assert tester.wait(lambda: tester.value("state") == "waiting for first observation")
+    tester.observe((0.0, 0.0, 0.0), 1.0)  # the previous episode's frame, repeated: dropped
+    tester.wait_count("dropped_duplicate", 1)
+    assert len(tester.poses) == 1 and tester.value("state") == "waiting for first observation"
     tester.observe((0.2, -0.1, -2.0), 0.5)  # earlier stamp and far away: a new episode
     assert tester.wait(lambda: len(tester.poses) == 2)
     np.testing.assert_allclose(planar(tester.poses[-1]), [0.2, -0.1, -2.0], atol=1e-12)

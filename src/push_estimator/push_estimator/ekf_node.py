@@ -53,7 +53,10 @@ Publications (after every applied observation, stamped with the observation's st
   ``diagnostics_period`` seconds of wall time and on every event.
 
 Services: ``~/reset`` (std_srvs/srv/Trigger): start a new episode (the outline is kept; the
-next observation initialises the filter).
+next observation initialises the filter). An observation with the stamp of the last one applied
+before the reset is a repetition of the previous episode's frame (the perception re-publishes
+while the scene is idle) and is dropped (``dropped_duplicate``), so it cannot initialise the new
+episode (found driving the graph, issue 7).
 
 Parameters: declared below with descriptions and ranges, read once at start-up into
 :class:`EkfNodeParams` (frozen) and validated by building the filter's
@@ -313,6 +316,7 @@ class EkfNode(Node):
         self._counts = dict.fromkeys(_COUNTERS, 0)
         self._history: list[_Applied] = []  # the last HISTORY applied inputs, in stamp order
         self._last_observation = -math.inf
+        self._previous_episode = math.nan  # stamp of the last observation before ~/reset
         self._last_nis = math.nan
         self._problem = ""  # the most recent problem, "" after a good input
         self._logged: dict[str, tuple[float, int]] = {}  # kind -> (last log time, suppressed)
@@ -412,7 +416,7 @@ class EkfNode(Node):
         obs = self._parse(observation_from_msg, msg, "perception/object_pose")
         if obs is None:
             return
-        if obs.stamp == self._last_observation:
+        if obs.stamp in (self._last_observation, self._previous_episode):
             self._counts["dropped_duplicate"] += 1  # normal while the scene is idle: no log
             return
         last = self._history[-1].key if self._history else -math.inf
@@ -516,6 +520,7 @@ class EkfNode(Node):
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response
                   ) -> Trigger.Response:
         self._counts["resets"] += 1
+        self._previous_episode = self._last_observation
         self._new_episode()
         self._problem = ""
         if self._ekf is not None:
