@@ -8,9 +8,10 @@ this process drives the episodes only through the nodes' public interfaces:
 
 1. **Episode parameters.** ``planner_node``: ``method``, ``direct``, ``k``,
    ``goal_tolerance.{xy,theta}``, ``max_steps``, ``seed`` (:meth:`Trial.planner_kwargs`), via
-   its ``set_parameters`` service; then ``/planner_node/reset`` (applies them, forgets the goal
-   and estimates), ``/ekf_node/reset`` and ``/segmentation_node/reset`` (the next *new* frame
-   becomes the episode's reference; repeated frames of the old scene are skipped).
+   its ``set_parameters`` service; then ``/segmentation_node/reset`` (the next *new* frame
+   becomes the episode's reference; repeated frames of the old scene are skipped),
+   ``/ekf_node/reset`` (repeated observations of the old scene are dropped) and
+   ``/planner_node/reset`` (applies the parameters, forgets the goal and estimates).
 2. **Scene.** ``sim_bridge_node``: ``object``, ``initial_pose.{x,y,theta}``, ``com_offset``
    (``[0, 0]`` for COM at the centre, empty = the randomised COM), ``seed``, ``randomize``
    (:meth:`Trial.world_kwargs`), then ``/sim_bridge_node/reset``, which rebuilds the scene and
@@ -78,7 +79,7 @@ STEP_TIMEOUT = 90.0
 #: in-process. A push takes well under a second of wall time (the physics runs ~100x real time).
 PUSH_TIMEOUT = 5.0
 #: Scenes and seconds per scene to wait for the first estimate at the planner at start-up.
-WARM_UP_ATTEMPTS, WARM_UP_TIMEOUT = 4, 30.0
+WARM_UP_ATTEMPTS, WARM_UP_TIMEOUT = 24, 5.0
 #: Grace periods of the shutdown: SIGINT, then SIGTERM, then SIGKILL.
 STOP_GRACE = (10.0, 5.0)
 
@@ -476,7 +477,7 @@ class GraphRunner:
         """
         for _ in range(WARM_UP_ATTEMPTS):
             before, n_est = self._planner_estimates(), len(self.rec.est)
-            for name in ("planner_node", "ekf_node", "segmentation_node", "sim_bridge_node"):
+            for name in ("segmentation_node", "ekf_node", "planner_node", "sim_bridge_node"):
                 self.reset(name)
             try:
                 self.wait(lambda b=before, n=n_est: (self._planner_estimates() > b
@@ -583,7 +584,9 @@ class GraphRunner:
             "goal_tolerance.xy": float(kw["tolerance_xy"]),
             "goal_tolerance.theta": float(kw["tolerance_theta"]),
             "max_steps": int(trial.max_steps), "seed": int(kw["seed"])})
-        for name in ("planner_node", "ekf_node", "segmentation_node"):
+        # Perception first: it stops re-publishing the old scene, so the estimator's reset is
+        # not followed by an old observation (the estimator drops those too).
+        for name in ("segmentation_node", "ekf_node", "planner_node"):
             self.reset(name)
         world = trial.world_kwargs()
         x, y, theta = world["object_pose"]
