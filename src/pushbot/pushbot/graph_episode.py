@@ -252,7 +252,6 @@ class GraphRunner:
         self._executor: Any = None
         self._com_true: np.ndarray | None = None
         self._c_true_episode: np.ndarray | None = None
-        self._goal_seq = 0
 
     # ---- lifecycle ---------------------------------------------------------------------------
     def __enter__(self) -> GraphRunner:
@@ -651,7 +650,6 @@ class GraphRunner:
         msg.pose.orientation.z = math.sin(goal[2] / 2.0)
         msg.pose.orientation.w = math.cos(goal[2] / 2.0)
         self._pub_goal.publish(msg)
-        self._goal_seq += 1
         from push_core.geometry import wrap_angle
 
         # planner_node reports the goal it works on in its status, 4 decimals (theta wrapped).
