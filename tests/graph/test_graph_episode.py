@@ -145,11 +145,20 @@ def test_ctrl_c_stops_every_process(tmp_path: Path) -> None:
                                 env={**os.environ, "PYTHONUNBUFFERED": "1",
                                      "ROS_DOMAIN_ID": str(_other_domain())})
     try:
+        # Interrupt once all four nodes report "ready" (spinning, discovering), while the demo
+        # still warms the graph up: waiting for the episode instead races with it, since a
+        # short episode can end before the signal on a loaded machine.
+        logs = [tmp_path / "graph_logs" / f"{name}.log" for name in
+                ("sim_bridge_node", "segmentation_node", "ekf_node", "planner_node")]
+
+        def ready() -> bool:
+            return all(p.exists() and "ready" in p.read_text() for p in logs)
+
         deadline = time.monotonic() + 180.0
-        while "graph up after" not in log.read_text() and time.monotonic() < deadline:
+        while not ready() and time.monotonic() < deadline:
             assert demo.poll() is None, log.read_text()
-            time.sleep(0.1)  # polling a log file: no DDS event to wait on in this process
-        assert "graph up after" in log.read_text(), log.read_text()
+            time.sleep(0.05)  # polling log files: no DDS event to wait on in this process
+        assert ready(), log.read_text()
         nodes = _children(demo.pid)
         assert len(nodes) == 4, (nodes, log.read_text())
         demo.send_signal(signal.SIGINT)  # what Ctrl-C in a terminal sends
