@@ -14,9 +14,9 @@ setup(
     # Runtime dependencies come from requirements.txt (pip) or package.xml (rosdep);
     # ament_python packages list only setuptools here.
     install_requires=['setuptools'],
-    # `pushbot eval push --ray ADDRESS` runs the trials as Ray tasks: pip install 'pushbot[ray]'.
-    # Not in requirements.txt: Ray (~70 MB wheel, grpcio, protobuf and a raylet per node) is
-    # for users who outgrow one machine; the default engine is local worker processes.
+    # `pushbot eval push --ray ADDRESS` runs the trials as Ray tasks, for users who outgrow one
+    # machine (pip install 'pushbot[ray]'; the repository's .venv has it from requirements.txt);
+    # the default engine is local worker processes.
     extras_require={'ray': ['ray>=2.9']},
     zip_safe=True,
     maintainer='pushbot developers',

@@ -168,8 +168,8 @@ def test_graph_flag_hands_the_trials_to_the_graph_runner(tmp_path, monkeypatch):
     assert doc["cells"][0]["n"] == 3 and doc["timing"]["engine"] == "graph"
 
 
-@pytest.mark.skipif(importlib.util.find_spec("ray") is not None, reason="ray is installed")
-def test_ray_missing_is_a_clear_error(tmp_path, capsys):
+def test_ray_missing_is_a_clear_error(tmp_path, capsys, monkeypatch):
+    monkeypatch.setitem(sys.modules, "ray", None)  # `import ray` fails as if not installed
     code = cli.main(["eval", "push", "--ray", "local", "--objects", "rect1", "--trials", "1",
                      "--out", str(tmp_path)])
     assert code == 2
@@ -180,5 +180,11 @@ def test_ray_missing_is_a_clear_error(tmp_path, capsys):
 def test_ray_local_runs_the_same_trials():
     opts = EvalOptions(objects=["rect1"], tasks=["mixed"], trials=2, k=[1])
     a = evaluate(opts, workers=1, progress=False)
-    b = evaluate(opts, ray_address="local", progress=False)
+    import ray
+
+    try:
+        b = evaluate(opts, ray_address="local", progress=False)
+    finally:
+        ray.shutdown()  # no raylet left running for the rest of the session
+    assert b["timing"]["engine"] == "ray (local)"
     assert deterministic_view(a) == deterministic_view(b)
