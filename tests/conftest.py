@@ -3,8 +3,11 @@
 At import time, before any test module can import rclpy, this sets for the whole session (and
 so for every child process, which inherits ``os.environ``):
 
-- ``ROS_DOMAIN_ID`` = 1 + (pid % 100), or ``PUSHBOT_TEST_DOMAIN_ID`` when that is set, so that
-  concurrent pytest sessions on one machine do not see each other's graphs;
+- ``ROS_DOMAIN_ID``: ``PUSHBOT_TEST_DOMAIN_ID`` when that is set, otherwise the first domain in
+  1-100, starting at 1 + (pid % 100), whose lock file (``<tmp>/pushbot-test-domain-<id>.lock``,
+  ``flock`` held for the whole session, released by the kernel when the session ends) no
+  other session holds, so concurrent pytest sessions on one machine never share a domain (the
+  graph tests also use 101 + (domain % 100) for a second graph);
 - ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``: nothing leaves the machine;
 - ``FASTDDS_BUILTIN_TRANSPORTS=UDPv4``: only for participants that do not use the bundled
   profile (a profile set by the user); the bundled profile declares its own transports (shared
@@ -49,9 +52,32 @@ from pushbot.graph import spin_until  # imports no rclpy at module level
 REPO_ROOT = Path(__file__).resolve().parents[1]
 
 
+_DOMAIN_LOCK: Any = None  # the open, flock-ed lock file of this session's domain
+
+
+def _free_domain() -> int:
+    """The first domain from 1 + (pid % 100) on whose lock file this session gets the lock."""
+    global _DOMAIN_LOCK
+    import fcntl
+    import tempfile
+
+    start = os.getpid() % 100
+    for offset in range(100):
+        domain = 1 + (start + offset) % 100
+        lock = open(Path(tempfile.gettempdir()) / f'pushbot-test-domain-{domain}.lock', 'a')
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            lock.close()
+            continue
+        _DOMAIN_LOCK = lock
+        return domain
+    raise RuntimeError('all ROS test domains 1-100 are held by other pytest sessions')
+
+
 def _isolate_ros_session() -> int:
     override = os.environ.get('PUSHBOT_TEST_DOMAIN_ID')
-    domain = int(override) if override else 1 + os.getpid() % 100
+    domain = int(override) if override else _free_domain()
     os.environ['ROS_DOMAIN_ID'] = str(domain)
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     os.environ['FASTDDS_BUILTIN_TRANSPORTS'] = 'UDPv4'  # ignored under the bundled profile
