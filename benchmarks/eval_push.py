@@ -132,6 +132,23 @@ FIGURE_EXPERIMENTS = ("regions", "ksweep")
 REUSE = False
 
 
+def _region_table(records: list[dict], regions: tuple[str, ...]) -> list[str]:
+    """Markdown rows: ana vs the Push-Net-style baseline per goal region."""
+    lines = ["| region | method | trials | success | steps | end mm | end deg | planning ms |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for region in regions:
+        for method in ("ana", "pushnet"):
+            r = _sel(records, region=region, method=method)
+            s = stats(r)
+            plan = np.median([ms for x in r for ms in x["planning_ms"]])
+            lines.append(f"| {region} | {method} | {s['n']} | {s['success_rate']:.3f} | "
+                         f"{_f(s['steps_mean'], '.1f')} +- {_f(s['steps_std'], '.1f')} | "
+                         f"{_f(s['end_error_xy_mean'], '.1f', 1e3)} | "
+                         f"{_f(s['end_error_theta_mean'], '.1f', 180 / math.pi)} | "
+                         f"{plan:.0f} |")
+    return lines
+
+
 def _run(name: str, opts: EvalOptions, workers: int) -> dict:
     out = OUT / name
     saved = out / "results.json"
@@ -321,18 +338,7 @@ def exp_regions(trials: int, workers: int, seed: int) -> tuple[str, str]:
                        seed=seed)
     doc = _run("regions", opts, workers)
     recs = doc["trials"]
-    lines = ["| region | method | trials | success | steps | end mm | end deg | planning ms |",
-             "| --- | --- | --- | --- | --- | --- | --- | --- |"]
-    for region in ("small", "medium", "large"):
-        for method in ("ana", "pushnet"):
-            r = _sel(recs, region=region, method=method)
-            s = stats(r)
-            plan = np.median([ms for x in r for ms in x["planning_ms"]])
-            lines.append(f"| {region} | {method} | {s['n']} | {s['success_rate']:.3f} | "
-                         f"{_f(s['steps_mean'], '.1f')} +- {_f(s['steps_std'], '.1f')} | "
-                         f"{_f(s['end_error_xy_mean'], '.1f', 1e3)} | "
-                         f"{_f(s['end_error_theta_mean'], '.1f', 180 / math.pi)} | "
-                         f"{plan:.0f} |")
+    lines = _region_table(recs, ("small", "medium", "large"))
     a, p = stats(_sel(recs, region="small", method="ana")), \
         stats(_sel(recs, region="small", method="pushnet"))
     ahead = a["success_rate"] > p["success_rate"] and (a["steps_mean"] or 99) < \
@@ -367,18 +373,7 @@ def exp_regions_filter(trials: int, workers: int, seed: int) -> tuple[str, str]:
                        trials=trials, seed=seed)
     doc = _run("regions_filter", opts, workers)
     recs = doc["trials"]
-    lines = ["| region | method | trials | success | steps | end mm | end deg | planning ms |",
-             "| --- | --- | --- | --- | --- | --- | --- | --- |"]
-    for region in ("small", "large"):
-        for method in ("ana", "pushnet"):
-            r = _sel(recs, region=region, method=method)
-            s = stats(r)
-            plan = np.median([ms for x in r for ms in x["planning_ms"]])
-            lines.append(f"| {region} | {method} | {s['n']} | {s['success_rate']:.3f} | "
-                         f"{_f(s['steps_mean'], '.1f')} +- {_f(s['steps_std'], '.1f')} | "
-                         f"{_f(s['end_error_xy_mean'], '.1f', 1e3)} | "
-                         f"{_f(s['end_error_theta_mean'], '.1f', 180 / math.pi)} | "
-                         f"{plan:.0f} |")
+    lines = _region_table(recs, ("small", "large"))
     body = "\n".join([
         "The goal-region comparison with the full system instead of ground truth: mixed task, "
         f"random COM, `filter` state (EKF with COM estimation) for both methods, "
