@@ -358,3 +358,15 @@ def test_place_pusher_refuses_overlap_and_parks_again(rect_world):
     rect_world.park_pusher()
     np.testing.assert_allclose(rect_world.pusher_position(), parked, atol=1e-9)
     np.testing.assert_allclose(rect_world.object_pose(), pose, atol=1e-9)  # never touched
+
+
+def test_quiet_stdout_silences_c_level_prints_only_inside(capfd):
+    import os
+
+    from sim_bridge.world import quiet_stdout
+
+    os.write(1, b"before\n")
+    with quiet_stdout():
+        os.write(1, b"inside\n")  # what pybullet's C code does
+    os.write(1, b"after\n")
+    assert capfd.readouterr().out == "before\nafter\n"

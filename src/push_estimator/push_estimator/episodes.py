@@ -14,12 +14,8 @@ imported only by :func:`run_physics_episode`.
 
 from __future__ import annotations
 
-import contextlib
 import math
-import os
-import sys
 import time
-from collections.abc import Iterator
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -330,12 +326,9 @@ class _Observer:
             return first
         from push_perception.core import PerceptionError
 
-        frame = self.world.render()  # type: ignore[attr-defined]
-        seg = self.segmenter(frame.rgb, frame.depth, frame.camera_matrix,  # type: ignore
-                             frame.T_world_camera)
         try:
-            meas = self.tracker.update(seg.mask, frame.depth, frame.camera_matrix,
-                                       frame.T_world_camera)
+            meas = self.tracker.measure_frame(self.segmenter,
+                                              self.world.render())  # type: ignore[attr-defined]
         except PerceptionError:
             self.failures += 1
             return None
@@ -372,7 +365,11 @@ def run_physics_episode(name: str, seed: int, n_pushes: int, config: EKFConfig,
     segmenter : push_perception.model.Segmenter, optional
         For ``perception``; default :func:`load_perception` (load it once for many episodes).
     """
-    from sim_bridge.world import PushWorld, WorldConfig  # pybullet: imported only here
+    from sim_bridge.world import (  # pybullet: imported only here
+        PushWorld,
+        WorldConfig,
+        quiet_stdout,
+    )
 
     if observations not in OBSERVATIONS:
         raise ValueError(f"observations must be one of {OBSERVATIONS}, got {observations!r}")
@@ -380,7 +377,7 @@ def run_physics_episode(name: str, seed: int, n_pushes: int, config: EKFConfig,
     rng = np.random.default_rng([seed, sum(name.encode())])
     cfg = replace(config, position_sigma=position_noise, angle_sigma=angle_noise)
     theta0 = float(rng.uniform(-np.pi, np.pi))
-    with _quiet_stdout():  # pybullet's C code prints "argv[0]=" when it connects
+    with quiet_stdout():  # pybullet's C code prints "argv[0]=" when it connects
         world = PushWorld(WorldConfig(object=name, object_pose=(0.0, 0.0, theta0),
                                       randomize=True, seed=seed))
     try:
@@ -443,21 +440,6 @@ def run_physics_episode(name: str, seed: int, n_pushes: int, config: EKFConfig,
                          reinitialized=reinit, touched=touched,
                          seconds=time.perf_counter() - t0, observations=observations,
                          missed=observe.failures)
-
-
-@contextlib.contextmanager
-def _quiet_stdout() -> Iterator[None]:
-    """Send file descriptor 1 to /dev/null (C-level prints bypass ``sys.stdout``)."""
-    sys.stdout.flush()
-    saved = os.dup(1)
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    try:
-        os.dup2(devnull, 1)
-        yield
-    finally:
-        os.dup2(saved, 1)
-        os.close(saved)
-        os.close(devnull)
 
 
 # --------------------------------------------------------------------------------------------

@@ -59,6 +59,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import cv2
 import numpy as np
@@ -646,6 +647,16 @@ class EpisodeTracker:
     def reference(self) -> TopDownView | None:
         """The first frame's top-down view (None before the first good frame)."""
         return self._ref
+
+    def measure_frame(self, segmenter: Any, frame: Any) -> Measurement:
+        """Segment a rendered frame and :meth:`update` with its mask (the in-process path).
+
+        ``frame`` has ``rgb``, ``depth``, ``camera_matrix`` and ``T_world_camera`` (for example
+        ``sim_bridge.world.Frame``); ``segmenter`` is a ``push_perception.model.Segmenter``.
+        Raises :class:`PerceptionError` like :meth:`update`.
+        """
+        seg = segmenter(frame.rgb, frame.depth, frame.camera_matrix, frame.T_world_camera)
+        return self.update(seg.mask, frame.depth, frame.camera_matrix, frame.T_world_camera)
 
     def update(self, mask: ArrayLike, depth: ArrayLike, camera_matrix: ArrayLike,
                t_world_camera: ArrayLike) -> Measurement:

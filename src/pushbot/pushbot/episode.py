@@ -37,12 +37,8 @@ are cached per process by :class:`EpisodeRunner`; :func:`run_trial` uses one run
 
 from __future__ import annotations
 
-import contextlib
 import math
-import os
-import sys
 import time
-from collections.abc import Iterator
 from dataclasses import replace
 from typing import Any
 
@@ -61,25 +57,6 @@ __all__ = ["EpisodeRunner", "run_trial", "true_errors"]
 GT_OUTLINE_SPACING = 0.002
 #: COM prior scale of the EKF when the COM is not estimated (> 0 is required; this pins it).
 PINNED_COM_PRIOR = 1e-9
-
-
-@contextlib.contextmanager
-def _quiet_stdout() -> Iterator[None]:
-    """Silence C-level stdout (pybullet prints ``argv[0]=`` when it connects)."""
-    try:
-        fd = sys.stdout.fileno()
-    except (AttributeError, OSError, ValueError):
-        yield
-        return
-    sys.stdout.flush()
-    saved = os.dup(fd)
-    try:
-        with open(os.devnull, "w") as null:
-            os.dup2(null.fileno(), fd)
-            yield
-    finally:
-        os.dup2(saved, fd)
-        os.close(saved)
 
 
 def true_errors(pose: NDArray[np.float64], goal: NDArray[np.float64], order: int
@@ -117,10 +94,10 @@ class EpisodeRunner:
 
     # -- cached resources -----------------------------------------------------------------------
     def _make_world(self, trial: Trial) -> Any:
-        from sim_bridge.world import PushWorld, WorldConfig
+        from sim_bridge.world import PushWorld, WorldConfig, quiet_stdout
 
         cfg = WorldConfig(**trial.world_kwargs())
-        with _quiet_stdout():
+        with quiet_stdout():  # pybullet prints "argv[0]=" when it connects
             if self._world is None:
                 self._world = PushWorld(cfg)
             else:
@@ -283,11 +260,8 @@ class _Filter:
     def _measure(self) -> Any:
         from push_perception.core import PerceptionError
 
-        frame = self.world.render()
-        seg = self.segmenter(frame.rgb, frame.depth, frame.camera_matrix, frame.T_world_camera)
         try:
-            return self.tracker.update(seg.mask, frame.depth, frame.camera_matrix,
-                                       frame.T_world_camera)
+            return self.tracker.measure_frame(self.segmenter, self.world.render())
         except PerceptionError as exc:
             self.failures += 1
             raise _NoPose(f"{exc.kind}: {exc}") from None

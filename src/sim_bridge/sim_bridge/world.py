@@ -101,8 +101,12 @@ per frame. ``reset`` with the same config reproduces everything exactly.
 from __future__ import annotations
 
 import colorsys
+import contextlib
+import os
 import shutil
+import sys
 import tempfile
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -138,6 +142,7 @@ __all__ = [
     "PushWorld",
     "WorldConfig",
     "push_points",
+    "quiet_stdout",
 ]
 
 #: Randomisation ranges (see the module docstring).
@@ -189,6 +194,23 @@ _DEFAULT_TABLE_RGB = (0.78, 0.74, 0.66)
 _DEFAULT_OBJECT_RGB = (0.50, 0.52, 0.56)
 _PUSHER_RGB = (0.15, 0.15, 0.17)
 
+
+
+@contextlib.contextmanager
+def quiet_stdout() -> Iterator[None]:
+    """Send file descriptor 1 to /dev/null for the block (pybullet's C code prints
+    ``argv[0]=`` when a client connects; C-level prints bypass ``sys.stdout``). For callers that
+    build worlds while writing their own output (evaluations with progress bars)."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 1)
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+        os.close(devnull)
 
 @dataclass(frozen=True)
 class WorldConfig:
