@@ -532,6 +532,52 @@ def test_iterated_update_relinearises_at_the_smoothed_pre_push_state() -> None:
     assert not np.allclose(iterated.state, plain.state)
 
 
+def test_expected_covariance_is_the_plain_update_covariance_and_changes_nothing() -> None:
+    """The forecast for a push equals the covariance the plain EKF has after executing that
+    push and fusing any observation (the Kalman covariance does not depend on the value)."""
+    points, normals = library_outline("tri1")
+    ekf = PushEKF(points, normals, EKFConfig(iterations=1))
+    ekf.update_pose([0.02, -0.01, 0.4])
+    rng = np.random.default_rng(11)
+    start, end = informative_push(points, normals, ekf.state[:3], rng)
+    x0, p0 = ekf.state, ekf.covariance
+    forecast = ekf.expected_covariance(start, end)
+    np.testing.assert_array_equal(ekf.state, x0)
+    np.testing.assert_array_equal(ekf.covariance, p0)
+    # By hand: P_pred = F P F^T + Q, then (I - K H) P_pred with K = P_pred H^T S^-1.
+    pred = predict_push(x0, ekf.outline, start, end)
+    p_pred = pred.jacobian @ p0 @ pred.jacobian.T + ekf.config.process_noise(
+        pred.contact_length)
+    k = p_pred[:, :3] @ np.linalg.inv(p_pred[:3, :3] + ekf.config.observation_noise)
+    np.testing.assert_allclose(forecast, (np.eye(7) - k @ np.eye(3, 7)) @ p_pred, rtol=1e-9,
+                               atol=1e-16)
+    ekf.predict_push(start, end)
+    assert not ekf.update_pose(pred.state[:3] + [0.001, 0.002, -0.01]).reinitialized
+    np.testing.assert_allclose(ekf.covariance, forecast, rtol=1e-9, atol=1e-16)
+    # A push that touches tells the filter about the COM; one that misses does not.
+    assert np.trace(forecast[3:5, 3:5]) < 0.9 * np.trace(p0[3:5, 3:5])
+    start, end = informative_push(points, normals, ekf.state[:3], rng)
+    hit = ekf.expected_covariance(start, end)
+    miss = ekf.expected_covariance(ekf.state[:2] + [0.2, 0.2], ekf.state[:2] + [0.2, 0.25])
+    assert np.trace(hit[3:5, 3:5]) < np.trace(miss[3:5, 3:5])
+    fresh = PushEKF(points, normals)
+    with pytest.raises(RuntimeError, match="initialize"):
+        fresh.expected_covariance(start, end)
+
+
+def test_most_informative_push_prefers_a_push_that_touches() -> None:
+    points, normals = library_outline("butter")
+    ekf = PushEKF(points, normals)
+    ekf.update_pose([0.0, 0.0, 0.0])
+    rng = np.random.default_rng(4)
+    touching = episodes.informative_push(points, normals, ekf.state[:3], rng)
+    far = tuple(np.asarray(q) + [0.3, 0.0] for q in touching)  # the same push, 30 cm away
+    assert episodes.most_informative_push(ekf, [far, touching]) == 1
+    assert episodes.most_informative_push(ekf, [touching, far]) == 0
+    with pytest.raises(ValueError, match="empty"):
+        episodes.most_informative_push(ekf, [])
+
+
 def test_snapshot_and_restore_replay_exactly() -> None:
     ekf = square_ekf()
     ekf.update_pose([0.0, 0.0, 0.0])

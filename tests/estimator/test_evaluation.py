@@ -22,6 +22,20 @@ def test_physics_episode_starts_at_the_centroid_and_learns() -> None:
     assert np.all(np.isfinite(episode.l)) and np.all(episode.m > 0)
 
 
+def test_push_policies_draw_the_same_candidates() -> None:
+    """``random`` executes the first valid draw; ``active`` the most informative of several
+    draws, so its first push differs but both learn; an unknown policy is refused."""
+    kwargs = dict(config=EKFConfig(), position_noise=0.002, angle_noise=math.radians(1.5))
+    active = run_physics_episode("butter", seed=5, n_pushes=3, policy="active", **kwargs)
+    rand = run_physics_episode("butter", seed=5, n_pushes=3, policy="random", **kwargs)
+    assert (active.policy, rand.policy) == ("active", "random")
+    assert active.touched == rand.touched == 3
+    np.testing.assert_array_equal(active.com_true, rand.com_true)  # same randomised object
+    assert not np.allclose(active.com[1], rand.com[1])
+    with pytest.raises(ValueError, match="policy"):
+        run_physics_episode("butter", seed=5, n_pushes=1, policy="greedy", **kwargs)
+
+
 def test_informative_push_is_collinear_and_points_into_the_object() -> None:
     from push_core.objects import load_object
 
@@ -70,6 +84,7 @@ def test_perception_episode_compares_in_the_perception_frame() -> None:
 
 @pytest.mark.parametrize("argv", [["--observations", "camera"], ["--observations", ","],
                                   ["--episodes", "0"], ["--objects", "no_such_object"],
-                                  ["--iterations", "0"]])
+                                  ["--iterations", "0"], ["--push-policy", "greedy"],
+                                  ["--push-policy", ","]])
 def test_cli_rejects_what_it_cannot_do(argv: list[str]) -> None:
     assert main([*argv, "--no-progress"]) == 2

@@ -1116,6 +1116,46 @@ class PushEKF(ExtendedKalmanFilter):
         assert self.last_prediction is not None
         return self.last_prediction
 
+    def expected_covariance(self, pusher_start: ArrayLike, pusher_end: ArrayLike,
+                            R: ArrayLike | None = None) -> NDArray[np.float64]:  # noqa: N803
+        """Covariance after a *hypothetical* push and one pose observation; the filter is
+        unchanged.
+
+        The EKF's own forecast, linearised at the current estimate: ``P_pred = F P F^T + Q``
+        for the push, then the update's ``P_pred - P_pred H^T (H P_pred H^T + R)^-1 H P_pred``
+        (it does not depend on the observed value). Used to choose informative pushes (the
+        push that shrinks the parameters' covariance most); a push the model says will not
+        touch the object only adds process noise.
+
+        Parameters
+        ----------
+        pusher_start, pusher_end : array_like, shape (2,)
+            Pusher axis in ``world`` at the start and end of the straight push, metres.
+        R : array_like, shape (3, 3), optional
+            Observation covariance; default ``config.observation_noise``.
+
+        Returns
+        -------
+        numpy.ndarray, shape (7, 7)
+
+        Raises
+        ------
+        RuntimeError
+            Before the first observation.
+        """
+        if not self.initialized:
+            raise RuntimeError("expected_covariance before the first observation: call "
+                               "initialize() first")
+        start = _finite_vector("pusher_start", pusher_start, 2)
+        end = _finite_vector("pusher_end", pusher_end, 2)
+        r = self._observation_noise(R)
+        pred = self._predict(self.x[:, 0], start, end)
+        f = pred.jacobian
+        p = f @ self.P @ f.T + self.config.process_noise(pred.contact_length)
+        a = p[:, 0:3]
+        p = p - a @ np.linalg.solve(p[0:3, 0:3] + r, a.T)
+        return 0.5 * (p + p.T)
+
     def predict_x(self, u: object = 0) -> None:
         """filterpy hook: the nonlinear prediction; also sets ``F`` and ``Q`` for ``predict``."""
         if not self.initialized:

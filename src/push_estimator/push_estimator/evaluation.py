@@ -3,11 +3,15 @@
 For each object (butter, tri1, hex by default) and episode: the in-process pybullet world of
 ``sim_bridge.world`` with a randomised object (``WorldConfig(randomize=True, seed=...)``: mass
 x[0.5, 2], COM uniform over the outline shrunk by 30 %, table friction 0.15-0.4, pusher friction
-0.15-0.5) at a random orientation; one observation, then ``--pushes`` informative pushes
-(random outline point, toward the object's centre +-30 deg, 2-4 cm after a 0.5-1.5 cm
-approach, planned at the *estimated* pose, redrawn until the world accepts them; pushes bring
-the object back when it is more than 8 cm from the workspace centre), each followed by an
-observation. The filter (:class:`push_core.estimator.PushEKF`, default settings) gets what the
+0.15-0.5) at a random orientation; one observation, then ``--pushes`` pushes, each followed
+by an observation. Every push is drawn at a random outline point, toward the object's centre
++-30 deg, 2-4 cm after a 0.5-1.5 cm approach, planned at the *estimated* pose (redrawn until
+the world accepts it; pushes bring the object back when it is more than 8 cm from the
+workspace centre). ``--push-policy`` (one or both, comma-separated; each gets its own tables):
+``active`` (default) executes, of 16 such draws, the one the filter expects to shrink its COM
+covariance most (``push_estimator.episodes.most_informative_push``: the smallest trace of the
+COM block of :meth:`push_core.estimator.PushEKF.expected_covariance`); ``random`` executes the
+first draw. The filter (:class:`push_core.estimator.PushEKF`, default settings) gets what the
 robot would get: the object's outline (library shape sampled every 2 mm with outward normals,
 object frame), the executed pusher motion and the observed pose.
 
@@ -64,6 +68,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="pose observations, comma-separated: gt-noise (ground truth + "
                         "noise), perception (segmentation + pose on rendered frames) or both "
                         "(default: %(default)s)")
+    parser.add_argument("--push-policy", default="active",
+                        help="how pushes are chosen, comma-separated: active (the most "
+                        "informative of 16 random draws), random (the first draw) or both "
+                        "(default: %(default)s)")
     parser.add_argument("--position-noise", type=float, default=0.002,
                         help="observation noise per position axis, m (default: %(default)s)")
     parser.add_argument("--angle-noise-deg", type=float, default=1.5,
@@ -92,12 +100,17 @@ def _results_module() -> ModuleType | None:
 
 def run(args: argparse.Namespace, argv: Sequence[str] | None = None) -> int:
     """Run the evaluation for parsed ``args``; returns the exit code (2 on bad arguments)."""
-    from push_estimator.episodes import OBSERVATIONS
+    from push_estimator.episodes import OBSERVATIONS, PUSH_POLICIES
 
     sources = [o.strip() for o in args.observations.split(",") if o.strip()]
     if not sources or any(o not in OBSERVATIONS for o in sources):
         print(f"pushbot eval estimator: --observations must be a comma-separated list of "
               f"{', '.join(OBSERVATIONS)}, got {args.observations!r}", file=sys.stderr)
+        return 2
+    policies = [o.strip() for o in args.push_policy.split(",") if o.strip()]
+    if not policies or any(o not in PUSH_POLICIES for o in policies):
+        print(f"pushbot eval estimator: --push-policy must be a comma-separated list of "
+              f"{', '.join(PUSH_POLICIES)}, got {args.push_policy!r}", file=sys.stderr)
         return 2
     names = [n.strip() for n in args.objects.split(",") if n.strip()]
     if args.episodes < 1 or args.pushes < 1 or not names:
@@ -126,22 +139,24 @@ def run(args: argparse.Namespace, argv: Sequence[str] | None = None) -> int:
     angle_noise = math.radians(args.angle_noise_deg)
     config = EKFConfig() if args.iterations is None else EKFConfig(iterations=args.iterations)
     bodies = []
-    for source in sources:
+    runs = [(source, policy) for source in sources for policy in policies]
+    for source, policy in runs:
         segmenter = load_perception() if source == "perception" else None
         episodes: dict[str, list] = {n: [] for n in names}
         t0 = time.perf_counter()
         jobs = [(n, args.seed + i) for n in names for i in range(args.episodes)]
-        with tqdm(jobs, desc=f"episodes ({source})", unit="ep", disable=args.no_progress,
-                  file=sys.stderr) as bar:
+        with tqdm(jobs, desc=f"episodes ({source}, {policy})", unit="ep",
+                  disable=args.no_progress, file=sys.stderr) as bar:
             for name, seed in bar:
                 bar.set_postfix_str(f"{name} seed {seed}")
                 episodes[name].append(run_physics_episode(
                     name, seed, args.pushes, config, args.position_noise, angle_noise,
-                    observations=source, segmenter=segmenter))
+                    observations=source, segmenter=segmenter, policy=policy))
         body = report(episodes, args.pushes, args.position_noise, angle_noise,
                       time.perf_counter() - t0, observations=source,
-                      notes=source == sources[-1])
-        bodies.append(body if len(sources) == 1 else f"### Observations: {source}\n\n{body}")
+                      notes=(source, policy) == runs[-1])
+        title = f"### Observations: {source}, pushes: {policy}"
+        bodies.append(body if len(runs) == 1 else f"{title}\n\n{body}")
     body = "\n\n".join(bodies)
     shown = list(argv) if argv is not None else sys.argv[1:]
     if shown[:2] == ["eval", "estimator"]:  # called as `pushbot eval estimator ...`
