@@ -7,7 +7,8 @@ in 3-6 substeps of 1 cm) from one filter state; each repeat restores the state, 
 ``predict_push`` + ``update_pose`` with an observation near the prediction. Reported for the
 plain EKF (``iterations = 1``) and the default iterated update (``iterations = 2``), with the
 split into prediction (model + closed-form Jacobian) and update, and the load average (the
-machine is shared).
+machine is shared). Also the cost of choosing a push with the active policy of ``pushbot eval
+estimator`` (``most_informative_push``: one EKF forecast per candidate, 16 candidates).
 
 Consistency on the filter's own model (for information; the asserted version with positive
 and negative controls is ``tests/estimator/test_consistency.py``): mean NEES (7 dof) and NIS
@@ -37,8 +38,10 @@ from _results import format_section, update_section  # noqa: E402
 from push_core.estimator import EKFConfig, PushEKF, predict_push  # noqa: E402
 from push_core.objects import load_object  # noqa: E402
 from push_estimator.episodes import (  # noqa: E402
+    ACTIVE_CANDIDATES,
     chi2_band,
     informative_push,
+    most_informative_push,
     run_model_episodes,
 )
 
@@ -81,6 +84,26 @@ def time_cycles(name: str, iterations: int, repeats: int,
             "substeps": np.array([c[3] for c in cases])}
 
 
+def time_active_choice(name: str, repeats: int, seed: int = 0) -> np.ndarray:
+    """Wall-clock ms of choosing one push: ``most_informative_push`` over
+    ``ACTIVE_CANDIDATES`` informative pushes (one EKF forecast each), ``N_PUSHES // 10``
+    candidate sets x ``repeats``."""
+    points, normals = load_object(name).outline(0.002)
+    ekf = PushEKF(points, normals)
+    rng = np.random.default_rng(seed)
+    ekf.update_pose([0.0, 0.0, 0.3])
+    sets = [[informative_push(points, normals, ekf.state[:3], rng)
+             for _ in range(ACTIVE_CANDIDATES)] for _ in range(N_PUSHES // 10)]
+    most_informative_push(ekf, sets[0])  # warm-up
+    times = []
+    for _ in range(repeats):
+        for pushes in sets:
+            t0 = time.perf_counter()
+            most_informative_push(ekf, pushes)
+            times.append(time.perf_counter() - t0)
+    return 1e3 * np.array(times)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=10, help="timed passes over the pushes")
@@ -105,6 +128,11 @@ def main(argv: list[str] | None = None) -> int:
                 f"{np.median(t['predict']):.3f} | {np.median(t['update']):.3f} | "
                 f"{np.median(t['substeps']):.0f} ({t['substeps'].min()}-{t['substeps'].max()}) "
                 f"| {verdict} |")
+    active_rows = []
+    for name in OBJECTS:
+        t = time_active_choice(name, args.repeats)
+        active_rows.append(f"| {name} | {np.median(t):.2f} | {np.percentile(t, 90):.2f} | "
+                           f"{np.median(t) / ACTIVE_CANDIDATES:.3f} |")
     load_after = os.getloadavg()[0]
 
     points, normals = load_object("tri1").outline(0.002)
@@ -141,6 +169,16 @@ def main(argv: list[str] | None = None) -> int:
         "",
         "For comparison: `torch.func.jacfwd` through the torch path of the model costs about "
         "10 ms for one substep.",
+        "",
+        f"Active push choice (`push_estimator.episodes.most_informative_push`, the default push "
+        f"policy of `pushbot eval estimator`): the EKF's forecast "
+        f"(`PushEKF.expected_covariance`: prediction with Jacobian + covariance update) for "
+        f"each of {ACTIVE_CANDIDATES} candidate pushes, wall clock in ms per choice, "
+        f"{N_PUSHES // 10} candidate sets x {args.repeats} repeats.",
+        "",
+        "| object | median ms per choice | p90 ms | median ms per candidate |",
+        "| --- | --- | --- | --- |",
+        *active_rows,
         "",
         f"Consistency on the filter's own model (tri1, {n} episodes x {k} pushes, truth drawn "
         f"from the prior with the COM inside the outline; 99 % bands for a consistent filter: "
