@@ -3,15 +3,17 @@
 from __future__ import annotations
 
 from array import array
+from collections.abc import Callable
 
 import numpy as np
 import pytest
 from builtin_interfaces.msg import Time
-from sensor_msgs.msg import Image, PointField
+from sensor_msgs.msg import Image, PointCloud2, PointField
 
 from push_perception.conversions import (
     OUTLINE_FIELDS,
     UNMEASURED_VARIANCE,
+    NonFiniteError,
     depth_to_metres,
     mask_image_msg,
     outline_cloud_msg,
@@ -33,35 +35,94 @@ def test_outline_cloud_round_trip_and_layout() -> None:
     msg = outline_cloud_msg(points, normals, STAMP)
     assert msg.header.frame_id == "object" and msg.header.stamp == STAMP
     assert [f.name for f in msg.fields] == list(OUTLINE_FIELDS)
+    assert [f.offset for f in msg.fields] == [0, 4, 8, 12, 16, 20]
     assert all(f.datatype == PointField.FLOAT32 and f.count == 1 for f in msg.fields)
     assert (msg.height, msg.width, msg.point_step, msg.row_step) == (1, 4, 24, 96)
     assert msg.is_dense and not msg.is_bigendian
-    raw = np.frombuffer(bytes(msg.data), dtype="<f4").reshape(4, 6)
-    np.testing.assert_array_equal(raw[:, [2, 5]], 0.0)  # z and normal_z
+    expected = np.zeros((4, 6), dtype="<f4")
+    expected[:, 0:2], expected[:, 3:5] = points, normals  # z = normal_z = 0
+    assert bytes(msg.data) == expected.tobytes()
     p, n = outline_from_cloud(msg)
+    assert p.dtype == n.dtype == np.float64
     np.testing.assert_allclose(p, points, atol=1e-9)
     np.testing.assert_allclose(n, normals, atol=1e-7)
+    assert outline_cloud_msg(points, normals).header.stamp == Time()
+    world = outline_cloud_msg(points, normals, STAMP, "world")
+    np.testing.assert_allclose(outline_from_cloud(world, "world")[0], points, atol=1e-9)
 
 
 @pytest.mark.parametrize(("points", "normals", "match"), [
-    (np.zeros((2, 2)), np.zeros((2, 2)), "K >= 3"),
+    (np.zeros((4, 3)), np.zeros((4, 3)), r"\(K, 2\)"),
     (np.zeros((4, 2)), np.zeros((3, 2)), r"\(K, 2\)"),
     (np.full((4, 2), np.nan), np.zeros((4, 2)), "finite"),
+    (np.zeros((4, 2)), np.full((4, 2), np.inf), "finite"),
 ])
 def test_outline_cloud_rejects_bad_arrays(points, normals, match) -> None:
     with pytest.raises(ValueError, match=match):
         outline_cloud_msg(points, normals, STAMP)
 
 
-def test_outline_parser_rejects_malformed_clouds() -> None:
+def test_outline_reader_takes_big_endian_shuffled_padded_clouds() -> None:
+    points, normals = square_outline()
+    # Big-endian, 2 rows of 2 points: 36-byte points (fields shuffled, an extra field, 8 bytes
+    # of padding), rows padded to 80 bytes.
+    order = ["normal_y", "z", "normal_x", "intensity", "y", "normal_z", "x"]
+    values = {"x": points[:, 0], "y": points[:, 1], "z": np.full(4, 5.0),
+              "normal_x": normals[:, 0], "normal_y": normals[:, 1], "normal_z": np.zeros(4),
+              "intensity": np.full(4, 9.0)}
+    point = np.stack([values[name] for name in order] + [np.zeros(4)] * 2, axis=1).astype(">f4")
+    rows = np.zeros((2, 80), dtype=np.uint8)
+    rows[:, :72] = np.frombuffer(point.tobytes(), dtype=np.uint8).reshape(2, 72)
+    msg = PointCloud2(height=2, width=2, is_bigendian=True, point_step=36, row_step=80,
+                      is_dense=True)
+    msg.header.frame_id = "object"
+    msg.fields = [PointField(name=name, offset=4 * i, datatype=PointField.FLOAT32, count=1)
+                  for i, name in enumerate(order)]
+    msg.data = array("B", rows.tobytes())
+    p, n = outline_from_cloud(msg)
+    np.testing.assert_allclose(p, points, atol=1e-9)
+    np.testing.assert_allclose(n, normals, atol=1e-7)
+    msg.is_bigendian = False  # the same bytes read little-endian are garbage
+    assert not np.allclose(outline_from_cloud(msg)[0], points)
+
+
+def _field(name: str) -> Callable[[PointCloud2], PointField]:
+    def get(msg: PointCloud2) -> PointField:
+        return next(f for f in msg.fields if f.name == name)
+    return get
+
+
+def _nan_at(index: int, column: int) -> Callable[[PointCloud2], None]:
+    def mutate(msg: PointCloud2) -> None:
+        data = np.frombuffer(bytes(msg.data), dtype="<f4").reshape(-1, 6).copy()
+        data[index, column] = np.nan if column != 4 else np.inf
+        msg.data = array("B", data.tobytes())
+    return mutate
+
+
+@pytest.mark.parametrize(("mutate", "match"), [
+    (lambda m: setattr(m.header, "frame_id", "world"), "frame_id is 'world', expected 'object'"),
+    (lambda m: m.fields.pop(3), "missing 'normal_x'"),
+    (lambda m: m.fields.pop(5), "missing 'normal_z'"),
+    (lambda m: setattr(_field("y")(m), "datatype", PointField.FLOAT64), "'y' must be FLOAT32"),
+    (lambda m: setattr(_field("x")(m), "count", 2), "'x' must be FLOAT32 with count 1"),
+    (lambda m: setattr(_field("normal_z")(m), "offset", 22), "'normal_z' at offset 22"),
+    (lambda m: (setattr(m, "width", 0), setattr(m, "row_step", 0), setattr(m, "data", b"")),
+     "empty"),
+    (lambda m: (setattr(m, "width", 2), setattr(m, "row_step", 48),
+                setattr(m, "data", bytes(m.data)[:48])), "2 points, need >= 3"),
+    (lambda m: setattr(m, "row_step", 10), "row_step 10 is smaller"),
+    (lambda m: setattr(m, "data", bytes(m.data)[:-4]), "92 bytes, expected"),
+    (lambda m: setattr(m, "height", 2), "96 bytes, expected"),
+    (_nan_at(2, 0), "NaN or infinite.*index 2"),
+    (_nan_at(1, 4), "NaN or infinite.*index 1"),
+])
+def test_outline_reader_rejects_malformed_clouds(mutate, match) -> None:
     msg = outline_cloud_msg(*square_outline(), STAMP)
-    short = outline_cloud_msg(*square_outline(), STAMP)
-    short.data = array("B", bytes(short.data)[:-4])
-    with pytest.raises(ValueError, match="bytes"):
-        outline_from_cloud(short)
-    msg.fields = [f for f in msg.fields if f.name != "normal_y"]
-    with pytest.raises(ValueError, match="normal_y"):
+    mutate(msg)
+    with pytest.raises(ValueError, match=match) as info:
         outline_from_cloud(msg)
+    assert isinstance(info.value, NonFiniteError) == ("NaN" in match)
 
 
 def test_pose_with_covariance_places_the_planar_block() -> None:

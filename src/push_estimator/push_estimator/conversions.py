@@ -9,6 +9,11 @@ Every parser raises ``ValueError`` whose message names the offending field, and
 :class:`NonFiniteError` (a ``ValueError``) when the only problem is a NaN or infinite value,
 so the node can count the two kinds separately on ``/diagnostics``.
 
+``perception/outline`` is read and written by the codec of its publisher,
+:mod:`push_perception.conversions` (``outline_from_cloud``, ``outline_cloud_msg``), re-exported
+here together with ``OBJECT_FRAME``, ``OUTLINE_FIELDS`` and ``NonFiniteError``, which the
+outline reader raises for NaN or infinite coordinates.
+
 ``estimator/state`` layout (std_msgs/Float64MultiArray, also in the README topic table): two
 blocks concatenated, not a 2-D array. ``layout.dim[0]``: label ``state``, size 7, stride 7 =
 ``x, y, theta, c_x, c_y, l, m`` (:data:`push_core.estimator.STATE_LABELS`; ``theta``
@@ -33,10 +38,16 @@ from geometry_msgs.msg import (
 )
 from nav_msgs.msg import Path
 from numpy.typing import ArrayLike, NDArray
-from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
 from push_core.estimator import STATE_SIZE
+from push_perception.conversions import (
+    OBJECT_FRAME,
+    OUTLINE_FIELDS,
+    NonFiniteError,
+    outline_cloud_msg,
+    outline_from_cloud,
+)
 
 __all__ = [
     "COVARIANCE_LABEL",
@@ -63,18 +74,11 @@ __all__ = [
 ]
 
 WORLD_FRAME = "world"
-OBJECT_FRAME = "object"
 STATE_LABEL = "state"
 COVARIANCE_LABEL = "covariance_row_major"
-#: Fields of ``perception/outline``, all FLOAT32, in this order.
-OUTLINE_FIELDS = ("x", "y", "z", "normal_x", "normal_y", "normal_z")
 #: Rows/columns of x, y and yaw in a 6 x 6 pose covariance (x, y, z, rot x, rot y, rot z).
 _PLANAR = (0, 1, 5)
 _NS = 1_000_000_000
-
-
-class NonFiniteError(ValueError):
-    """A message field holds NaN or infinity."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -216,90 +220,6 @@ def push_from_path(msg: Path, frame: str = WORLD_FRAME) -> ExecutedPush:
         raise ValueError(f"poses[1] is stamped before poses[0] ({stamps[1]} < {stamps[0]} s)")
     return ExecutedPush(start=np.array(points[0]), end=np.array(points[1]),
                         t_start=stamps[0], t_end=stamps[1])
-
-
-def outline_from_cloud(msg: PointCloud2,
-                       frame: str = OBJECT_FRAME) -> tuple[NDArray[np.float64],
-                                                           NDArray[np.float64]]:
-    """Parse ``perception/outline``: points and outward normals in the object frame.
-
-    Parameters
-    ----------
-    msg : sensor_msgs/PointCloud2
-        Fields ``x, y, z, normal_x, normal_y, normal_z`` (FLOAT32, count 1, any offsets);
-        points ordered counter-clockwise along the outline.
-    frame : str
-        Required ``header.frame_id``.
-
-    Returns
-    -------
-    points, normals : numpy.ndarray, shape (N, 2)
-        x, y and normal_x, normal_y (float64); z components are ignored.
-
-    Raises
-    ------
-    NonFiniteError
-        A NaN or infinite coordinate.
-    ValueError
-        Wrong frame, a missing or non-FLOAT32 field, ``point_step`` / ``row_step`` / ``data``
-        sizes that do not match, no points.
-    """
-    if msg.header.frame_id != frame:
-        raise ValueError(f"header.frame_id is {msg.header.frame_id!r}, expected {frame!r}")
-    fields = {f.name: f for f in msg.fields}
-    for name in OUTLINE_FIELDS:
-        f = fields.get(name)
-        if f is None:
-            raise ValueError(f"fields: missing {name!r} (need {', '.join(OUTLINE_FIELDS)})")
-        if f.datatype != PointField.FLOAT32 or f.count != 1:
-            raise ValueError(f"fields: {name!r} must be FLOAT32 with count 1, got datatype "
-                             f"{f.datatype} count {f.count}")
-        if f.offset + 4 > msg.point_step:
-            raise ValueError(f"fields: {name!r} at offset {f.offset} does not fit point_step "
-                             f"{msg.point_step}")
-    n = msg.width * msg.height
-    if n == 0:
-        raise ValueError("the cloud has no points (width * height = 0)")
-    if msg.row_step != msg.width * msg.point_step:
-        raise ValueError(f"row_step {msg.row_step} != width * point_step = "
-                         f"{msg.width * msg.point_step}")
-    if len(msg.data) != msg.row_step * msg.height:
-        raise ValueError(f"data has {len(msg.data)} bytes, expected row_step * height = "
-                         f"{msg.row_step * msg.height}")
-    order = ">" if msg.is_bigendian else "<"
-    dtype = np.dtype({"names": list(OUTLINE_FIELDS), "formats": [order + "f4"] * 6,
-                      "offsets": [fields[k].offset for k in OUTLINE_FIELDS],
-                      "itemsize": msg.point_step})
-    cloud = np.frombuffer(bytes(msg.data), dtype=dtype, count=n)
-    points = np.stack([cloud["x"], cloud["y"]], axis=1).astype(np.float64)
-    normals = np.stack([cloud["normal_x"], cloud["normal_y"]], axis=1).astype(np.float64)
-    if not (np.all(np.isfinite(points)) and np.all(np.isfinite(normals))):
-        raise NonFiniteError("the outline has NaN or infinite coordinates")
-    return points, normals
-
-
-def outline_cloud_msg(points: ArrayLike, normals: ArrayLike, stamp: Time,
-                      frame: str = OBJECT_FRAME) -> PointCloud2:
-    """Build ``perception/outline`` from points and outward normals (N, 2), object frame.
-
-    One row (height 1), little-endian, point_step 24, z = normal_z = 0.
-    """
-    pts = np.asarray(points, dtype=np.float64)
-    nrm = np.asarray(normals, dtype=np.float64)
-    if pts.ndim != 2 or pts.shape[1] != 2 or nrm.shape != pts.shape:
-        raise ValueError(f"points and normals must both be (N, 2), got {pts.shape} and "
-                         f"{nrm.shape}")
-    data = np.zeros((len(pts), 6), dtype="<f4")
-    data[:, 0:2], data[:, 3:5] = pts, nrm
-    msg = PointCloud2()
-    msg.header.stamp, msg.header.frame_id = stamp, frame
-    msg.height, msg.width = 1, len(pts)
-    msg.fields = [PointField(name=name, offset=4 * i, datatype=PointField.FLOAT32, count=1)
-                  for i, name in enumerate(OUTLINE_FIELDS)]
-    msg.is_bigendian, msg.point_step, msg.row_step = False, 24, 24 * len(pts)
-    msg.is_dense = True
-    msg.data = data.tobytes()
-    return msg
 
 
 # --------------------------------------------------------------------------------------------

@@ -3,16 +3,19 @@
 Reuses :mod:`sim_bridge.conversions` (images, camera info, transforms, time, quaternions) and
 adds what perception publishes or accepts beyond it:
 
-- the outline as ``sensor_msgs/PointCloud2`` with float32 fields ``x, y, z, normal_x,
-  normal_y, normal_z`` (frame ``object``, points counter-clockwise, outward unit normals,
-  z = normal_z = 0) and its inverse;
+- the outline (``perception/outline``) as ``sensor_msgs/PointCloud2`` with float32 fields
+  ``x, y, z, normal_x, normal_y, normal_z`` (frame ``object``, points counter-clockwise,
+  outward unit normals, z = normal_z = 0) and its checked inverse. This writer and reader are
+  the only codec of that topic: ``push_estimator.conversions`` and ``push_planner.conversions``
+  re-export them, so the module must stay light (no torch, no cv2);
 - the measured pose as ``geometry_msgs/PoseWithCovarianceStamped`` in ``world``;
 - the mask as a ``mono8`` image (255 = object);
 - depth images in ``32FC1`` (metres, the sim bridge) or ``16UC1`` (millimetres, 0 = no
   return: the RealSense driver's ``aligned_depth_to_color``), both as float32 metres with NaN.
 
 Pure functions; nothing here needs ``rclpy.init``. Every parser raises ``ValueError`` naming
-the offending field. Quaternions are (x, y, z, w).
+the offending field; the outline reader raises its subclass :class:`NonFiniteError` when the
+problem is a NaN or infinite value. Quaternions are (x, y, z, w).
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from array import array
 import numpy as np
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseWithCovarianceStamped
+from numpy.typing import ArrayLike, NDArray
 from sensor_msgs.msg import Image, PointCloud2, PointField
 
 from sim_bridge.conversions import (
@@ -35,6 +39,7 @@ __all__ = [
     "OBJECT_FRAME",
     "OUTLINE_FIELDS",
     "UNMEASURED_VARIANCE",
+    "NonFiniteError",
     "depth_to_metres",
     "mask_image_msg",
     "outline_cloud_msg",
@@ -52,85 +57,133 @@ OUTLINE_FIELDS = ("x", "y", "z", "normal_x", "normal_y", "normal_z")
 UNMEASURED_VARIANCE = 1e6
 
 
-def outline_cloud_msg(points: np.ndarray, normals: np.ndarray, stamp: Time,
+class NonFiniteError(ValueError):
+    """A message field holds NaN or infinity (a ``ValueError``, so callers may lump it in)."""
+
+
+def outline_cloud_msg(points: ArrayLike, normals: ArrayLike, stamp: Time | None = None,
                       frame_id: str = OBJECT_FRAME) -> PointCloud2:
-    """The outline as an unorganised ``PointCloud2`` (height 1, width K, dense).
+    """The outline as ``perception/outline``: an unorganised ``PointCloud2``.
+
+    The wire format (this writer defines it; :func:`outline_from_cloud` reads it back): height
+    1, width K, little-endian, ``point_step`` 24, ``row_step`` 24 K, dense; the float32 fields
+    :data:`OUTLINE_FIELDS` at offsets 0, 4, ..., 20, with z = normal_z = 0.
 
     Parameters
     ----------
-    points, normals : (K, 2) float
+    points, normals : array_like, shape (K, 2)
         Outline points (metres) and outward unit normals in ``frame_id``, counter-clockwise.
-    stamp : Time
+        Any K >= 0 is written (an outline of fewer than 3 points is refused by the reader, not
+        here, so tests can publish one).
+    stamp : builtin_interfaces/Time, optional
+        ``header.stamp``; None leaves it zero.
     frame_id : str
+        ``header.frame_id``.
+
+    Returns
+    -------
+    sensor_msgs/PointCloud2
 
     Raises
     ------
     ValueError
-        If the arrays are not finite (K, 2) arrays of the same K >= 3.
+        If points and normals are not (K, 2) arrays of the same shape, or hold NaN or infinity.
     """
     p = np.asarray(points, dtype=np.float64)
     n = np.asarray(normals, dtype=np.float64)
-    if p.ndim != 2 or p.shape[1] != 2 or p.shape != n.shape or len(p) < 3:
-        raise ValueError(f"outline points and normals must be (K, 2) with K >= 3, got "
-                         f"{p.shape} and {n.shape}")
+    if p.ndim != 2 or p.shape[1] != 2 or p.shape != n.shape:
+        raise ValueError(f"outline points and normals must both be (K, 2), got {p.shape} and "
+                         f"{n.shape}")
     if not (np.all(np.isfinite(p)) and np.all(np.isfinite(n))):
         raise ValueError("outline points and normals must be finite")
-    data = np.zeros((len(p), 6), dtype="<f4")
+    data = np.zeros((len(p), len(OUTLINE_FIELDS)), dtype="<f4")
     data[:, 0:2] = p
     data[:, 3:5] = n
     msg = PointCloud2()
-    msg.header.stamp = stamp
+    if stamp is not None:
+        msg.header.stamp = stamp
     msg.header.frame_id = frame_id
     msg.height, msg.width = 1, len(p)
     msg.fields = [PointField(name=name, offset=4 * i, datatype=PointField.FLOAT32, count=1)
                   for i, name in enumerate(OUTLINE_FIELDS)]
     msg.is_bigendian = False
-    msg.point_step = 24
-    msg.row_step = 24 * len(p)
+    msg.point_step = 4 * len(OUTLINE_FIELDS)
+    msg.row_step = msg.point_step * len(p)
     msg.is_dense = True
     msg.data = array("B", data.tobytes())
     return msg
 
 
-def outline_from_cloud(msg: PointCloud2) -> tuple[np.ndarray, np.ndarray]:
-    """Outline points and normals (K, 2) float64 of a cloud written by :func:`outline_cloud_msg`.
+def outline_from_cloud(msg: PointCloud2, frame_id: str = OBJECT_FRAME
+                       ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Outline points and outward normals of ``perception/outline``, checked.
 
-    Any field layout with float32 ``x, y, normal_x, normal_y`` is accepted (offsets are read
-    from ``fields``).
+    Accepts the format of :func:`outline_cloud_msg` and any other layout of the same fields:
+    offsets are read from ``fields`` (other fields and padding are skipped), rows may be padded
+    (``row_step > width * point_step``), and ``is_bigendian`` selects the byte order.
+
+    Parameters
+    ----------
+    msg : sensor_msgs/PointCloud2
+        Fields :data:`OUTLINE_FIELDS`, each FLOAT32 with count 1; points ordered
+        counter-clockwise along the outline (not checked here).
+    frame_id : str
+        The required ``header.frame_id``.
+
+    Returns
+    -------
+    points, normals : numpy.ndarray, shape (K, 2)
+        x, y of each point and of its normal, float64; z and normal_z are ignored.
 
     Raises
     ------
+    NonFiniteError
+        A NaN or infinite x, y, normal_x or normal_y (the only problem of the cloud).
     ValueError
-        Missing or non-float32 fields, a ``data`` size that does not match
-        ``row_step * height``, fewer than 3 points, non-finite values.
+        Every other problem, named in the message: a wrong ``header.frame_id``; a missing
+        field, one that is not FLOAT32 with count 1, or one whose offset does not fit
+        ``point_step``; an empty cloud or one of fewer than 3 points; ``row_step`` smaller than
+        ``width * point_step``; ``data`` not ``row_step * height`` bytes long.
     """
+    if msg.header.frame_id != frame_id:
+        raise ValueError(f"header.frame_id is {msg.header.frame_id!r}, expected {frame_id!r}")
     fields = {f.name: f for f in msg.fields}
-    for name in ("x", "y", "normal_x", "normal_y"):
-        if name not in fields:
-            raise ValueError(f"outline cloud has no field {name!r} (fields: {sorted(fields)})")
-        if fields[name].datatype != PointField.FLOAT32:
-            raise ValueError(f"outline cloud field {name!r} is not float32")
-        if fields[name].offset + 4 > msg.point_step:
-            raise ValueError(f"outline cloud field {name!r} lies outside point_step")
-    count = msg.width * msg.height
-    if msg.row_step < msg.width * msg.point_step or len(msg.data) != msg.row_step * msg.height:
-        raise ValueError(f"outline cloud data has {len(msg.data)} bytes, expected row_step * "
-                         f"height = {msg.row_step} * {msg.height} with row_step >= width * "
-                         f"point_step")
+    for name in OUTLINE_FIELDS:
+        f = fields.get(name)
+        if f is None:
+            raise ValueError(f"fields: missing {name!r} (need {', '.join(OUTLINE_FIELDS)}; "
+                             f"got {', '.join(sorted(fields)) or 'none'})")
+        if f.datatype != PointField.FLOAT32 or f.count != 1:
+            raise ValueError(f"fields: {name!r} must be FLOAT32 with count 1, got datatype "
+                             f"{f.datatype} count {f.count}")
+        if f.offset + 4 > msg.point_step:
+            raise ValueError(f"fields: {name!r} at offset {f.offset} does not fit point_step "
+                             f"{msg.point_step}")
+    count = int(msg.width) * int(msg.height)
+    if count == 0:
+        raise ValueError("the outline is empty: the cloud has no points (width * height = 0)")
     if count < 3:
-        raise ValueError(f"outline cloud has {count} points, need >= 3")
+        raise ValueError(f"the outline has {count} points, need >= 3")
+    if msg.row_step < msg.width * msg.point_step:
+        raise ValueError(f"row_step {msg.row_step} is smaller than width * point_step = "
+                         f"{msg.width} * {msg.point_step}")
+    if len(msg.data) != msg.row_step * msg.height:
+        raise ValueError(f"data buffer has {len(msg.data)} bytes, expected row_step * height = "
+                         f"{msg.row_step} * {msg.height} = {msg.row_step * msg.height}")
     raw = np.frombuffer(msg.data, dtype=np.uint8).reshape(msg.height, msg.row_step)
     rows = raw[:, :msg.width * msg.point_step].reshape(count, msg.point_step)
     order = ">f4" if msg.is_bigendian else "<f4"
 
-    def column(name: str) -> np.ndarray:
+    def column(name: str) -> NDArray[np.float64]:
         off = fields[name].offset
         return np.ascontiguousarray(rows[:, off:off + 4]).view(order)[:, 0].astype(np.float64)
 
     points = np.stack([column("x"), column("y")], axis=1)
     normals = np.stack([column("normal_x"), column("normal_y")], axis=1)
-    if not (np.all(np.isfinite(points)) and np.all(np.isfinite(normals))):
-        raise ValueError("outline cloud holds non-finite values")
+    bad = ~(np.all(np.isfinite(points), axis=1) & np.all(np.isfinite(normals), axis=1))
+    if np.any(bad):
+        raise NonFiniteError(f"the outline has NaN or infinite coordinates ({int(bad.sum())} "
+                             f"of {count} points, the first at index {int(np.argmax(bad))})")
     return points, normals
 
 

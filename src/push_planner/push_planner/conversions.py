@@ -4,6 +4,11 @@ Plain functions over ROS message objects and numpy arrays; no node, no ``rclpy.i
 ``*_from_*`` reader validates its message and raises ``ValueError`` with a message that says
 what is wrong, so the node can refuse bad input with a clear log.
 
+``perception/outline`` is read and written by the codec of its publisher,
+:mod:`push_perception.conversions`: ``outline_from_cloud`` (the checked reader, frame
+``object``) and ``outline_cloud`` (its writer ``outline_cloud_msg``) are re-exported here, with
+``OBJECT_FRAME`` and ``OUTLINE_FIELDS``.
+
 Frames and units (``docs/ARCHITECTURE.md``): SI; ``world`` is the table frame (z up), ``object``
 the object frame (origin at the area centroid). Quaternions are (x, y, z, w), the order of the
 ROS messages; a planar pose is a rotation about z by ``theta``, ``q = (0, 0, sin(theta / 2),
@@ -21,12 +26,17 @@ from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point, Pose, PoseStamped, PoseWithCovarianceStamped, Quaternion
 from nav_msgs.msg import Path
 from numpy.typing import ArrayLike, NDArray
-from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import ColorRGBA, Float64MultiArray, MultiArrayDimension
 from visualization_msgs.msg import Marker, MarkerArray
 
 from push_core.geometry import object_to_world
 from push_core.planner import Outline, PushPlan
+from push_perception.conversions import (
+    OBJECT_FRAME,
+    OUTLINE_FIELDS,
+    outline_from_cloud,
+)
+from push_perception.conversions import outline_cloud_msg as outline_cloud
 
 __all__ = [
     "OBJECT_FRAME",
@@ -48,9 +58,6 @@ __all__ = [
 ]
 
 WORLD_FRAME = "world"
-OBJECT_FRAME = "object"
-#: Fields of ``perception/outline``, each float32, in this order.
-OUTLINE_FIELDS = ("x", "y", "z", "normal_x", "normal_y", "normal_z")
 #: ``estimator/state``: 7 state values, then the 7 x 7 covariance row-major.
 STATE_SIZE = 7
 STATE_LABELS = ("state", "covariance_row_major")
@@ -185,81 +192,6 @@ def state_msg(state: ArrayLike, covariance: ArrayLike | None = None) -> Float64M
                             stride=STATE_SIZE ** 2),
     ]
     msg.data = [float(v) for v in np.concatenate([state, cov.reshape(-1)])]
-    return msg
-
-
-# ------------------------------------------------------------------------------ outline
-def outline_from_cloud(msg: PointCloud2) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Outline points and outward normals (object frame) from ``perception/outline``.
-
-    Parameters
-    ----------
-    msg : sensor_msgs/PointCloud2
-        Frame ``object``; fields x, y, z, normal_x, normal_y, normal_z, all float32 (any
-        offsets), little-endian, points counter-clockwise along the outline.
-
-    Returns
-    -------
-    points, normals : numpy.ndarray, shape (N, 2)
-        x, y of each point and of its normal (z ignored), float64.
-
-    Raises
-    ------
-    ValueError
-        Wrong frame, missing or non-float32 fields, big-endian data, a buffer whose size does
-        not match ``row_step * height`` / ``point_step``, or no points.
-    """
-    if msg.header.frame_id != OBJECT_FRAME:
-        raise ValueError(f"frame_id is {msg.header.frame_id!r}, expected {OBJECT_FRAME!r}")
-    if msg.is_bigendian:
-        raise ValueError("big-endian point clouds are not supported")
-    fields = {f.name: f for f in msg.fields}
-    for name in OUTLINE_FIELDS:
-        f = fields.get(name)
-        if f is None:
-            raise ValueError(f"field {name!r} is missing (fields: {sorted(fields)})")
-        if f.datatype != PointField.FLOAT32 or f.count != 1:
-            raise ValueError(f"field {name!r} must be one float32")
-        if f.offset + 4 > msg.point_step:
-            raise ValueError(f"field {name!r} at offset {f.offset} exceeds point_step "
-                             f"{msg.point_step}")
-    n = int(msg.width) * int(msg.height)
-    if n == 0:
-        raise ValueError("the outline is empty (0 points)")
-    if msg.row_step != msg.width * msg.point_step or len(msg.data) != msg.row_step * msg.height:
-        raise ValueError(f"buffer of {len(msg.data)} bytes does not match width {msg.width} x "
-                         f"height {msg.height} x point_step {msg.point_step} (row_step "
-                         f"{msg.row_step})")
-    dtype = np.dtype({"names": list(OUTLINE_FIELDS), "formats": ["<f4"] * len(OUTLINE_FIELDS),
-                      "offsets": [fields[k].offset for k in OUTLINE_FIELDS],
-                      "itemsize": msg.point_step})
-    rec = np.frombuffer(bytes(msg.data), dtype=dtype, count=n)
-    points = np.stack([rec["x"], rec["y"]], 1).astype(np.float64)
-    normals = np.stack([rec["normal_x"], rec["normal_y"]], 1).astype(np.float64)
-    return points, normals
-
-
-def outline_cloud(points: ArrayLike, normals: ArrayLike, stamp: Time | None = None,
-                  frame_id: str = OBJECT_FRAME) -> PointCloud2:
-    """``perception/outline`` message: points (N, 2) and outward normals (N, 2), z = 0."""
-    p = np.asarray(points, dtype=np.float32).reshape(-1, 2)
-    nrm = np.asarray(normals, dtype=np.float32).reshape(-1, 2)
-    if p.shape != nrm.shape:
-        raise ValueError(f"points {p.shape} and normals {nrm.shape} differ in shape")
-    data = np.zeros((len(p), len(OUTLINE_FIELDS)), dtype="<f4")
-    data[:, 0:2], data[:, 3:5] = p, nrm
-    msg = PointCloud2()
-    msg.header.frame_id = frame_id
-    if stamp is not None:
-        msg.header.stamp = stamp
-    msg.height, msg.width = 1, len(p)
-    msg.fields = [PointField(name=name, offset=4 * i, datatype=PointField.FLOAT32, count=1)
-                  for i, name in enumerate(OUTLINE_FIELDS)]
-    msg.is_bigendian = False
-    msg.point_step = 4 * len(OUTLINE_FIELDS)
-    msg.row_step = msg.point_step * len(p)
-    msg.data = data.tobytes()
-    msg.is_dense = True
     return msg
 
 
