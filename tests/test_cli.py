@@ -140,6 +140,14 @@ def test_demo_runs_doctor_then_the_closed_loop_through_the_graph(tmp_path: Path)
     assert (tmp_path / 'trajectory.png').stat().st_size > 10_000
 
 
+@pytest.mark.parametrize('value', ['-1', 'nan', 'inf'])
+def test_demo_rejects_a_bad_pause_before_starting_anything(value: str, tmp_path: Path) -> None:
+    result = pushbot('demo', '--skip-doctor', '--pause', value, '--out', str(tmp_path))
+    assert result.returncode == 2
+    assert '--pause must be a finite number of seconds >= 0' in result.stderr
+    assert not (tmp_path / 'graph_logs').exists()  # no node was started
+
+
 # --- run ------------------------------------------------------------------------------------
 
 def test_run_list_shows_the_four_nodes_with_their_packages() -> None:

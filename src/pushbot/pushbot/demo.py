@@ -70,6 +70,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--out', default='out/demo', type=Path,
                         help='output directory (default out/demo)')
     parser.add_argument('--skip-doctor', action='store_true', help='do not run doctor first')
+    parser.add_argument('--pause', type=float, default=0.0,
+                        help='seconds to wait with the graph up before the episode, e.g. to '
+                        'attach a viewer to the topics; Ctrl-C works meanwhile (default 0)')
 
 
 def run_demo(args: argparse.Namespace) -> int:
@@ -84,6 +87,10 @@ def run_demo(args: argparse.Namespace) -> int:
         spec = load_object(args.object)
     except ValueError as exc:
         print(f'pushbot demo: {exc}', file=sys.stderr)
+        return 2
+    if not (math.isfinite(args.pause) and args.pause >= 0.0):
+        print(f'pushbot demo: --pause must be a finite number of seconds >= 0, got '
+              f'{args.pause}', file=sys.stderr)
         return 2
     if not args.skip_doctor:
         status = run_doctor(args)
@@ -103,7 +110,14 @@ def run_demo(args: argparse.Namespace) -> int:
         with _sigterm_as_keyboard_interrupt(), GraphRunner(log_dir=out / 'graph_logs',
                                                            record_frames=True) as graph:
             t_ready = time.monotonic()
-            print(f'graph up after {t_ready - started:.1f} s; running the episode', flush=True)
+            if args.pause > 0.0:
+                print(f'graph up after {t_ready - started:.1f} s; pausing {args.pause:g} s '
+                      f'before the episode', flush=True)
+                time.sleep(args.pause)
+                print('running the episode', flush=True)
+            else:
+                print(f'graph up after {t_ready - started:.1f} s; running the episode',
+                      flush=True)
             record = graph.run(trial)
             recorded = graph.rec
     except KeyboardInterrupt:
