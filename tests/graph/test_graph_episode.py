@@ -156,7 +156,16 @@ def test_ctrl_c_stops_every_process(tmp_path: Path) -> None:
         nodes = _children(demo.pid)
         assert len(nodes) == 4, (nodes, log.read_text())
         demo.send_signal(signal.SIGINT)  # what Ctrl-C in a terminal sends
-        assert demo.wait(timeout=60) == 130, log.read_text()
+        try:
+            status = demo.wait(timeout=60)
+        except subprocess.TimeoutExpired:
+            demo.send_signal(signal.SIGUSR1)  # the demo prints its threads' stacks
+            time.sleep(2.0)
+            tails = "\n".join(f"--- {p.name}:\n{p.read_text(errors='replace')[-1500:]}"
+                              for p in sorted((tmp_path / "graph_logs").glob("*.log")))
+            pytest.fail(f"the demo did not exit within 60 s of SIGINT:\n{log.read_text()}\n"
+                        f"{tails}")
+        assert status == 130, log.read_text()
     finally:
         if demo.poll() is None:
             demo.kill()

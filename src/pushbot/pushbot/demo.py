@@ -25,8 +25,10 @@ process group) and exits with status 130.
 from __future__ import annotations
 
 import argparse
+import faulthandler
 import json
 import math
+import signal
 import sys
 import time
 from pathlib import Path
@@ -78,6 +80,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run_demo(args: argparse.Namespace) -> int:
     """Run the demo; see the module docstring. Returns the exit code."""
     started = time.monotonic()
+    # `kill -USR1 <pid>` prints every thread's stack to stderr (a hung shutdown can be seen).
+    faulthandler.register(signal.SIGUSR1, all_threads=True)
     try:
         trial = Trial(object=args.object, task=args.task, method=args.method, k=args.k,
                       state='filter', com=args.com, index=args.index, seed=args.seed,
@@ -113,7 +117,7 @@ def run_demo(args: argparse.Namespace) -> int:
             if args.pause > 0.0:
                 print(f'graph up after {t_ready - started:.1f} s; pausing {args.pause:g} s '
                       f'before the episode', flush=True)
-                time.sleep(args.pause)
+                _sleep_interruptibly(args.pause)
                 print('running the episode', flush=True)
             else:
                 print(f'graph up after {t_ready - started:.1f} s; running the episode',
@@ -134,6 +138,15 @@ def run_demo(args: argparse.Namespace) -> int:
     _plot(record, recorded, spec, plot)
     _summary(record, trial, wall, [out / 'episode.json', gif, plot])
     return 0
+
+
+def _sleep_interruptibly(seconds: float) -> None:
+    """Sleep in short slices so Ctrl-C is seen within 0.1 s: rclpy's signal handler may run
+    the SIGINT in another thread, and one long ``time.sleep`` in the main thread would only
+    raise the KeyboardInterrupt when it ends."""
+    end = time.monotonic() + seconds
+    while (left := end - time.monotonic()) > 0.0:
+        time.sleep(min(0.1, left))
 
 
 def _summary(rec: dict[str, Any], trial: Trial, wall: float, files: list[Path | None]) -> None:
