@@ -117,7 +117,7 @@ def run_demo(args: argparse.Namespace) -> int:
             if args.pause > 0.0:
                 print(f'graph up after {t_ready - started:.1f} s; pausing {args.pause:g} s '
                       f'before the episode', flush=True)
-                _sleep_interruptibly(args.pause)
+                time.sleep(args.pause)
                 print('running the episode', flush=True)
             else:
                 print(f'graph up after {t_ready - started:.1f} s; running the episode',
@@ -138,15 +138,6 @@ def run_demo(args: argparse.Namespace) -> int:
     _plot(record, recorded, spec, plot)
     _summary(record, trial, wall, [out / 'episode.json', gif, plot])
     return 0
-
-
-def _sleep_interruptibly(seconds: float) -> None:
-    """Sleep in short slices so Ctrl-C is seen within 0.1 s: rclpy's signal handler may run
-    the SIGINT in another thread, and one long ``time.sleep`` in the main thread would only
-    raise the KeyboardInterrupt when it ends."""
-    end = time.monotonic() + seconds
-    while (left := end - time.monotonic()) > 0.0:
-        time.sleep(min(0.1, left))
 
 
 def _summary(rec: dict[str, Any], trial: Trial, wall: float, files: list[Path | None]) -> None:
