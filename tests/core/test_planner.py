@@ -10,6 +10,7 @@ from push_core.geometry import closest_point_on_polyline, world_to_object
 from push_core.objects import load_object
 from push_core.planner import (
     APPROACH_MARGIN,
+    AVOID_RADIUS,
     NoFeasiblePush,
     Planner,
     PlannerConfig,
@@ -304,6 +305,26 @@ def test_butter_pushes_are_feasible_and_clear_of_the_outline():
         a, c, e = local
         assert abs((e - a)[0] * (c - a)[1] - (e - a)[1] * (c - a)[0]) < 1e-12  # collinear
         assert plan.score <= plan.current_score
+
+
+def test_avoid_leaves_out_the_refused_region_and_changes_nothing_when_empty(square):
+    state, goal = state_at([0.0, 0.0, 0.0]), [0.05, 0.0, 0.0]
+    plans = [Planner(PlannerConfig(k=1, seed=5)).plan(square, state, goal, avoid=avoid)
+             for avoid in (None, [], np.zeros((0, 2)))]
+    for other in plans[1:]:  # the same plan and the same random draws
+        assert other.index == plans[0].index and other.angle == plans[0].angle
+        np.testing.assert_array_equal(other.approach, plans[0].approach)
+    first = square.points[plans[0].index]
+    again = Planner(PlannerConfig(k=1, seed=5)).plan(square, state, goal, avoid=[first])
+    assert np.linalg.norm(square.points[again.index] - first) > AVOID_RADIUS
+    assert again.probabilities[np.linalg.norm(square.points - first, axis=1)
+                               <= AVOID_RADIUS].sum() == 0.0
+    # Avoiding every point would leave nothing: the avoidance is ignored.
+    everywhere = Planner(PlannerConfig(k=1, seed=5)).plan(square, state, goal,
+                                                          avoid=square.points)
+    assert everywhere.index == plans[0].index
+    with pytest.raises(ValueError, match="^avoid"):
+        Planner(PlannerConfig()).plan(square, state, goal, avoid=[0.0, 0.0])
 
 
 def test_goal_tolerance_check():

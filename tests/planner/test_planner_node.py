@@ -31,6 +31,7 @@ from visualization_msgs.msg import MarkerArray
 
 from push_core.geometry import closest_point_on_polyline
 from push_core.objects import load_object
+from push_core.planner import AVOID_RADIUS
 from push_planner.conversions import outline_cloud, stamp_from_seconds, state_msg
 from push_planner.models import default_weights
 from push_planner.planner_node import LATCHED_QOS, PARAMETERS, RELIABLE_QOS, PlannerNode
@@ -220,6 +221,33 @@ def test_plans_once_per_fresh_estimate(harness: Harness) -> None:
     h.publish_goal(0.0, 0.0, 0.0)
     assert h.spin_until(lambda: len(h.pushes) == 4)
     assert h.spin_until(lambda: h.status[-1].message == "pushing step 1")
+
+
+def test_a_lost_push_is_not_planned_again(ros_context: Any,
+                                          wait_for: Callable[..., bool]) -> None:
+    """A push not reported within push_timeout (e.g. refused by the robot) counts as a step;
+    the next plans from the same estimate avoid its contact region until a push is executed."""
+    h = make_harness(ros_context, wait_for, [Parameter("k", value=1), Parameter("seed", value=3),
+                                             Parameter("push_timeout", value=0.5)])
+    try:
+        points, normals = rect1_outline()
+        h.publish_outline(points, normals)
+        h.publish_goal(0.1, 0.0, 0.0)
+        h.publish_estimate((0.0, 0.0, 0.0), stamp=10.0)
+        assert h.spin_until(lambda: len(h.pushes) == 3, timeout=20.0)  # two pushes lost
+        # Pose (0, 0, 0): world = object frame. The outline point of each push is the one
+        # nearest to its contact (the pusher axis, R_P outside the outline).
+        feet = []
+        for path in h.pushes:
+            contact = check_push(path, (0.0, 0.0, 0.0))[1]
+            feet.append(points[np.argmin(np.linalg.norm(points - contact, axis=1))])
+        for i, j in ((0, 1), (0, 2), (1, 2)):
+            assert np.linalg.norm(feet[i] - feet[j]) > AVOID_RADIUS - 2e-3, (i, j, feet)
+        assert h.spin_until(lambda: h.values().get("step") == "3")
+    finally:
+        h.executor.shutdown()
+        h.client.destroy_node()
+        h.node.destroy_node()
 
 
 def test_bad_inputs_are_refused_and_the_node_keeps_working(harness: Harness) -> None:

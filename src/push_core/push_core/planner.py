@@ -15,7 +15,9 @@ ROS-free, numpy, seeded. One planning step (:meth:`Planner.plan`):
    (``lambda = 2`` mm/deg is the tuned default, see ``docs/RESULTS.md``, section bench_planner.)
 3. **Contact proposal**: ``k`` points sampled without replacement from the softmax
    ``p_i ~ exp(-(s_i - min s) / T)`` (Gumbel top-k, exact for any k); baselines ``rdn``
-   (uniform over the outline) and ``geo`` (:func:`geo_mask`).
+   (uniform over the outline) and ``geo`` (:func:`geo_mask`). Points within ``AVOID_RADIUS``
+   of ``plan(avoid=...)`` (outline points of pushes the robot refused since the object last
+   moved) are left out.
 4. **Push optimisation** at each sampled point (skipped by the ``direct`` variant):
 
    a. 5 base directions (-60, -30, 0, 30, 60 degrees from the inward normal), each rolled out
@@ -79,6 +81,7 @@ from push_core.shapes import Polygon
 
 __all__ = [
     "APPROACH_MARGIN",
+    "AVOID_RADIUS",
     "BASE_ANGLES_DEG",
     "METHODS",
     "NoFeasiblePush",
@@ -103,6 +106,11 @@ BASE_ANGLES_DEG = (-60.0, -30.0, 0.0, 30.0, 60.0)
 #: Extra clearance beyond the pusher radius between an approach point and the outline, metres
 #: (the value ``sim_bridge.world`` enforces).
 APPROACH_MARGIN = 5e-4
+#: ``Planner.plan(avoid=...)``: outline points this close (m) to the outline point of a refused
+#: push are not used again until the object moves (the robot checks the approach against the
+#: true object; a perceived outline rounds sharp corners, and a refused push moves nothing, so
+#: the same plan would come again).
+AVOID_RADIUS = 0.01
 #: geo baseline: below this rotation (rad) points near the line to the goal are used ...
 GEO_MIN_ROTATION = math.radians(2.0)
 #: ... within this distance of it (m).
@@ -541,6 +549,22 @@ class _Options:
     pose: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 3)))
 
 
+def _allowed_points(points: NDArray[np.float64], avoid: ArrayLike | None) -> NDArray[np.bool_]:
+    """Outline points farther than ``AVOID_RADIUS`` from every ``avoid`` point (all of them if
+    ``avoid`` is None or empty, or would exclude every point)."""
+    allowed = np.ones(len(points), dtype=bool)
+    if avoid is None:
+        return allowed
+    a = np.asarray(avoid, dtype=np.float64)
+    if a.size == 0:
+        return allowed
+    if a.ndim != 2 or a.shape[1] != 2 or not np.all(np.isfinite(a)):
+        raise ValueError(f"avoid: expected finite points of shape (M, 2), got shape {a.shape}")
+    near = np.linalg.norm(points[:, None, :] - a[None, :, :], axis=-1) <= AVOID_RADIUS
+    allowed = ~near.any(axis=1)
+    return allowed if allowed.any() else np.ones(len(points), dtype=bool)
+
+
 class Planner:
     """The greedy push planner of SPEC section 2 step 5 (module docstring).
 
@@ -574,7 +598,8 @@ class Planner:
         cfg = self.config
         return goal_reached(pose, goal, cfg.tolerance_xy, cfg.tolerance_theta)
 
-    def plan(self, outline: Outline, state: ArrayLike, goal: ArrayLike) -> PushPlan:
+    def plan(self, outline: Outline, state: ArrayLike, goal: ArrayLike,
+             avoid: ArrayLike | None = None) -> PushPlan:
         """Plan one push.
 
         Parameters
@@ -587,6 +612,12 @@ class Planner:
             layout of the estimator's state.
         goal : array_like, shape (3,)
             Goal pose ``(x, y, theta)`` of the object frame in ``world``.
+        avoid : array_like, shape (M, 2), optional
+            Object-frame points (the outline points of pushes the robot refused since the
+            object last moved): outline points within ``AVOID_RADIUS`` of any are not used, so
+            a refused push is not planned again from the same estimate. Ignored when it would
+            leave no point; None or empty changes nothing (the same plan, the same random
+            draws).
 
         Returns
         -------
@@ -614,15 +645,17 @@ class Planner:
         scores = point_scores(aff, desired, cfg.lam)
 
         n = len(outline.points)
+        allowed = _allowed_points(outline.points, avoid)
         if cfg.method in ("ana", "lrn"):
-            eligible = np.ones(n, dtype=bool)
-            probabilities = softmax_probabilities(scores, cfg.temperature)
-            candidates = sample_contacts(scores, cfg.k, cfg.temperature, self.rng)
+            eligible = allowed
+            sampled = scores if allowed.all() else np.where(allowed, scores, np.inf)
+            probabilities = softmax_probabilities(sampled, cfg.temperature)
+            candidates = sample_contacts(sampled, cfg.k, cfg.temperature, self.rng)
         else:
             eligible = (geo_mask(outline.points, outline.normals, desired)
-                        if cfg.method == "geo" else np.ones(n, dtype=bool))
+                        if cfg.method == "geo" else np.ones(n, dtype=bool)) & allowed
             if not eligible.any():  # e.g. a goal direction no outline point is behind
-                eligible[:] = True
+                eligible = allowed.copy()
             probabilities = eligible / np.count_nonzero(eligible)
             pool = np.flatnonzero(eligible)
             candidates = self.rng.choice(pool, size=min(cfg.k, pool.size), replace=False)

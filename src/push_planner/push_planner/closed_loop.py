@@ -43,7 +43,8 @@ class EpisodeResult:
     final_error_theta : float
         Absolute orientation error at the end, radians.
     refused : int
-        Planned pushes the world refused (``ValueError``); nothing moved.
+        Planned pushes the world refused (``ValueError``); nothing moved, and the next plans
+        avoid their contact region until a push is executed (``Planner.plan(avoid=...)``).
     planning_ms : list of float
         Wall time of every planning call, milliseconds.
     poses : list of ndarray
@@ -108,6 +109,7 @@ def run_episode(world: Any, planner: Planner, goal: ArrayLike, max_steps: int = 
         outline = prepare_outline(*spec.outline(outline_spacing),
                                   simplify_tolerance=planner.config.simplify_tolerance)
     base = ground_truth_state(world)
+    refused_at: list[np.ndarray] = []  # outline points of refused pushes since the last push
     result = EpisodeResult(success=False, steps=0, final_error_xy=math.inf,
                            final_error_theta=math.inf)
     for step in range(max_steps + 1):
@@ -125,13 +127,15 @@ def run_episode(world: Any, planner: Planner, goal: ArrayLike, max_steps: int = 
         state[:3] = pose
         t0 = time.perf_counter()
         try:
-            plan = planner.plan(outline, state, goal)
+            plan = planner.plan(outline, state, goal, avoid=refused_at)
         except NoFeasiblePush:
             break
         result.planning_ms.append(1e3 * (time.perf_counter() - t0))
         result.steps += 1
         try:
             world.execute_push(plan.approach, plan.contact, plan.end)
-        except ValueError:
+            refused_at = []
+        except ValueError:  # nothing moved: do not plan the same push again
             result.refused += 1
+            refused_at.append(outline.points[plan.index])
     return result

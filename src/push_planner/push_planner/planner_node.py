@@ -62,7 +62,9 @@ the goal check: within ``goal_tolerance`` -> ``goal reached``; ``max_steps`` pus
 ``failed after max steps``. A new goal re-opens the newest estimate once (the same pose, a new
 question; it is still fresh: nothing has moved since). A push that is not reported within
 ``push_timeout`` seconds (wall time; e.g. the robot refused it) counts as a step; the node then
-plans again from the newest fresh estimate (nothing has moved, so it is not stale).
+plans again from the newest fresh estimate (nothing has moved, so it is not stale), avoiding
+the outline points of the lost pushes (``Planner.plan(avoid=...)``, within ``AVOID_RADIUS``)
+until a push is executed or a new outline arrives.
 
 Bad input is refused with a warning log, a WARN status and the ``refused`` counter; the node
 keeps running: goals with NaN/inf, non-unit or non-planar quaternions, another frame, or off
@@ -336,6 +338,10 @@ class PlannerNode(Node):
         self._step = 0
         self._in_flight = False
         self._in_flight_since = 0.0
+        #: Outline point of the push in flight; outline points of pushes lost since the object
+        #: last moved (not planned again: Planner.plan(avoid=...)).
+        self._in_flight_point: np.ndarray | None = None
+        self._avoid: list[np.ndarray] = []
         self._latest: tuple[float, np.ndarray] | None = None
         self._used_stamp = -math.inf
         self._used_goal_seq = -1
@@ -405,6 +411,7 @@ class PlannerNode(Node):
             self._refuse("perception/outline", str(exc))
             return
         self._outline = outline
+        self._avoid.clear()  # points of another outline
         self.get_logger().info(f"outline with {len(outline.points)} points "
                                f"({len(outline.polyline)}-vertex contact polyline)")
         self._try_plan()
@@ -463,6 +470,7 @@ class PlannerNode(Node):
                   + [seconds_from_stamp(p.header.stamp) for p in msg.poses])
         self._last_push_end = max(self._last_push_end, end)
         self._in_flight = False
+        self._avoid.clear()  # the push was executed: the object may have moved
         self._try_plan()
         self._publish_status()
 
@@ -471,8 +479,11 @@ class PlannerNode(Node):
                                 > self.params.push_timeout):
             self._in_flight = False
             self._used_stamp = -math.inf  # nothing moved: the newest estimate is still fresh
+            if self._in_flight_point is not None:  # e.g. refused: do not plan it again
+                self._avoid.append(self._in_flight_point)
             self._note = (f"push of step {self._step} not reported on pusher/executed within "
-                          f"{self.params.push_timeout} s; counted as a step")
+                          f"{self.params.push_timeout} s; counted as a step; its contact "
+                          f"region is avoided until a push is executed")
             self._level = DiagnosticStatus.WARN
             self.get_logger().warning(self._note)
             self._try_plan()
@@ -505,7 +516,7 @@ class PlannerNode(Node):
             self.get_logger().error(f"goal not reached after {self._step} pushes")
             return
         try:
-            plan = self._planner.plan(self._outline, state, self._goal)
+            plan = self._planner.plan(self._outline, state, self._goal, avoid=self._avoid)
         except ValueError as exc:
             self._refuse("estimate", str(exc))
             return
@@ -522,6 +533,7 @@ class PlannerNode(Node):
                                          now.nanoseconds * 1e-9, self.params.push_speed))
         self._pub_markers.publish(affordance_markers(self._outline, state[:3], plan, now.to_msg()))
         self._in_flight, self._in_flight_since = True, self._steady_now()
+        self._in_flight_point = self._outline.points[plan.index].copy()
         self.get_logger().info(
             f"step {self._step}: push at outline point {plan.index}, "
             f"{math.degrees(plan.angle):+.0f} deg, {1e3 * plan.length:.1f} mm, predicted score "

@@ -20,7 +20,9 @@ docs/ARCHITECTURE.md ("Closed loop and evaluation"). Each cycle:
    and ``planner_node``: the robot only knows its estimate) or after ``max_steps`` pushes.
 4. **Plan** with ``push_core.planner.Planner`` (``Trial.planner_kwargs``) or, for ``pushnet``,
    ``push_core.pushnet.PushNetPlanner``; execute in the world. A push the world refuses
-   (``ValueError``) counts as a step and moves nothing.
+   (``ValueError``) counts as a step and moves nothing; until a push is executed, the planner
+   avoids the outline points of the refused pushes (``Planner.plan(avoid=...)``; the
+   ``pushnet`` baseline draws new random pushes anyway).
 
 Success and end errors always come from ground truth: the true pose against the true initial
 pose plus ``trial.goal_offset()``; the orientation error is taken modulo the object's rotational
@@ -165,6 +167,7 @@ class EpisodeRunner:
         outline = source.outline(planner)
         rec["poses_true"].append(pose0_true.tolist())
         rec["poses_est"].append(state[:3].tolist())
+        refused_at: list[Any] = []  # outline points of refused pushes since the object moved
         while True:
             if planner.reached(state[:3], goal):
                 rec["reason"] = "goal reached"
@@ -174,7 +177,8 @@ class EpisodeRunner:
                 break
             t0 = time.perf_counter()
             try:
-                plan = planner.plan(outline, state, goal)
+                plan = (planner.plan(outline, state, goal, avoid=refused_at)
+                        if isinstance(planner, Planner) else planner.plan(outline, state, goal))
             except NoFeasiblePush:
                 rec["reason"] = "no feasible push"
                 break
@@ -184,9 +188,12 @@ class EpisodeRunner:
             rec["pushes"].append(push)
             try:
                 result = world.execute_push(plan.approach, plan.contact, plan.end)
-            except ValueError:
+                refused_at = []
+            except ValueError:  # nothing moved: do not plan the same push again
                 rec["refused"] += 1
                 result = None
+                if isinstance(planner, Planner):
+                    refused_at.append(outline.points[plan.index])
             state = source.after(result)
             rec["poses_true"].append(world.object_pose().tolist())
             rec["poses_est"].append(state[:3].tolist())
