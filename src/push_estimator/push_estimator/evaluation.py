@@ -98,19 +98,24 @@ def _results_module() -> ModuleType | None:
     return None
 
 
+def _comma_list(option: str, value: str, allowed: Sequence[str]) -> list[str] | None:
+    """The non-empty comma-separated entries of ``value``, all in ``allowed``; None (and a
+    message on stderr) otherwise."""
+    items = [o.strip() for o in value.split(",") if o.strip()]
+    if not items or any(o not in allowed for o in items):
+        print(f"pushbot eval estimator: {option} must be a comma-separated list of "
+              f"{', '.join(allowed)}, got {value!r}", file=sys.stderr)
+        return None
+    return items
+
+
 def run(args: argparse.Namespace, argv: Sequence[str] | None = None) -> int:
     """Run the evaluation for parsed ``args``; returns the exit code (2 on bad arguments)."""
     from push_estimator.episodes import OBSERVATIONS, PUSH_POLICIES
 
-    sources = [o.strip() for o in args.observations.split(",") if o.strip()]
-    if not sources or any(o not in OBSERVATIONS for o in sources):
-        print(f"pushbot eval estimator: --observations must be a comma-separated list of "
-              f"{', '.join(OBSERVATIONS)}, got {args.observations!r}", file=sys.stderr)
-        return 2
-    policies = [o.strip() for o in args.push_policy.split(",") if o.strip()]
-    if not policies or any(o not in PUSH_POLICIES for o in policies):
-        print(f"pushbot eval estimator: --push-policy must be a comma-separated list of "
-              f"{', '.join(PUSH_POLICIES)}, got {args.push_policy!r}", file=sys.stderr)
+    sources = _comma_list("--observations", args.observations, OBSERVATIONS)
+    policies = _comma_list("--push-policy", args.push_policy, PUSH_POLICIES)
+    if sources is None or policies is None:
         return 2
     names = [n.strip() for n in args.objects.split(",") if n.strip()]
     if args.episodes < 1 or args.pushes < 1 or not names:

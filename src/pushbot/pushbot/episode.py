@@ -168,6 +168,7 @@ class EpisodeRunner:
         rec["poses_true"].append(pose0_true.tolist())
         rec["poses_est"].append(state[:3].tolist())
         refused_at: list[Any] = []  # outline points of refused pushes since the object moved
+        avoids = isinstance(planner, Planner)  # the pushnet baseline draws new pushes anyway
         while True:
             if planner.reached(state[:3], goal):
                 rec["reason"] = "goal reached"
@@ -177,8 +178,8 @@ class EpisodeRunner:
                 break
             t0 = time.perf_counter()
             try:
-                plan = (planner.plan(outline, state, goal, avoid=refused_at)
-                        if isinstance(planner, Planner) else planner.plan(outline, state, goal))
+                plan = (planner.plan(outline, state, goal, avoid=refused_at) if avoids
+                        else planner.plan(outline, state, goal))
             except NoFeasiblePush:
                 rec["reason"] = "no feasible push"
                 break
@@ -192,7 +193,7 @@ class EpisodeRunner:
             except ValueError:  # nothing moved: do not plan the same push again
                 rec["refused"] += 1
                 result = None
-                if isinstance(planner, Planner):
+                if avoids:
                     refused_at.append(outline.points[plan.index])
             state = source.after(result)
             rec["poses_true"].append(world.object_pose().tolist())
