@@ -281,3 +281,59 @@ def test_simplified_polygon_stays_within_tolerance():
     simple = spec.shape.simplified(3e-4)
     assert len(simple.vertices) < len(spec.shape.vertices) / 4
     assert np.max(_on_polygon_boundary(spec.shape.vertices, simple.vertices)) <= 3e-4 + 1e-12
+
+
+# --- non-convex shapes: the COM rule is the convex hull --------------------------------------
+
+#: A U, 10 cm x 8 cm, arms and base 2 cm wide, counter-clockwise; its area centroid lies in the
+#: gap between the arms (outside the footprint).
+U_SHAPE = [[-0.05, -0.04], [0.05, -0.04], [0.05, 0.04], [0.03, 0.04], [0.03, -0.02],
+           [-0.03, -0.02], [-0.03, 0.04], [-0.05, 0.04]]
+
+
+def test_u_shape_with_the_centroid_outside_the_footprint_loads(tmp_path):
+    path = tmp_path / "u.yaml"
+    path.write_text("shape:\n  type: polygon\n  vertices: " + json.dumps(U_SHAPE)
+                    + "\nthickness: 0.013\ndensity: 7850\n")
+    spec = load_object(path)
+    np.testing.assert_allclose(spec.com, 0.0, atol=1e-12)  # default COM = area centroid
+    # The centroid (the object frame origin) really is outside the outline: in the gap.
+    assert not _inside_even_odd(np.zeros((1, 2)), spec.shape.vertices)[0]
+    # Area 0.1 * 0.08 - 0.06 * 0.06 = 0.0044 m^2; centroid y by hand from the base (0.002 m^2
+    # at y = -0.03) and the two arms (0.0024 m^2 at y = 0.01): -0.000036 / 0.0044 = -8.18 mm.
+    assert spec.area == pytest.approx(0.0044)
+    np.testing.assert_allclose(spec.source_origin, [0.0, 0.0036 / 0.44], atol=1e-12)
+    assert spec.mass == pytest.approx(7850 * 0.0044 * 0.013)
+    # Inertia: exact polygon formula vs uniform area samples (ear-clipped triangles).
+    rng = np.random.default_rng(3)
+    from push_core.objects import _sample_area
+
+    pts = _sample_area(spec.shape, 200000, rng)
+    assert np.all(_inside_even_odd(pts, spec.shape.vertices))
+    assert spec.moment_of_inertia == pytest.approx(
+        spec.mass * np.mean(np.sum(pts**2, axis=1)), rel=0.01)
+    # l = mean distance of the area from the COM (here the centroid in the gap).
+    assert spec.limit_surface_guess() == pytest.approx(
+        np.mean(np.linalg.norm(pts, axis=1)), rel=0.01)
+    # A COM anywhere in the hull is accepted, e.g. near the top of the gap.
+    moved = spec.replace(com=np.array([0.0, 0.04]))
+    np.testing.assert_allclose(moved.com, [0.0, 0.04])
+
+
+@pytest.mark.parametrize("com", [[0.0, 0.052], [0.06, 0.0], [0.051, 0.045]])
+def test_com_outside_the_convex_hull_is_refused(com):
+    spec = {"shape": {"type": "polygon", "vertices": U_SHAPE}, "thickness": 0.013,
+            "mass": 0.3}
+    # com_offset is relative to the vertices' own origin; the centroid is at (0, -0.00818).
+    spec["com_offset"] = com
+    with pytest.raises(ValueError, match=r"^com_offset: .* outside the convex hull"):
+        object_from_dict(spec)
+    with pytest.raises(ValueError, match=r"^com_offset:"):
+        load_object("rect1").replace(com=np.array([0.0451, 0.0]))
+
+
+def test_com_on_the_hull_boundary_is_refused_just_inside_accepted():
+    spec = load_object("rect1")  # 9 cm square
+    with pytest.raises(ValueError, match=r"^com_offset:"):
+        spec.replace(com=np.array([0.045, 0.01]))
+    assert spec.replace(com=np.array([0.0449, 0.01])).com[0] == pytest.approx(0.0449)

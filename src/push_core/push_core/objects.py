@@ -7,6 +7,8 @@
 
 Frames and units: SI. Every shape is re-centred on its area centroid, which becomes the object
 frame origin; ``ObjectSpec.com`` is the centre of mass in that frame (zero for uniform density).
+The COM must lie inside the convex hull of the outline (not necessarily inside the outline: the
+centroid of an L or U shape lies outside its footprint).
 ``ObjectSpec.source_origin`` records where the source file's own origin lies in the object frame,
 so poses given in the source's frame can be converted.
 
@@ -25,8 +27,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.spatial import ConvexHull
 
-from push_core.geometry import closest_point_on_polyline
 from push_core.shapes import Ellipse, Polygon, Shape
 
 __all__ = [
@@ -63,7 +65,7 @@ class ObjectSpec:
     mass : float
         kg.
     com : (2,) ndarray
-        Centre of mass in the object frame, metres.
+        Centre of mass in the object frame, metres; inside the convex hull of ``shape``.
     friction_table, friction_pusher : float
         Coulomb coefficients object-table and pusher-object.
     source : str
@@ -90,8 +92,11 @@ class ObjectSpec:
         _non_negative("friction_table", self.friction_table)
         _non_negative("friction_pusher", self.friction_pusher)
         com = _vector2("com_offset", self.com)
-        if not _inside(self.shape, com):
-            raise ValueError(f"com_offset: {com.tolist()} m lies outside the object's outline")
+        if not _inside_hull(self.shape, com):
+            raise ValueError(
+                f"com_offset: {com.tolist()} m (object frame) lies outside the convex hull of "
+                "the object's outline; a rigid flat body's centre of mass lies inside it"
+            )
         com.setflags(write=False)
         object.__setattr__(self, "com", com)
         object.__setattr__(self, "source_origin", _vector2("source_origin", self.source_origin))
@@ -285,10 +290,18 @@ def _vector2(name: str, value: Any) -> np.ndarray:
     return out
 
 
-def _inside(shape: Shape, point: np.ndarray) -> bool:
+def _inside_hull(shape: Shape, point: np.ndarray) -> bool:
+    """Whether ``point`` (2,) lies strictly inside the convex hull of the shape.
+
+    The hull, not the outline: the area centroid (the object frame origin, the default COM) of
+    an L or U shape lies outside its footprint but always inside its hull, and so does the
+    centre of mass of any rigid body resting on that footprint.
+    """
     if isinstance(shape, Ellipse):
         return bool((point[0] / shape.a) ** 2 + (point[1] / shape.b) ** 2 < 1.0)
-    return bool(closest_point_on_polyline(shape.vertices, point)[2] < 0.0)
+    # Facets n . x + d <= 0 inside, with unit outward normals n.
+    facets = ConvexHull(shape.vertices).equations
+    return bool(np.all(facets[:, :2] @ point + facets[:, 2] < 0.0))
 
 
 def _sample_area(shape: Shape, n: int, rng: np.random.Generator) -> np.ndarray:
