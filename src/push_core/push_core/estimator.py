@@ -46,7 +46,10 @@ object with ``symmetry_order`` k (its outline looks the same after a rotation by
 taken modulo 2 pi / k, i.e. the observed orientation closest to the prediction among the k
 equivalent ones. ``symmetry_order`` = 1 means no symmetry; 0 means "detect it from the outline"
 (:func:`symmetry_order_of_polygon`, rotations that map the outline onto itself within
-``symmetry_tolerance``). The update is filterpy's Joseph form with these ``H`` and residual,
+``symmetry_tolerance``). An observation whose orientation variance says "not observed"
+(:func:`push_core.symmetry.orientation_observed`: a continuously symmetric outline such as a
+disc) updates only ``(x, y)``; the orientation then follows the process model from yaw 0 at the
+first frame. The update is filterpy's Joseph form with these ``H`` and residual,
 written out for ``H = [I_3 0]`` (:meth:`PushEKF._update`: the same equations and filterpy
 attributes, without filterpy's generic 7 x 7 products), then symmetrised; ``l`` and ``m`` are
 clipped to physical ranges (``l`` in ``[l_min_fraction * l_0, r_max]`` with ``l_0`` the
@@ -93,6 +96,7 @@ from push_core.geometry import check_points, closest_point_on_polyline
 from push_core.model import ALPHA_MAX, ALPHA_MIN, L_MAX, L_MIN
 from push_core.rollout import CONTACT_TOL, PUSHER_RADIUS
 from push_core.shapes import Polygon
+from push_core.symmetry import orientation_observed, symmetry_order_of_polygon
 
 __all__ = [
     "STATE_LABELS",
@@ -111,8 +115,6 @@ __all__ = [
 #: Names of the state entries, in order.
 STATE_LABELS = ("x", "y", "theta", "c_x", "c_y", "l", "m")
 STATE_SIZE = len(STATE_LABELS)
-#: Largest rotational symmetry order :func:`symmetry_order_of_polygon` reports.
-MAX_SYMMETRY_ORDER = 12
 #: Below this distance (m) of the pusher centre from a vertex, use the segment's normal.
 _VERTEX_EPS = 1e-12
 #: Outlines with at most this many segments are searched in a Python loop, larger ones in numpy.
@@ -352,40 +354,6 @@ def area_second_moment(vertices: ArrayLike) -> NDArray[np.float64]:
                           + 2 * b[:, 0] * b[:, 1])) / 24.0
     area = 0.5 * np.sum(cross)
     return np.array([[sxx, sxy], [sxy, syy]]) / area
-
-
-def symmetry_order_of_polygon(vertices: ArrayLike, tolerance: float = 1e-3,
-                              max_order: int = MAX_SYMMETRY_ORDER) -> int:
-    """Rotational symmetry order of a polygon about its frame's origin.
-
-    Parameters
-    ----------
-    vertices : array_like, shape (P, 2)
-        Closed counter-clockwise polygon, metres, in a frame whose origin is the area centroid
-        (the object frame).
-    tolerance : float
-        Largest distance (m) of a rotated vertex from the outline (and back) for the rotation
-        to count as a symmetry.
-    max_order : int
-        Largest order tested (a disc reports ``max_order``).
-
-    Returns
-    -------
-    int
-        The largest k in ``[1, max_order]`` such that rotating by ``2 pi / k`` maps the outline
-        onto itself; 1 if there is none.
-    """
-    v = Polygon(vertices, field="vertices").vertices
-    if not tolerance > 0.0:
-        raise ValueError(f"tolerance must be > 0, got {tolerance!r}")
-    for k in range(int(max_order), 1, -1):
-        c, s = math.cos(2.0 * math.pi / k), math.sin(2.0 * math.pi / k)
-        rotated = v @ np.array([[c, s], [-s, c]])  # rows R(2 pi / k) v_i
-        there = np.abs(closest_point_on_polyline(v, rotated)[2]).max()
-        back = np.abs(closest_point_on_polyline(rotated, v)[2]).max()
-        if max(there, back) <= tolerance:
-            return k
-    return 1
 
 
 @dataclass(frozen=True)
@@ -976,12 +944,17 @@ class UpdateResult:
         True if the observation failed the gate and re-initialised the pose.
     initialized : bool
         True if this observation initialised the filter (the first one after a reset).
+    orientation_observed : bool
+        False if the observation carried no orientation (its variance was at or above
+        ``push_core.symmetry.UNOBSERVED_THRESHOLD``): only the position was fused, ``nis``
+        has 2 degrees of freedom and the innovation's angle is 0.
     """
 
     innovation: NDArray[np.float64]
     nis: float
     reinitialized: bool = False
     initialized: bool = False
+    orientation_observed: bool = True
 
 
 class PushEKF(ExtendedKalmanFilter):
@@ -1022,6 +995,8 @@ class PushEKF(ExtendedKalmanFilter):
         self.R = cfg.observation_noise
         self._h = np.eye(3, STATE_SIZE)
         self._gate = cfg.gate_threshold
+        self._gate_position = (float(chi2.ppf(cfg.gate_probability, 2))
+                               if cfg.gate_probability < 1.0 else math.inf)
         l0 = self.outline.limit_surface
         self.l_bounds = (cfg.l_min_fraction * l0, max(self.outline.radius, l0))
         self.m_bounds = cfg.m_range
@@ -1201,6 +1176,12 @@ class PushEKF(ExtendedKalmanFilter):
     def update_pose(self, pose: ArrayLike, R: ArrayLike | None = None) -> UpdateResult:  # noqa: N803
         """Fuse one observed pose; initialise the filter if it is the first.
 
+        An orientation variance ``R[2, 2] >= push_core.symmetry.UNOBSERVED_THRESHOLD`` means
+        the orientation was not observed (a continuously symmetric outline,
+        :mod:`push_core.symmetry`): only ``(x, y)`` are fused (gate with 2 degrees of
+        freedom), and a first observation starts the orientation at its value (yaw 0 of the
+        episode frame, by definition) with the configured orientation noise.
+
         Parameters
         ----------
         pose : array_like, shape (3,)
@@ -1221,36 +1202,51 @@ class PushEKF(ExtendedKalmanFilter):
         """
         z = _finite_vector("pose", pose, 3)
         r = self._observation_noise(R)
+        observed = orientation_observed(r[2, 2])
+        if not observed:
+            r = r.copy()
+            r[2, :2] = r[:2, 2] = 0.0
+            if not self.initialized:
+                r[2, 2] = self.config.observation_noise[2, 2]
+        n = 3 if observed else 2
         if not self.initialized:
             self.initialize(z, r)
-            return UpdateResult(innovation=np.zeros(3), nis=0.0, initialized=True)
+            return UpdateResult(innovation=np.zeros(3), nis=0.0, initialized=True,
+                                orientation_observed=observed)
         zc = z[:, None]
         y = self.residual(zc, self.x[0:3])
-        s = self.P[0:3, 0:3] + r
+        if not observed:
+            y[2] = 0.0
+        s = self.P[0:n, 0:n] + r[0:n, 0:n]
         si = np.linalg.inv(s)
-        nis = float(y[:, 0] @ si @ y[:, 0])
-        if nis > self._gate:
-            self._reinitialize_pose(self.x[0:3, 0] + y[:, 0], r)
+        nis = float(y[0:n, 0] @ si @ y[0:n, 0])
+        if nis > (self._gate if observed else self._gate_position):
+            if observed:
+                self._reinitialize_pose(self.x[0:3, 0] + y[:, 0], r)
+            else:
+                self._reinitialize_position(z[:2], r[:2, :2])
             self._before_push = None
-            return UpdateResult(innovation=y[:, 0].copy(), nis=nis, reinitialized=True)
+            return UpdateResult(innovation=y[:, 0].copy(), nis=nis, reinitialized=True,
+                                orientation_observed=observed)
         innovation = y[:, 0].copy()
-        self._update(zc, r, y, s, si)
+        self._update(zc, r, y, s, si, n)
         if self._before_push is not None:
             for _ in range(self.config.iterations - 1):
-                self._iterate(zc, r)
+                self._iterate(zc, r, n)
         self._before_push = None
-        return UpdateResult(innovation=innovation, nis=nis)
+        return UpdateResult(innovation=innovation, nis=nis, orientation_observed=observed)
 
     def _update(self, zc: NDArray[np.float64], r: NDArray[np.float64],
                 y: NDArray[np.float64] | None = None, s: NDArray[np.float64] | None = None,
-                si: NDArray[np.float64] | None = None) -> None:
-        """filterpy's ``update`` (Joseph form) for ``H = [I_3 0]``, symmetrised, parameters
+                si: NDArray[np.float64] | None = None, n: int = 3) -> None:
+        """filterpy's ``update`` (Joseph form) for ``H = [I_n 0]``, symmetrised, parameters
         clipped.
 
         The same equations as :meth:`filterpy.kalman.ExtendedKalmanFilter.update` with this
-        filter's ``H`` (select the pose) and :meth:`residual`, written for it:
+        filter's ``H`` (select the pose, ``n = 3``, or only the position, ``n = 2``, when the
+        orientation is not observed) and :meth:`residual`, written for it:
         ``S = P_pp + R``, ``K = P_:p S^-1``, ``x += K y`` and ``(I - K H) P (I - K H)^T + K R
-        K^T = P - K A^T - A K^T + K S K^T`` with ``A = P H^T = P[:, :3]`` (the Joseph form
+        K^T = P - K A^T - A K^T + K S K^T`` with ``A = P H^T = P[:, :n]`` (the Joseph form
         multiplied out; no 7 x 7 identity products). Sets filterpy's ``y``, ``S``, ``SI``,
         ``K``, ``z``, ``x_post`` and ``P_post`` as its ``update`` does; about ten times faster.
         ``y``, ``s`` and ``si`` may be passed when the caller has them for this ``P``.
@@ -1258,10 +1254,11 @@ class PushEKF(ExtendedKalmanFilter):
         p = self.P
         if y is None:
             y = self.residual(zc, self.x[0:3])
+        y = y[0:n]
         if s is None:
-            s = p[0:3, 0:3] + r
+            s = p[0:n, 0:n] + r[0:n, 0:n]
             si = np.linalg.inv(s)
-        a = p[:, 0:3]
+        a = p[:, 0:n]
         k = a @ si
         ka = k @ a.T
         p = p - ka - ka.T + k @ s @ k.T
@@ -1273,14 +1270,14 @@ class PushEKF(ExtendedKalmanFilter):
         self.x_post = self.x.copy()
         self.P_post = self.P.copy()
 
-    def _iterate(self, zc: NDArray[np.float64], r: NDArray[np.float64]) -> None:
+    def _iterate(self, zc: NDArray[np.float64], r: NDArray[np.float64], n: int = 3) -> None:
         """One more Gauss-Newton step over the last push: re-linearise, predict, update.
 
         The linearisation point is the smoothed pre-push state (Rauch-Tung-Striebel step with
         the current linearisation ``F``), ``x_lin = x_prev + P_prev F^T P_prior^-1 (x_post -
         x_prior)``; the prediction is ``f(x_lin) + F(x_lin) (x_prev - x_lin)`` with covariance
         ``F P_prev F^T + Q``. c, l and m do not change in a push, so their posterior is also
-        the best point to linearise the push at.
+        the best point to linearise the push at. ``n`` as in :meth:`_update`.
         """
         x_prev, p_prev, start, end = self._before_push
         gain = np.linalg.solve(self.P_prior, self.F @ p_prev).T  # P_prev F^T P_prior^-1
@@ -1295,7 +1292,10 @@ class PushEKF(ExtendedKalmanFilter):
         self.P = 0.5 * (self.P + self.P.T)
         self.x_prior, self.P_prior = self.x.copy(), self.P.copy()
         self.last_prediction = pred
-        self._update(zc, r)
+        y = self.residual(zc, self.x[0:3])
+        if n < 3:
+            y[2] = 0.0
+        self._update(zc, r, y, n=n)
 
     def _jacobian_h(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         return self._h
@@ -1309,6 +1309,13 @@ class PushEKF(ExtendedKalmanFilter):
         self.P[0:3, :] = 0.0
         self.P[:, 0:3] = 0.0
         self.P[0:3, 0:3] = r
+
+    def _reinitialize_position(self, xy: NDArray[np.float64], r: NDArray[np.float64]) -> None:
+        """Position from the observation, covariance R, uncorrelated; orientation kept."""
+        self.x[0:2, 0] = xy
+        self.P[0:2, :] = 0.0
+        self.P[:, 0:2] = 0.0
+        self.P[0:2, 0:2] = r
 
     def _clip_parameters(self) -> None:
         x = self.x[:, 0]

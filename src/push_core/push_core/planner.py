@@ -63,6 +63,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from statistics import NormalDist
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -78,12 +79,14 @@ from push_core.geometry import (
 from push_core.model import REPRESENTATIVE_ANGLES_DEG, REPRESENTATIVE_LENGTHS
 from push_core.rollout import PUSHER_RADIUS, SUBSTEP, rollout_push
 from push_core.shapes import Polygon
+from push_core.symmetry import has_continuous_symmetry
 
 __all__ = [
     "APPROACH_MARGIN",
     "AVOID_RADIUS",
     "BASE_ANGLES_DEG",
     "METHODS",
+    "STOP_CONFIDENCE",
     "NoFeasiblePush",
     "Outline",
     "Planner",
@@ -97,8 +100,13 @@ __all__ = [
     "prepare_outline",
     "sample_contacts",
     "softmax_probabilities",
+    "stop_quantile",
 ]
 
+#: Default confidence of the stop rule (:func:`goal_reached`): the goal counts as reached when
+#: the true pose is inside the goal region with at least this probability along the worst
+#: direction.
+STOP_CONFIDENCE = 0.99
 #: Contact-selection methods: analytical / learned affordances, geometric / random baselines.
 METHODS = ("ana", "lrn", "geo", "rdn")
 #: Base push directions of the optimisation, degrees from the inward normal, ascending.
@@ -180,8 +188,21 @@ def desired_motion(pose: ArrayLike, goal: ArrayLike) -> NDArray[np.float64]:
 
 
 def goal_reached(pose: ArrayLike, goal: ArrayLike, tolerance_xy: float,
-                 tolerance_theta: float) -> bool:
-    """Whether the pose is within the goal tolerances (SPEC section 5: 0.75 cm and 5 degrees).
+                 tolerance_theta: float, covariance: ArrayLike | None = None,
+                 confidence: float = STOP_CONFIDENCE, orientation: bool = True) -> bool:
+    """The stop rule: is the goal reached, with confidence (docs/ARCHITECTURE.md, "Stopping")?
+
+    With no covariance this is the goal region of SPEC section 5 (0.75 cm and 5 degrees by
+    default) around the pose. With the estimator's covariance the region is shrunk by ``z``
+    standard deviations, ``z = Phi^-1(confidence)`` (2.33 at the default 0.99)::
+
+        |p - p_goal| + z * sqrt(lambda_max(P_xy)) <= tolerance_xy   and
+        |theta - theta_goal| + z * sigma_theta    <= tolerance_theta
+
+    so that, for a Gaussian estimate, the true position lies beyond the tolerance along the
+    worst direction with probability at most ``1 - confidence`` (likewise the orientation).
+    ``orientation=False`` (the object's orientation cannot be observed,
+    :func:`push_core.symmetry.has_continuous_symmetry`) drops the orientation condition.
 
     Parameters
     ----------
@@ -191,9 +212,42 @@ def goal_reached(pose: ArrayLike, goal: ArrayLike, tolerance_xy: float,
         Largest position error, metres (inclusive).
     tolerance_theta : float
         Largest orientation error, radians (inclusive; the error is wrapped).
+    covariance : array_like, shape (3, 3) or (7, 7), optional
+        Covariance of ``pose`` (m^2, rad^2; the estimator's 7 x 7 state covariance is
+        accepted, its pose block is used). None or zeros: the point rule.
+    confidence : float
+        In ``[0.5, 1)``; 0.5 gives ``z = 0``, the point rule.
+    orientation : bool
+        Whether the orientation counts.
+
+    Raises
+    ------
+    ValueError
+        Naming ``covariance`` (wrong shape, non-finite) or ``confidence``.
     """
     d = desired_motion(pose, goal)
-    return bool(math.hypot(d[0], d[1]) <= tolerance_xy and abs(d[2]) <= tolerance_theta)
+    xy, theta = math.hypot(d[0], d[1]), abs(float(d[2]))
+    margin_xy = margin_theta = 0.0
+    if covariance is not None:
+        z = stop_quantile(confidence)
+        cov = np.asarray(covariance, dtype=np.float64)
+        if cov.shape not in ((3, 3), (7, 7)) or not np.all(np.isfinite(cov)):
+            raise ValueError(f"covariance: expected a finite (3, 3) or (7, 7) matrix, got "
+                             f"shape {cov.shape}")
+        pxy = 0.5 * (cov[0:2, 0:2] + cov[0:2, 0:2].T)
+        margin_xy = z * math.sqrt(max(float(np.linalg.eigvalsh(pxy)[-1]), 0.0))
+        margin_theta = z * math.sqrt(max(float(cov[2, 2]), 0.0))
+    ok_xy = xy + margin_xy <= tolerance_xy
+    return bool(ok_xy and (not orientation or theta + margin_theta <= tolerance_theta))
+
+
+def stop_quantile(confidence: float) -> float:
+    """``z = Phi^-1(confidence)`` of the stop rule (:func:`goal_reached`); ``confidence`` in
+    ``[0.5, 1)``."""
+    c = float(confidence)
+    if not 0.5 <= c < 1.0:
+        raise ValueError(f"confidence: must be in [0.5, 1), got {confidence!r}")
+    return float(NormalDist().inv_cdf(c))
 
 
 def point_scores(affordances: ArrayLike, desired: ArrayLike, lam: float) -> NDArray[np.float64]:
@@ -339,11 +393,16 @@ class Outline:
     polyline : numpy.ndarray, shape (P, 2)
         Closed counter-clockwise polyline for contact search in rollouts and approach checks:
         ``points`` simplified by Douglas-Peucker (``P <= N``).
+    orientation_matters : bool
+        False for a continuously symmetric outline (a disc,
+        :func:`push_core.symmetry.has_continuous_symmetry`): its orientation cannot be
+        observed, so the planner scores and stops on the goal position alone.
     """
 
     points: NDArray[np.float64]
     normals: NDArray[np.float64]
     polyline: NDArray[np.float64]
+    orientation_matters: bool = True
 
 
 def prepare_outline(points: ArrayLike, normals_out: ArrayLike,
@@ -392,7 +451,8 @@ def prepare_outline(points: ArrayLike, normals_out: ArrayLike,
         a.setflags(write=False)
     n = n / norm[:, None]
     n.setflags(write=False)
-    return Outline(points=p, normals=n, polyline=polyline)
+    return Outline(points=p, normals=n, polyline=polyline,
+                   orientation_matters=not has_continuous_symmetry(p))
 
 
 # ------------------------------------------------------------------------------ planner
@@ -431,6 +491,9 @@ class PlannerConfig:
         Douglas-Peucker tolerance of the contact polyline (:func:`prepare_outline`), metres.
     seed : int
         Seed of the planner's random generator, >= 0.
+    stop_confidence : float
+        Confidence of the stop rule (:func:`goal_reached`), in ``[0.5, 1)``; 0.5 stops on the
+        point estimate.
     """
 
     method: str = "ana"
@@ -448,6 +511,7 @@ class PlannerConfig:
     workspace: tuple[tuple[float, float], tuple[float, float]] = ((-0.25, 0.25), (-0.3, 0.3))
     simplify_tolerance: float = 5e-4
     seed: int = 0
+    stop_confidence: float = STOP_CONFIDENCE
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -475,6 +539,12 @@ class PlannerConfig:
                 raise ValueError(f"{name}: must be finite and {'>' if strict else '>='} 0, "
                                  f"got {value!r}")
             object.__setattr__(self, name, value)
+        try:
+            stop_quantile(self.stop_confidence)
+        except (TypeError, ValueError):
+            raise ValueError(f"stop_confidence: must be a number in [0.5, 1), got "
+                             f"{self.stop_confidence!r}") from None
+        object.__setattr__(self, "stop_confidence", float(self.stop_confidence))
         if self.max_push_length < self.min_push_length:
             raise ValueError(f"max_push_length: must be >= min_push_length "
                              f"({self.min_push_length}), got {self.max_push_length}")
@@ -593,10 +663,22 @@ class Planner:
         self._affordances = affordance_model if config.method == "lrn" else analytical_affordances
         self.rng = np.random.default_rng(config.seed)
 
-    def reached(self, pose: ArrayLike, goal: ArrayLike) -> bool:
-        """:func:`goal_reached` with the configured tolerances."""
+    def reached(self, pose: ArrayLike, goal: ArrayLike, covariance: ArrayLike | None = None,
+                outline: Outline | None = None) -> bool:
+        """The stop rule (:func:`goal_reached`) with the configured tolerances and confidence.
+
+        ``covariance``: of the pose estimate ((3, 3) or the estimator's (7, 7); None = exact
+        state). ``outline``: the orientation is ignored when ``outline.orientation_matters``
+        is False (a continuously symmetric object).
+        """
         cfg = self.config
-        return goal_reached(pose, goal, cfg.tolerance_xy, cfg.tolerance_theta)
+        orientation = outline is None or outline.orientation_matters
+        return goal_reached(pose, goal, cfg.tolerance_xy, cfg.tolerance_theta, covariance,
+                            cfg.stop_confidence, orientation)
+
+    def _lam(self, outline: Outline) -> float:
+        """The rotation weight of eq. (5.1): 0 when the orientation does not matter."""
+        return self.config.lam if outline.orientation_matters else 0.0
 
     def plan(self, outline: Outline, state: ArrayLike, goal: ArrayLike,
              avoid: ArrayLike | None = None) -> PushPlan:
@@ -641,8 +723,11 @@ class Planner:
         goal = _vector(goal, 3, "goal")
         pose, com, l, m = state[:3], state[3:5], float(state[5]), float(state[6])  # noqa: E741
         desired = desired_motion(pose, goal)
+        if not outline.orientation_matters:  # a disc: only the position of the goal counts
+            desired[2] = 0.0
         aff = np.asarray(self._affordances(outline.points, outline.normals, com, l, m))
-        scores = point_scores(aff, desired, cfg.lam)
+        lam = self._lam(outline)
+        scores = point_scores(aff, desired, lam)
 
         n = len(outline.points)
         allowed = _allowed_points(outline.points, avoid)
@@ -680,7 +765,7 @@ class Planner:
         return PushPlan(
             approach=approach[0], contact=contact[0], end=end[0], index=index, angle=angle,
             length=length, predicted_pose=options.pose[best].copy(),
-            score=float(options.score[best]), current_score=float(motion_score(desired, cfg.lam)),
+            score=float(options.score[best]), current_score=float(motion_score(desired, lam)),
             scores=scores, probabilities=probabilities, candidates=np.asarray(candidates),
             fallback=fallback, method=cfg.method, direct=cfg.direct)
 
@@ -754,7 +839,7 @@ class Planner:
         ends = approach[:, None, :] + travelled[None, :, None] * direction[:, None, :]
         after = res.poses[:, 1:]  # (B, S, 3)
         residual = np.concatenate([goal[:2] - after[..., :2], goal[2] - after[..., 2:]], -1)
-        score = motion_score(residual, cfg.lam)
+        score = motion_score(residual, self._lam(outline))
         valid = ((lengths >= cfg.min_push_length - 1e-9)[None, :] & self._in_workspace(ends)
                  & self._approach_ok(outline, pose, approach)[:, None])
         score = np.where(valid, score, np.inf)
@@ -776,7 +861,7 @@ class Planner:
         grid = np.linspace(cfg.min_push_length, cfg.max_push_length, max(n_len, 1))  # (G,)
         t = ((grid - l1) / (l5 - l1))[None, None, :, None]
         motion = m1[:, :, None] + t * (m5 - m1)[:, :, None]  # (C, 5, G, 3)
-        score = motion_score(desired - motion, cfg.lam)
+        score = motion_score(desired - motion, self._lam(outline))
         n_c, n_a = len(candidates), len(cols)
         idx = np.repeat(candidates, n_a)
         ang = np.tile(np.radians(np.array(BASE_ANGLES_DEG)), n_c)

@@ -42,6 +42,7 @@ from numpy.typing import ArrayLike, NDArray
 from push_core.geometry import closest_point_on_polyline, object_to_world, wrap_angle
 from push_core.planner import (
     APPROACH_MARGIN,
+    STOP_CONFIDENCE,
     NoFeasiblePush,
     Outline,
     PlannerConfig,
@@ -90,6 +91,8 @@ class PushNetConfig:
         Tolerance of the outline's contact polyline (``Outline.polyline``), metres.
     seed : int
         Seed of the sampler.
+    stop_confidence : float
+        Confidence of the stop rule (:func:`push_core.planner.goal_reached`).
     """
 
     n_samples: int = 1000
@@ -106,11 +109,13 @@ class PushNetConfig:
     workspace: tuple[tuple[float, float], tuple[float, float]] = ((-0.25, 0.25), (-0.3, 0.3))
     simplify_tolerance: float = 5e-4
     seed: int = 0
+    stop_confidence: float = STOP_CONFIDENCE
 
     def __post_init__(self) -> None:
         # The fields shared with the planner are validated (and normalised) by PlannerConfig.
         shared = ("lam", "tolerance_xy", "tolerance_theta", "pusher_radius", "min_push_length",
-                  "max_push_length", "substep", "workspace", "simplify_tolerance", "seed")
+                  "max_push_length", "substep", "workspace", "simplify_tolerance", "seed",
+                  "stop_confidence")
         checked = PlannerConfig(**{name: getattr(self, name) for name in shared})
         for name in shared:
             object.__setattr__(self, name, getattr(checked, name))
@@ -253,10 +258,13 @@ class PushNetPlanner:
         self.config = config
         self.rng = np.random.default_rng(config.seed)
 
-    def reached(self, pose: ArrayLike, goal: ArrayLike) -> bool:
-        """Whether ``pose`` is within the configured goal region of ``goal``."""
+    def reached(self, pose: ArrayLike, goal: ArrayLike, covariance: ArrayLike | None = None,
+                outline: Outline | None = None) -> bool:
+        """The stop rule of :meth:`push_core.planner.Planner.reached` with this config."""
         cfg = self.config
-        return goal_reached(pose, goal, cfg.tolerance_xy, cfg.tolerance_theta)
+        orientation = outline is None or outline.orientation_matters
+        return goal_reached(pose, goal, cfg.tolerance_xy, cfg.tolerance_theta, covariance,
+                            cfg.stop_confidence, orientation)
 
     def plan(self, outline: Outline, state: ArrayLike, goal: ArrayLike) -> PushNetPlan:
         """Sample, predict and score pushes; return the best.
@@ -287,6 +295,7 @@ class PushNetPlanner:
             raise ValueError(f"state: l must be > 0 and m >= 0, got l = {state[5]}, "
                              f"m = {state[6]}")
         pose, com, l, m = state[:3], state[3:5], state[5], state[6]  # noqa: E741
+        lam = cfg.lam if outline.orientation_matters else 0.0  # a disc: position only
         target = subgoal(pose, goal, cfg.subgoal_xy, cfg.subgoal_theta)
         clearance = cfg.pusher_radius + APPROACH_MARGIN + cfg.simplify_tolerance
         start_o, end_o = sample_pushes(outline, cfg.n_samples, self.rng, cfg.start_margin,
@@ -309,14 +318,14 @@ class PushNetPlanner:
         ok = (touched & (approach_len <= MAX_APPROACH_DISTANCE)
               & (travel >= cfg.min_push_length) & (travel <= cfg.max_push_length))
         residual = target - final
-        score = np.where(ok, motion_score(residual, cfg.lam), np.inf)
+        score = np.where(ok, motion_score(residual, lam), np.inf)
         if not np.isfinite(score).any():
             raise NoFeasiblePush("no sampled push touches the object within the push limits")
         best = int(np.argmin(score))
         return PushNetPlan(approach=start[best].copy(), contact=contact[best].copy(),
                            end=end[best].copy(), predicted_pose=final[best].copy(),
                            subgoal=target, score=float(score[best]),
-                           current_score=float(motion_score(target - pose, cfg.lam)),
+                           current_score=float(motion_score(target - pose, lam)),
                            n_valid=int(np.count_nonzero(np.isfinite(score))))
 
 

@@ -34,6 +34,10 @@ Pipeline for one frame (:class:`EpisodeTracker.update`)
    Symmetric objects have several (near-)equal minima: every refined minimum whose cost is
    within ``symmetry_tolerance`` of the best is a candidate, and the one closest to the
    previous frame's angle is reported (the angle is continuous, not wrapped).
+   A continuously symmetric outline (a disc; :func:`push_core.symmetry.has_continuous_symmetry`
+   of the first frame's outline) has no orientation to find: the search is skipped, the
+   orientation stays at the episode frame's 0 and is reported as not observed (variance
+   ``push_core.symmetry.UNOBSERVED_VARIANCE``).
 
 Covariance model (:func:`pose_covariance`)
 ------------------------------------------
@@ -66,6 +70,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import gaussian_filter1d
 
+from push_core.symmetry import UNOBSERVED_VARIANCE, has_continuous_symmetry
+
 __all__ = [
     "NOMINAL_PIXELS",
     "EpisodeTracker",
@@ -84,6 +90,10 @@ __all__ = [
 #: Mask size (pixels with depth) at which the base standard deviations apply: a ~100 cm^2
 #: object near the workspace centre in a 640 x 480 frame.
 NOMINAL_PIXELS = 5000
+#: Points per row and per call of the remap in :meth:`TopDownView.sample_sdf` (OpenCV's maps
+#: must have fewer than 32767 rows and columns).
+_REMAP_WIDTH = 1024
+_REMAP_CHUNK = _REMAP_WIDTH * 16384
 
 
 class PerceptionError(ValueError):
@@ -292,11 +302,22 @@ class TopDownView:
         """Bilinear SDF at world points (..., 2), metres; ``outside`` beyond the grid."""
         res = self.resolution
         shape = points.shape[:-1]
-        flat = points.reshape(-1, 1, 2)
-        map_x = ((flat[..., 0] - self.origin[0]) / res - 0.5).astype(np.float32)
-        map_y = ((flat[..., 1] - self.origin[1]) / res - 0.5).astype(np.float32)
-        out = cv2.remap(self.sdf, map_x, map_y, cv2.INTER_LINEAR,
-                        borderMode=cv2.BORDER_CONSTANT, borderValue=float(outside))
+        flat = points.reshape(-1, 2)
+        map_x = ((flat[:, 0] - self.origin[0]) / res - 0.5).astype(np.float32)
+        map_y = ((flat[:, 1] - self.origin[1]) / res - 0.5).astype(np.float32)
+        out = np.empty(len(flat), dtype=np.float32)
+        # cv2.remap takes maps of fewer than 32767 rows and columns: read the points as rows of
+        # _REMAP_WIDTH, at most _REMAP_CHUNK points per call.
+        for start in range(0, len(flat), _REMAP_CHUNK):
+            mx, my = map_x[start:start + _REMAP_CHUNK], map_y[start:start + _REMAP_CHUNK]
+            n = len(mx)
+            width = min(n, _REMAP_WIDTH)
+            rows = -(-n // width)
+            pad = rows * width - n
+            mx, my = (np.pad(a, (0, pad)).reshape(rows, width) for a in (mx, my))
+            got = cv2.remap(self.sdf, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                            borderValue=float(outside))
+            out[start:start + n] = got.reshape(-1)[:n]
         return out.reshape(shape).astype(np.float64)
 
 
@@ -603,9 +624,13 @@ class Measurement:
     match_cost : float
         Chamfer residual of the rotation search, m (0 on the first frame).
     candidates : int
-        Number of symmetric orientation candidates (1 for an asymmetric match).
+        Number of symmetric orientation candidates (1 for an asymmetric match, 0 when the
+        orientation is not observed).
     is_reference : bool
         True on the first frame of an episode (the outline was computed from it).
+    orientation_observed : bool
+        False for a continuously symmetric outline (:mod:`push_core.symmetry`): ``pose[2]`` is
+        the episode frame's 0 and ``covariance[2, 2]`` is ``UNOBSERVED_VARIANCE``.
     """
 
     pose: NDArray[np.float64]
@@ -616,6 +641,7 @@ class Measurement:
     match_cost: float
     candidates: int
     is_reference: bool
+    orientation_observed: bool = True
 
 
 class EpisodeTracker:
@@ -636,12 +662,19 @@ class EpisodeTracker:
         self._ref_points: NDArray[np.float64] | None = None
         self._outline: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
         self._previous = 0.0
+        self._symmetric = False
 
     @property
     def outline(self) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
         """(points, normals) (K, 2) of the episode's outline in the ``object`` frame (metres,
         counter-clockwise, outward unit normals), or None before the first good frame."""
         return self._outline
+
+    @property
+    def orientation_observable(self) -> bool:
+        """False when the episode's outline is continuously symmetric (a disc): its
+        orientation cannot be seen (:func:`push_core.symmetry.has_continuous_symmetry`)."""
+        return not self._symmetric
 
     @property
     def reference(self) -> TopDownView | None:
@@ -707,15 +740,32 @@ class EpisodeTracker:
             self._ref, self._ref_points = view, pts
             self._outline = (pts - view.centroid, normals)
             self._previous = 0.0
+            self._symmetric = has_continuous_symmetry(self._outline[0])
             cov = pose_covariance(n_valid, fraction, 0.0, 0.0, view.area,
                                   view.radius_of_gyration, cfg)
-            return Measurement(np.array([*view.centroid, 0.0]), cov, n_mask, n_valid,
-                               view.area, 0.0, 1, True)
+            return self._measurement(np.array([*view.centroid, 0.0]), cov, n_mask, n_valid,
+                                     view.area, 0.0, 1, True)
         ref = self._ref
+        mismatch = abs(view.area / ref.area - 1.0)
+        if self._symmetric:  # no orientation to search for (a disc): position only
+            cov = pose_covariance(n_valid, fraction, mismatch, 0.0, ref.area,
+                                  ref.radius_of_gyration, cfg)
+            return self._measurement(np.array([*view.centroid, self._previous]), cov, n_mask,
+                                     n_valid, view.area, 0.0, 0, False)
         rot = rotation_search(ref, self._ref_points, view, pts, self._previous, cfg)
         self._previous = rot.theta
-        mismatch = abs(view.area / ref.area - 1.0)
         cov = pose_covariance(n_valid, fraction, mismatch, rot.cost, ref.area,
                               ref.radius_of_gyration, cfg)
-        return Measurement(np.array([*view.centroid, rot.theta]), cov, n_mask, n_valid,
-                           view.area, rot.cost, len(rot.candidates), False)
+        return self._measurement(np.array([*view.centroid, rot.theta]), cov, n_mask, n_valid,
+                                 view.area, rot.cost, len(rot.candidates), False)
+
+    def _measurement(self, pose: NDArray[np.float64], cov: NDArray[np.float64], n_mask: int,
+                     n_valid: int, area: float, cost: float, candidates: int,
+                     is_reference: bool) -> Measurement:
+        """The frame's Measurement; a continuously symmetric outline reports its orientation
+        as not observed (variance ``UNOBSERVED_VARIANCE``)."""
+        if self._symmetric:
+            cov = cov.copy()
+            cov[2, 2] = UNOBSERVED_VARIANCE
+        return Measurement(pose, cov, n_mask, n_valid, area, cost, candidates, is_reference,
+                           orientation_observed=not self._symmetric)

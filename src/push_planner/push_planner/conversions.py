@@ -166,7 +166,8 @@ def state_from_msg(msg: Float64MultiArray) -> tuple[NDArray[np.float64], NDArray
     ------
     ValueError
         A layout other than dims ``state`` (7) and ``covariance_row_major`` (49), a data length
-        other than 56, or a non-finite state value.
+        other than 56, a non-finite state value, or a covariance that is not finite with a
+        non-negative diagonal.
     """
     dims = [(d.label, d.size) for d in msg.layout.dim]
     expected = [(STATE_LABELS[0], STATE_SIZE), (STATE_LABELS[1], STATE_SIZE ** 2)]
@@ -178,7 +179,10 @@ def state_from_msg(msg: Float64MultiArray) -> tuple[NDArray[np.float64], NDArray
     state = data[:STATE_SIZE].copy()
     if not np.all(np.isfinite(state)):
         raise ValueError(f"state (x, y, theta, c_x, c_y, l, m) = {state.tolist()} is not finite")
-    return state, data[STATE_SIZE:].reshape(STATE_SIZE, STATE_SIZE).copy()
+    cov = data[STATE_SIZE:].reshape(STATE_SIZE, STATE_SIZE).copy()
+    if not np.all(np.isfinite(cov)) or np.any(np.diag(cov) < 0.0):
+        raise ValueError("covariance is not finite with a non-negative diagonal")
+    return state, cov
 
 
 def state_msg(state: ArrayLike, covariance: ArrayLike | None = None) -> Float64MultiArray:

@@ -142,6 +142,8 @@ PAIR_TOLERANCE_XY = 1e-6
 PAIR_TOLERANCE_THETA = 1e-6
 #: Poses and states kept for pairing.
 PAIR_BUFFER = 10
+#: Said in planner/status when the outline is continuously symmetric (push_core.symmetry).
+ORIENTATION_IGNORED = "orientation ignored: rotationally symmetric outline"
 
 
 @dataclass(frozen=True)
@@ -168,6 +170,10 @@ PARAMETERS: tuple[_ParamSpec, ...] = (
                episode=True),
     _ParamSpec("goal_tolerance.theta", math.radians(5.0), "Goal orientation tolerance, rad.",
                (1e-4, math.pi), episode=True),
+    _ParamSpec("goal_tolerance.confidence", 0.99, "Confidence of the stop rule: the goal "
+               "counts as reached when the estimate lies inside the goal region shrunk by "
+               "Phi^-1(confidence) of its standard deviations (0.5 = stop on the point "
+               "estimate).", (0.5, 0.999999), episode=True),
     _ParamSpec("max_steps", 30, "Pushes per episode before it fails.", (1, 100000), episode=True),
     _ParamSpec("push_speed", 0.02, "Pusher speed the plan's pose stamps assume, m/s.",
                (1e-3, 0.5)),
@@ -190,7 +196,8 @@ PARAMETERS: tuple[_ParamSpec, ...] = (
 # PlannerConfig field -> parameter name, for error messages.
 _FIELD_TO_PARAM = {
     "lam": "lambda", "tolerance_xy": "goal_tolerance.xy",
-    "tolerance_theta": "goal_tolerance.theta", "workspace": "workspace.x_min/x_max/y_min/y_max",
+    "tolerance_theta": "goal_tolerance.theta", "stop_confidence": "goal_tolerance.confidence",
+    "workspace": "workspace.x_min/x_max/y_min/y_max",
 }
 
 
@@ -233,6 +240,7 @@ class PlannerNodeParams:
                 k=int(values["k"]), lam=values["lambda"], temperature=values["temperature"],
                 tolerance_xy=values["goal_tolerance.xy"],
                 tolerance_theta=values["goal_tolerance.theta"],
+                stop_confidence=values["goal_tolerance.confidence"],
                 pusher_radius=values["pusher_radius"],
                 approach_clearance=values["approach_clearance"],
                 workspace=((values["workspace.x_min"], values["workspace.x_max"]),
@@ -299,7 +307,7 @@ class PlannerNode(Node):
         self._goal: np.ndarray | None = None
         self._goal_seq = 0
         self._poses: deque[tuple[float, np.ndarray]] = deque(maxlen=PAIR_BUFFER)
-        self._states: deque[np.ndarray] = deque(maxlen=PAIR_BUFFER)
+        self._states: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=PAIR_BUFFER)
         self._counts = {"estimates": 0, "planned": 0, "ignored_stale": 0,
                         "ignored_duplicate": 0, "ignored_busy": 0, "refused": 0}
         self._last_refusal = ""
@@ -342,7 +350,8 @@ class PlannerNode(Node):
         #: last moved (not planned again: Planner.plan(avoid=...)).
         self._in_flight_point: np.ndarray | None = None
         self._avoid: list[np.ndarray] = []
-        self._latest: tuple[float, np.ndarray] | None = None
+        #: (stamp, state (7,), covariance (7, 7)) of the newest estimate.
+        self._latest: tuple[float, np.ndarray, np.ndarray] | None = None
         self._used_stamp = -math.inf
         self._used_goal_seq = -1
         self._note = ""
@@ -428,29 +437,29 @@ class PlannerNode(Node):
 
     def _on_state(self, msg: Float64MultiArray) -> None:
         try:
-            state, _ = state_from_msg(msg)
+            state, covariance = state_from_msg(msg)
         except ValueError as exc:
             self._refuse("estimator/state", str(exc))
             return
-        self._states.append(state)
+        self._states.append((state, covariance))
         self._pair()
 
     def _pair(self) -> None:
         """Pair the newest pose with a state of the same pose; see the module docstring."""
         for i in range(len(self._poses) - 1, -1, -1):
             stamp, pose = self._poses[i]
-            for state in reversed(self._states):
+            for state, covariance in reversed(self._states):
                 if (math.hypot(*(state[:2] - pose[:2])) <= PAIR_TOLERANCE_XY
                         and abs(float(wrap_angle(state[2] - pose[2]))) <= PAIR_TOLERANCE_THETA):
                     for _ in range(i + 1):  # this pose and older ones are done
                         self._poses.popleft()
-                    self._on_estimate(stamp, state)
+                    self._on_estimate(stamp, state, covariance)
                     return
 
-    def _on_estimate(self, stamp: float, state: np.ndarray) -> None:
+    def _on_estimate(self, stamp: float, state: np.ndarray, covariance: np.ndarray) -> None:
         self._counts["estimates"] += 1
         if self._latest is None or stamp >= self._latest[0]:
-            self._latest = (stamp, state.copy())
+            self._latest = (stamp, state.copy(), covariance.copy())
         if stamp < self._last_push_end:
             self._counts["ignored_stale"] += 1
         elif stamp <= self._used_stamp and self._used_goal_seq == self._goal_seq:
@@ -500,13 +509,13 @@ class PlannerNode(Node):
             return
         if self._state in ("reached", "failed") or self._in_flight:
             return
-        stamp, state = self._latest
+        stamp, state, covariance = self._latest
         if stamp < self._last_push_end:
             return
         if stamp <= self._used_stamp and self._used_goal_seq == self._goal_seq:
             return
         self._used_stamp, self._used_goal_seq = stamp, self._goal_seq
-        if self._planner.reached(state[:3], self._goal):
+        if self._planner.reached(state[:3], self._goal, covariance, self._outline):
             self._state, self._note, self._level = "reached", "", DiagnosticStatus.OK
             self.get_logger().info(f"goal reached after {self._step} pushes")
             return
@@ -547,6 +556,8 @@ class PlannerNode(Node):
             message = f"pushing step {self._step}"
         elif self._state == "reached":
             message = "goal reached"
+            if not self._orientation_matters():
+                message += f" ({ORIENTATION_IGNORED})"
         elif self._state == "failed":
             message = self._failure
         else:
@@ -559,9 +570,13 @@ class PlannerNode(Node):
             message += f" - {self._note}"
         goal = "" if self._goal is None else " ".join(f"{v:.4f}" for v in self._goal)
         values = {"state": self._state, "step": self._step, "max_steps": self.params.max_steps,
-                  "goal": goal, **self._counts, "last_refusal": self._last_refusal,
+                  "goal": goal, "orientation": "used" if self._orientation_matters() else
+                  "ignored", **self._counts, "last_refusal": self._last_refusal,
                   "last_push_end": f"{self._last_push_end:.6f}"}
         return status_msg(self.get_fully_qualified_name(), self._level, message, values)
+
+    def _orientation_matters(self) -> bool:
+        return self._outline is None or self._outline.orientation_matters
 
     def _publish_status(self) -> None:
         status = self._status()

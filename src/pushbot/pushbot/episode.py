@@ -16,17 +16,21 @@ docs/ARCHITECTURE.md ("Closed loop and evaluation"). Each cycle:
    random walk of the COM zero), the "without COM estimation" rows of the source's Table 5.2.
 2. **Goal** in the frame of the state source: ``trial.goal(first pose)`` (for ``filter`` the
    first perceived pose, yaw 0 at the first frame; for ``gt`` the true initial pose).
-3. **Stop** when the *state source's* pose is within the region's tolerances (as the source
-   and ``planner_node``: the robot only knows its estimate) or after ``max_steps`` pushes.
+3. **Stop** by the stop rule (``Planner.reached``: the *state source's* pose within the
+   region shrunk by its uncertainty, ``push_core.planner.goal_reached``; as ``planner_node``:
+   the robot only knows its estimate; ``gt`` has no uncertainty) or after ``max_steps``
+   pushes. A continuously symmetric outline (a disc) is stopped and scored on the position
+   alone.
 4. **Plan** with ``push_core.planner.Planner`` (``Trial.planner_kwargs``) or, for ``pushnet``,
    ``push_core.pushnet.PushNetPlanner``; execute in the world. A push the world refuses
    (``ValueError``) counts as a step and moves nothing; until a push is executed, the planner
    avoids the outline points of the refused pushes (``Planner.plan(avoid=...)``; the
    ``pushnet`` baseline draws new random pushes anyway).
 
-Success and end errors always come from ground truth: the true pose against the true initial
-pose plus ``trial.goal_offset()``; the orientation error is taken modulo the object's rotational
-symmetry (``2 pi / k`` for a k-fold symmetric outline, e.g. hex k = 6).
+Success and end errors always come from ground truth (:func:`end_score`): the true pose
+against the true initial pose plus ``trial.goal_offset()``; the orientation error is taken
+modulo the object's rotational symmetry (``2 pi / k`` for a k-fold symmetric outline, e.g. hex
+k = 6) and not counted for a continuously symmetric one (``orientation_ignored``).
 
 ``poses_est`` are in the state source's frame (``filter``: yaw since the first frame, world
 axes at that frame; add the true initial yaw to compare with ``poses_true``). ``com_error``
@@ -47,13 +51,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from push_core.estimator import EKFConfig, PushEKF, symmetry_order_of_polygon
+from push_core.estimator import EKFConfig, PushEKF
 from push_core.geometry import rot2, wrap_angle
 from push_core.planner import NoFeasiblePush, Planner, PlannerConfig, prepare_outline
 from push_core.pushnet import PushNetConfig, PushNetPlanner
+from push_core.symmetry import has_continuous_symmetry, symmetry_order_of_polygon
 from pushbot.protocol import Trial
 
-__all__ = ["EpisodeRunner", "run_trial", "true_errors"]
+__all__ = ["EpisodeRunner", "end_score", "run_trial", "true_errors"]
 
 #: Outline sampling of the ground-truth state source, metres (what perception delivers).
 GT_OUTLINE_SPACING = 0.002
@@ -70,6 +75,26 @@ def true_errors(pose: NDArray[np.float64], goal: NDArray[np.float64], order: int
     d = float(wrap_angle(goal[2] - pose[2]))
     d -= period * round(d / period)
     return dxy, abs(d)
+
+
+def end_score(polyline: NDArray[np.float64], end_true: NDArray[np.float64],
+              goal_true: NDArray[np.float64], tolerances: tuple[float, float]
+              ) -> dict[str, Any]:
+    """Success and true end errors of an episode (the record's scoring, one rule for the
+    in-process and the graph runs).
+
+    ``polyline``: the true object's outline (object frame). The orientation error is taken
+    modulo the outline's k-fold symmetry; for a continuously symmetric outline (a disc,
+    :func:`push_core.symmetry.has_continuous_symmetry`) it is reported but not counted
+    (``orientation_ignored``). Returns ``end_error_xy`` (m), ``end_error_theta`` (rad),
+    ``success`` and ``orientation_ignored``.
+    """
+    ignored = has_continuous_symmetry(polyline)
+    exy, eth = true_errors(end_true, goal_true, symmetry_order_of_polygon(polyline))
+    tol_xy, tol_theta = tolerances
+    return {"end_error_xy": exy, "end_error_theta": eth,
+            "success": bool(exy <= tol_xy and (ignored or eth <= tol_theta)),
+            "orientation_ignored": ignored}
 
 
 class EpisodeRunner:
@@ -161,16 +186,17 @@ class EpisodeRunner:
             state = source.first()
         except _NoPose as exc:
             rec["reason"] = f"perception failed on the first frame: {exc}"
-            return self._finish(rec, world, goal_true, order, t_start)
+            return self._finish(rec, world, goal_true, t_start)
         goal = trial.goal(state[:3])
         planner = self._planner(trial, world)
         outline = source.outline(planner)
+        rec["orientation_used"] = bool(outline.orientation_matters)  # the system's view
         rec["poses_true"].append(pose0_true.tolist())
         rec["poses_est"].append(state[:3].tolist())
         refused_at: list[Any] = []  # outline points of refused pushes since the object moved
         avoids = isinstance(planner, Planner)  # the pushnet baseline draws new pushes anyway
         while True:
-            if planner.reached(state[:3], goal):
+            if planner.reached(state[:3], goal, source.covariance(), outline):
                 rec["reason"] = "goal reached"
                 break
             if rec["steps"] >= trial.max_steps:
@@ -200,7 +226,7 @@ class EpisodeRunner:
             rec["poses_est"].append(state[:3].tolist())
         rec["perception_failures"] = source.failures
         rec["com_error"] = source.com_error(pose0_true[2], order)
-        return self._finish(rec, world, goal_true, order, t_start)
+        return self._finish(rec, world, goal_true, t_start)
 
     def _ekf_config(self, trial: Trial) -> EKFConfig:
         if trial.estimate_com:
@@ -208,12 +234,10 @@ class EpisodeRunner:
         return replace(self.ekf_config, com_prior_fraction=PINNED_COM_PRIOR, com_noise=0.0)
 
     @staticmethod
-    def _finish(rec: dict[str, Any], world: Any, goal_true: NDArray[np.float64], order: int,
+    def _finish(rec: dict[str, Any], world: Any, goal_true: NDArray[np.float64],
                 t_start: float) -> dict[str, Any]:
-        exy, eth = true_errors(world.object_pose(), goal_true, order)
-        tol_xy, tol_theta = Trial(**rec["trial"]).tolerances
-        rec["end_error_xy"], rec["end_error_theta"] = exy, eth
-        rec["success"] = bool(exy <= tol_xy and eth <= tol_theta)
+        rec.update(end_score(world.object_spec.polyline(), world.object_pose(), goal_true,
+                             Trial(**rec["trial"]).tolerances))
         rec["wall_s"] = time.perf_counter() - t_start
         return rec
 
@@ -247,6 +271,9 @@ class _GroundTruth:
 
     def after(self, result: Any) -> NDArray[np.float64]:
         return self._state()
+
+    def covariance(self) -> NDArray[np.float64] | None:
+        return None  # the exact state
 
     def com_error(self, theta0: float, order: int) -> float | None:
         return None
@@ -296,6 +323,10 @@ class _Filter:
             return self.ekf.state
         self.ekf.update_pose(meas.pose, meas.covariance)
         return self.ekf.state
+
+    def covariance(self) -> NDArray[np.float64] | None:
+        assert self.ekf is not None
+        return self.ekf.covariance
 
     def com_error(self, theta0: float, order: int) -> float | None:
         """|c_est - c_true| in the EKF's frame (module docstring), metres."""

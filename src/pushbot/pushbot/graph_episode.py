@@ -24,7 +24,7 @@ this process drives the episodes only through the nodes' public interfaces:
    pose at the stamp of each frame the pipeline saw), estimates from
    ``estimator/object_pose``, pushes from ``planner/push``; success from the *true* pose
    against the true initial pose plus the offset, orientation modulo the object's symmetry
-   (:func:`pushbot.episode.true_errors`); ``com_error`` from ``estimator/center_of_mass``
+   (:func:`pushbot.episode.end_score`); ``com_error`` from ``estimator/center_of_mass``
    against the true COM (parsed from the bridge's reset message, 0.1 mm resolution) turned into
    the episode frame. ``planning_ms`` is empty (planning happens inside ``planner_node``);
    ``step_latency_ms`` holds, per step, the wall time from ``pusher/executed`` to the next
@@ -560,13 +560,14 @@ class GraphRunner:
             next((st for st, _ in self.rec.est if st >= t1), t1) for _, _, t1 in executed]
         rec["step_latency_ms"] = _latencies(executed, pushes)
         end_true = self._true_after(executed[-1][2]) if executed else pose0_true
-        order = _symmetry_order(trial.object)
-        from pushbot.episode import true_errors
+        from push_core.objects import load_object
+        from push_core.symmetry import symmetry_order_of_polygon
+        from pushbot.episode import end_score
 
-        exy, eth = true_errors(end_true, pose0_true + trial.goal_offset(), order)
-        tol_xy, tol_theta = trial.tolerances
-        rec["end_error_xy"], rec["end_error_theta"] = exy, eth
-        rec["success"] = bool(exy <= tol_xy and eth <= tol_theta)
+        polyline = load_object(trial.object).polyline()
+        order = symmetry_order_of_polygon(polyline)
+        rec.update(end_score(polyline, end_true, pose0_true + trial.goal_offset(),
+                             trial.tolerances))
         rec["com_error"] = self._com_error(pose0_true, end_true, order)
         rec["goal"] = goal.tolist()
         rec["com_true"] = None if self._com_true is None else self._com_true.tolist()
@@ -724,13 +725,6 @@ def _latencies(executed: list[tuple[float, float, float]],
         if following:
             out.append(1e3 * (following[0] - t_exec))
     return out
-
-
-def _symmetry_order(obj: str) -> int:
-    from push_core.estimator import symmetry_order_of_polygon
-    from push_core.objects import load_object
-
-    return int(symmetry_order_of_polygon(load_object(obj).polyline()))
 
 
 def check_trial(trial: Trial) -> None:
