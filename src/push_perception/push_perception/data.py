@@ -23,11 +23,12 @@ Scenes
 ------
 Objects: the MIT pushing-dataset objects *except* the held-out test objects
 ``push_core.objects.TEST_OBJECTS`` (tri1, butter, hex), and procedurally generated shapes
-(``random_shape``): convex polygons, ellipses, star-shaped (non-convex) polygons, L/T-shaped
-polygons and smooth blobs (radial Fourier series, butter-like waists), 5-18 cm across,
-5-25 mm thick. Each scene is one :class:`~sim_bridge.world.WorldConfig` with a fresh seed
-(random mass/COM/friction, random colours and lighting for most scenes, camera pose jitter,
-depth noise in half of them, a varied viewpoint in some); ``poses_per_scene`` frames are
+(``random_shape``, i.e. :func:`push_core.procedural.training_shape`): convex polygons,
+ellipses, star-shaped (non-convex) polygons, L/T-shaped polygons and smooth blobs (radial
+Fourier series, butter-like waists), 5-18 cm across, 5-25 mm thick. Each scene is one
+:class:`~sim_bridge.world.WorldConfig` with a fresh seed (random mass/COM/friction, random
+colours and lighting for most scenes, camera pose jitter, depth noise in half of them, a
+varied viewpoint in some); ``poses_per_scene`` frames are
 rendered per scene with the object teleported to random poses. In a fraction of the frames
 the pusher stands near the object (touching it up to 3 cm away, sometimes raised), elsewhere
 in the workspace, or the object is out of view (empty mask).
@@ -64,7 +65,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from push_core.geometry import closest_point_on_polyline, object_to_world
-from push_core.objects import TEST_OBJECTS, ObjectSpec, library_names, object_from_dict
+from push_core.objects import TEST_OBJECTS, ObjectSpec, library_names
+from push_core.procedural import TRAINING_KINDS, training_shape
 
 __all__ = [
     "DEPTH_UNIT",
@@ -216,105 +218,17 @@ def decode_depth(encoded: NDArray[np.uint16]) -> NDArray[np.float32]:
 # --------------------------------------------------------------------------------------------
 # Procedural shapes
 # --------------------------------------------------------------------------------------------
-SHAPE_KINDS = ("convex", "ellipse", "star", "blob", "ell")
+SHAPE_KINDS = TRAINING_KINDS
 
 
 def random_shape(rng: np.random.Generator, kind: str | None = None) -> dict[str, Any]:
     """A random object specification (the dict of an object specification file).
 
-    Parameters
-    ----------
-    rng : numpy.random.Generator
-    kind : {"convex", "ellipse", "star", "blob", "ell"}, optional
-        Shape family; drawn uniformly when None. ``star``: star-shaped polygon with 5-12
-        vertices, every other one pulled inward (non-convex); ``blob``: 72-vertex smooth
-        outline from a random radial Fourier series (waists like butter's); ``ell``: L- or
-        T-shaped polygon.
-
-    Returns
-    -------
-    dict
-        ``{"shape": ..., "thickness": ..., "density": ...}``, metres and kg/m^3, valid for
-        :func:`push_core.objects.object_from_dict` (validated here; retried until valid).
+    This is :func:`push_core.procedural.training_shape` (families ``kind`` in
+    :data:`SHAPE_KINDS`, drawn uniformly when None; sizes; validation), which holds the shape
+    code and keeps the draws with which the training data were generated.
     """
-    kind = str(rng.choice(SHAPE_KINDS)) if kind is None else kind
-    if kind not in SHAPE_KINDS:
-        raise ValueError(f"kind: expected one of {SHAPE_KINDS}, got {kind!r}")
-    thickness = float(rng.uniform(0.005, 0.025))
-    density = float(rng.uniform(1000.0, 8000.0))
-    for _ in range(100):
-        size = float(rng.uniform(0.05, 0.18))  # overall extent, m
-        if kind == "ellipse":
-            a = size / 2
-            shape: dict[str, Any] = {"type": "ellipse",
-                                     "semi_axes": [a, a * float(rng.uniform(0.45, 1.0))]}
-        else:
-            shape = {"type": "polygon", "vertices": _random_polygon(rng, kind, size).tolist()}
-        spec = {"shape": shape, "thickness": thickness, "density": density}
-        try:
-            object_from_dict(spec, name="candidate")
-        except ValueError:
-            continue
-        return spec
-    raise RuntimeError(f"could not draw a valid {kind} shape in 100 tries")  # pragma: no cover
-
-
-def _random_polygon(rng: np.random.Generator, kind: str, size: float) -> NDArray[np.float64]:
-    if kind == "convex":
-        n = int(rng.integers(3, 9))
-        angles = np.sort(rng.uniform(0, 2 * np.pi, n))
-        pts = np.stack([np.cos(angles), np.sin(angles)], axis=1) * rng.uniform(0.6, 1.0, (n, 1))
-        pts *= np.array([1.0, rng.uniform(0.5, 1.0)])
-        hull = _convex_hull(pts)
-        return _scaled(hull, size)
-    if kind == "star":
-        n = int(rng.integers(5, 13))
-        # Evenly spread angles with a little jitter: neighbours stay apart (no slivers).
-        angles = np.linspace(0, 2 * np.pi, n, endpoint=False) + rng.uniform(-0.3, 0.3, n) / n
-        radii = rng.uniform(0.75, 1.0, n)
-        radii[1::2] = rng.uniform(0.35, 0.75, n // 2)  # every other vertex inward: reflex
-        return _scaled(np.stack([np.cos(angles), np.sin(angles)], axis=1) * radii[:, None], size)
-    if kind == "blob":
-        phi = np.linspace(0, 2 * np.pi, 72, endpoint=False)
-        r = np.ones_like(phi)
-        for k in range(2, 5):
-            r += rng.uniform(0.0, 0.22 / (k - 1)) * np.cos(k * phi + rng.uniform(0, 2 * np.pi))
-        pts = np.stack([np.cos(phi), np.sin(phi)], axis=1) * r[:, None]
-        pts *= np.array([1.0, rng.uniform(0.55, 1.0)])
-        return _scaled(pts, size)
-    # L or T shape from a bar and a stem, counter-clockwise.
-    w1, w2 = rng.uniform(0.25, 0.45), rng.uniform(0.25, 0.45)
-    if rng.random() < 0.5:  # L
-        pts = np.array([[0, 0], [1, 0], [1, w1], [w2, w1], [w2, 1], [0, 1]], dtype=float)
-    else:  # T
-        a, b = 0.5 - w2 / 2, 0.5 + w2 / 2
-        pts = np.array([[a, 0], [b, 0], [b, 1 - w1], [1, 1 - w1], [1, 1], [0, 1], [0, 1 - w1],
-                        [a, 1 - w1]], dtype=float)
-    pts[:, 1] *= rng.uniform(0.6, 1.2)
-    return _scaled(pts - pts.mean(axis=0), size)
-
-
-def _scaled(pts: NDArray[np.float64], size: float) -> NDArray[np.float64]:
-    extent = float(np.max(np.ptp(pts, axis=0)))
-    return pts * (size / extent)
-
-
-def _convex_hull(pts: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Counter-clockwise convex hull (Andrew's monotone chain)."""
-    order = np.lexsort((pts[:, 1], pts[:, 0]))
-    p = pts[order]
-
-    def half(points: NDArray[np.float64]) -> list[NDArray[np.float64]]:
-        out: list[NDArray[np.float64]] = []
-        for q in points:
-            while len(out) >= 2 and ((out[-1][0] - out[-2][0]) * (q[1] - out[-2][1])
-                                     - (out[-1][1] - out[-2][1]) * (q[0] - out[-2][0])) <= 0:
-                out.pop()
-            out.append(q)
-        return out
-
-    lower, upper = half(p), half(p[::-1])
-    return np.array(lower[:-1] + upper[:-1])
+    return training_shape(rng, kind)
 
 
 # --------------------------------------------------------------------------------------------
