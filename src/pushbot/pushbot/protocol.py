@@ -21,7 +21,9 @@ Definitions (docs/ARCHITECTURE.md, "Closed loop and evaluation"):
   ``medium`` 2.5 cm / 7.5 deg, ``large`` 5 cm / 10 deg.
 - Physics: every trial randomises mass and frictions from its seed (``WorldConfig.randomize``);
   ``com="centre"`` overrides the COM with the geometric centre, ``com="random"`` keeps the
-  randomised COM (uniform over the outline shrunk by 30 %).
+  randomised COM (uniform over the outline shrunk by 30 %), ``com="spec"`` overrides it with the
+  object specification's ``com_offset`` (objects whose COM is part of their definition, such as
+  the shape benchmark's ``com_edge`` class; mass and frictions stay randomised).
 - Methods: ``ana``, ``lrn``, ``geo``, ``rdn`` (planner contact selection), ``ana-direct``,
   ``lrn-direct`` (affordances with linear length rescaling instead of rollouts) and
   ``pushnet`` (the Push-Net-style sampling baseline).
@@ -77,7 +79,7 @@ METHODS: dict[str, tuple[str, bool]] = {
 }
 
 STATE_SOURCES = ("gt", "filter")
-COM_MODES = ("centre", "random")
+COM_MODES = ("centre", "random", "spec")
 
 #: initial orientations per run (SPEC §5: 20 steps over 0-360 deg)
 ORIENTATIONS = 20
@@ -105,7 +107,7 @@ class Trial:
     state : str
         ``gt`` | ``filter``.
     com : str
-        ``centre`` | ``random``.
+        ``centre`` | ``random`` | ``spec`` (module docstring).
     region : str
         ``small`` | ``medium`` | ``large``.
     index : int
@@ -209,6 +211,10 @@ class Trial:
         }
         if self.com == "centre":
             kwargs["com_offset"] = (0.0, 0.0)
+        elif self.com == "spec":
+            from push_core.objects import load_object
+
+            kwargs["com_offset"] = tuple(float(v) for v in load_object(self.object).com)
         return kwargs
 
     def planner_kwargs(self) -> dict[str, Any]:
