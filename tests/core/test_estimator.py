@@ -636,3 +636,33 @@ def test_filter_rejects_bad_inputs(call: object, match: str) -> None:
 def test_bad_config_raises_naming_the_field(kwargs: dict, match: str) -> None:
     with pytest.raises(ValueError, match=match):
         EKFConfig(**kwargs)
+
+
+def test_unobserved_orientation_fuses_the_position_only() -> None:
+    # A yaw variance of 1e6 rad^2 (push_core.symmetry.UNOBSERVED_VARIANCE, a disc) means "not
+    # observed": the first observation starts yaw at its value with the configured noise, a
+    # later one updates x and y like a 2-D Kalman update and leaves theta alone.
+    ekf = square_ekf()
+    cfg = ekf.config
+    r = np.diag([1e-6, 1e-6, 1e6])
+    first = ekf.update_pose([0.0, 0.0, 0.0], r)
+    assert first.initialized and not first.orientation_observed
+    assert ekf.covariance[2, 2] == pytest.approx(cfg.angle_sigma**2)
+    ekf.predict_push([-0.05, 0.0], [-0.02, 0.001])
+    x_prior, p_prior = ekf.state, ekf.covariance
+    result = ekf.update_pose([x_prior[0] + 1e-3, x_prior[1], 2.5], r)
+    assert not result.orientation_observed and not result.reinitialized
+    assert result.innovation[2] == 0.0
+    # one iteration of the update = the closed-form 2-D update on the prior (iterations = 1)
+    ekf1 = square_ekf(iterations=1)
+    ekf1.update_pose([0.0, 0.0, 0.0], r)
+    ekf1.predict_push([-0.05, 0.0], [-0.02, 0.001])
+    x0, p0 = ekf1.state, ekf1.covariance
+    ekf1.update_pose([x0[0] + 1e-3, x0[1], 2.5], r)
+    gain = p0[:, :2] @ np.linalg.inv(p0[:2, :2] + r[:2, :2])
+    expected = x0 + gain @ np.array([1e-3, 0.0])
+    expected[3:5] = ekf1.state[3:5]  # the COM is clipped to the hull afterwards
+    np.testing.assert_allclose(ekf1.state[[0, 1, 2, 5, 6]], expected[[0, 1, 2, 5, 6]],
+                               atol=1e-12)
+    assert abs(ekf.state[2] - x_prior[2]) < 0.5  # the observed 2.5 rad was not fused
+    assert ekf.covariance[0, 0] < p_prior[0, 0]

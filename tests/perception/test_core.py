@@ -174,6 +174,36 @@ def test_symmetric_object_orientation_stays_continuous(make_frame) -> None:
     np.testing.assert_allclose(np.degrees(out), np.degrees(truth), atol=1.0)
 
 
+def test_disc_orientation_is_reported_as_not_observed(make_frame) -> None:
+    # ellip1 (a disc of 52.5 mm) crashed the rotation search (cv2.remap SHRT_MAX) and had no
+    # orientation to find: it is reported with the unobserved variance, the position still
+    # measured to sub-millimetre accuracy.
+    disc = load_object("ellip1").polyline()
+    tracker = EpisodeTracker()
+    for k, pose in enumerate(([0.0, 0.0, 0.0], [0.03, -0.02, 0.7], [-0.04, 0.01, 2.0])):
+        f = make_frame(disc, np.array(pose))
+        meas = tracker.update(f.mask, f.depth, f.camera_matrix, f.T_world_camera)
+        assert not meas.orientation_observed and not tracker.orientation_observable
+        assert meas.covariance[2, 2] == 1e6 and meas.pose[2] == 0.0
+        assert meas.covariance[0, 0] < 1e-6
+        assert math.hypot(*(meas.pose[:2] - pose[:2])) < 1e-3, k
+
+
+def test_sample_sdf_reads_more_points_than_one_remap_takes(make_frame) -> None:
+    # One cv2.remap call takes fewer than 32767 rows: 100 000 points at once give the
+    # same values as point by point.
+    f = make_frame(LOPSIDED, np.array([0.0, 0.0, 0.3]))
+    tracker = EpisodeTracker()
+    tracker.update(f.mask, f.depth, f.camera_matrix, f.T_world_camera)
+    view = tracker.reference
+    rng = np.random.default_rng(0)
+    pts = view.centroid + rng.uniform(-0.08, 0.08, (50_000, 2, 2))
+    got = view.sample_sdf(pts, 0.005)
+    assert got.shape == (50_000, 2)
+    few = np.array([view.sample_sdf(pts[i], 0.005) for i in (0, 12_345, 49_999)])
+    np.testing.assert_array_equal(got[[0, 12_345, 49_999]], few)
+
+
 # --------------------------------------------------------------------------------------------
 # The tracker
 # --------------------------------------------------------------------------------------------

@@ -58,9 +58,12 @@ that is
    as soon as the push is reported, if it satisfies 1-2 then,
 
 and only while an outline and a goal are known and the episode is running. Before planning,
-the goal check: within ``goal_tolerance`` -> ``goal reached``; ``max_steps`` pushes sent ->
-``failed after max steps``. A new goal re-opens the newest estimate once (the same pose, a new
-question; it is still fresh: nothing has moved since). A push that is not reported within
+the goal check, the stop rule of :func:`push_core.planner.goal_reached`: the estimate within
+``goal_tolerance`` shrunk by ``Phi^-1(goal_tolerance.confidence)`` standard deviations of the
+``estimator/state`` pose covariance -> ``goal reached`` (orientation ignored for a continuously
+symmetric outline, :mod:`push_core.symmetry`, which the status says); ``max_steps`` pushes
+sent -> ``failed after max steps``. A new goal re-opens the newest estimate once (the same
+pose, a new question; it is still fresh: nothing has moved since). A push not reported within
 ``push_timeout`` seconds (wall time; e.g. the robot refused it) counts as a step; the node then
 plans again from the newest fresh estimate (nothing has moved, so it is not stale), avoiding
 the outline points of the lost pushes (``Planner.plan(avoid=...)``, within ``AVOID_RADIUS``)
@@ -76,9 +79,9 @@ Parameters (declared once below with descriptors; documented with defaults and u
 :class:`~push_core.planner.PlannerConfig`, so a bad value fails start-up with a message naming
 the parameter). Episode parameters, settable and applied on the next ``~/reset``: ``method``,
 ``direct``, ``k``, ``lambda``, ``temperature``, ``goal_tolerance.xy``,
-``goal_tolerance.theta``, ``max_steps``, ``seed``. Read-only: ``push_speed``,
-``approach_clearance``, ``pusher_radius``, ``workspace.{x_min,x_max,y_min,y_max}``,
-``push_timeout``, ``lrn_weights``.
+``goal_tolerance.theta``, ``goal_tolerance.confidence``, ``max_steps``, ``seed``. Read-only:
+``push_speed``, ``approach_clearance``, ``pusher_radius``,
+``workspace.{x_min,x_max,y_min,y_max}``, ``push_timeout``, ``lrn_weights``.
 
 Frames: ``world`` (table, z up), ``object`` (outline). Time: ``use_sim_time`` (the node's
 clock stamps the plans; estimates and pushes carry their own stamps, which is all the

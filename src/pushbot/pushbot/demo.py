@@ -146,7 +146,9 @@ def _summary(rec: dict[str, Any], trial: Trial, wall: float, files: list[Path | 
           f'({"success" if rec["success"] else "FAILURE"} by ground truth)')
     print(f'true end-pose error: {1e3 * rec["end_error_xy"]:.1f} mm, '
           f'{math.degrees(rec["end_error_theta"]):.1f} deg (goal region {1e3 * tol_xy:.1f} mm, '
-          f'{math.degrees(tol_theta):.1f} deg)')
+          f'{math.degrees(tol_theta):.1f} deg)'
+          + (' - orientation ignored: rotationally symmetric object'
+             if rec.get('orientation_ignored') else ''))
     est, true = rec.get('com_est'), rec.get('com_true_episode')
     if est is not None and true is not None:
         print(f'centre of mass (object frame, mm): estimated ({1e3 * est[0]:.1f}, '
