@@ -86,6 +86,25 @@ def test_one_episode_reaches_the_goal(graph: GraphRunner) -> None:
     assert len(rec["step_latency_ms"]) <= rec["steps"] - 1  # a refused push has no latency
 
 
+def test_a_disc_is_pushed_to_its_goal_position_with_its_orientation_ignored(
+        graph: GraphRunner) -> None:
+    # ellip1 is a disc: perception reports no orientation, the EKF fuses the position, the
+    # planner scores and stops on the position and says so, the record scores the position.
+    trial = Trial(object="ellip1", task="mixed", method="ana", k=3, state="filter",
+                  com="centre", index=3, seed=0)
+    n_status = len(graph.rec.status)
+    rec = graph.run(trial)
+    assert rec["orientation_ignored"] is True
+    assert rec["reason"] in ("goal reached", "max steps", "no feasible push"), rec["reason"]
+    assert rec["success"] == (rec["end_error_xy"] <= trial.tolerances[0])
+    messages = [s["_message"] for s in graph.rec.status[n_status:]]
+    assert all(s.get("orientation") == "ignored" for s in graph.rec.status[n_status:]
+               if s.get("state") in ("pushing", "reached")), messages
+    if rec["reason"] == "goal reached":
+        assert ("goal reached (orientation ignored: rotationally symmetric outline)"
+                in messages), messages
+
+
 def test_consecutive_trials_on_one_graph(graph: GraphRunner) -> None:
     # A different object, orientation and goal right after another episode: the resets must
     # give a fresh reference frame, estimate and goal.

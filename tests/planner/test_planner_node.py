@@ -78,7 +78,8 @@ class Harness:
         self.pubs["goal"].publish(msg)
 
     def publish_estimate(self, pose: tuple[float, float, float], stamp: float,
-                         state_first: bool = True, state: list[float] | None = None) -> None:
+                         state_first: bool = True, state: list[float] | None = None,
+                         covariance: np.ndarray | None = None) -> None:
         x, y, theta = pose
         pose_msg = PoseWithCovarianceStamped()
         pose_msg.header.frame_id = "world"
@@ -87,7 +88,7 @@ class Harness:
         pose_msg.pose.pose.orientation.z = math.sin(theta / 2)
         pose_msg.pose.pose.orientation.w = math.cos(theta / 2)
         values = state if state is not None else [x, y, theta, 0.0, 0.0, L_GUESS, 0.25]
-        s_msg = state_msg(values)
+        s_msg = state_msg(values, covariance)
         first, second = (("state", s_msg), ("pose", pose_msg)) if state_first else (
             ("pose", pose_msg), ("state", s_msg))
         self.pubs[first[0]].publish(first[1])
@@ -165,6 +166,37 @@ def check_push(path: Path, pose: tuple[float, float, float]) -> np.ndarray:
     assert stamps[0] < stamps[1] < stamps[2]  # reached in order at push_speed
     assert (stamps[2] - stamps[0]) == pytest.approx(np.linalg.norm(e - a) / 0.02, rel=1e-6)
     return pts
+
+
+def test_stop_rule_uses_the_covariance_and_ignores_a_discs_orientation(harness: Harness
+                                                                        ) -> None:
+    h = harness
+    h.publish_outline(*rect1_outline())
+    h.publish_goal(0.005, 0.0, 0.0)  # 5 mm away: inside the 7.5 mm region
+    assert h.spin_until(lambda: h.status[-1].message == "waiting for estimate")
+    # sigma 2 mm: 5 + 2.33 * 2 > 7.5 mm, not confidently there: push
+    h.publish_estimate((0.0, 0.0, 0.0), stamp=10.0,
+                       covariance=np.diag([4e-6, 4e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6]))
+    assert h.spin_until(lambda: len(h.pushes) == 1)
+    assert h.spin_until(lambda: h.status[-1].message == "pushing step 1")
+    # sigma 0.5 mm, same pose: 5 + 1.16 <= 7.5 mm, reached
+    h.publish_executed(11.0, 12.0)
+    h.publish_estimate((0.0, 0.0, 0.0), stamp=13.0,
+                       covariance=np.diag([2.5e-7, 2.5e-7, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6]))
+    assert h.spin_until(lambda: h.status[-1].message == "goal reached")
+    assert h.values()["orientation"] == "used" and len(h.pushes) == 1
+    # A disc's outline: a goal 1 rad away at the same position is reached at once.
+    h.publish_outline(*load_object("ellip1").outline(0.002))
+    assert h.spin_until(lambda: h.values().get("orientation") == "ignored")
+    h.publish_goal(0.0, 0.0, 1.0)
+    assert h.spin_until(lambda: h.status[-1].message.startswith("goal reached ("))
+    assert h.status[-1].message == ("goal reached (orientation ignored: rotationally "
+                                    "symmetric outline)")
+    assert len(h.pushes) == 1
+    # A covariance with NaN is refused with a reason, the node keeps running.
+    bad = np.full((7, 7), np.nan)
+    h.publish_estimate((0.0, 0.0, 0.0), stamp=14.0, covariance=bad)
+    assert h.spin_until(lambda: "covariance" in h.values().get("last_refusal", ""))
 
 
 def test_plans_once_per_fresh_estimate(harness: Harness) -> None:

@@ -541,6 +541,7 @@ class GraphRunner:
                                     len(self.rec.status))
         goal_text = self._publish_goal(goal)
         status = self._wait_end(goal_text, n_status, trial)
+        self._wait_recorded(status, n_push, n_exec)
         pushes = self.rec.pushes[n_push:]
         executed = [e for e in self.rec.executed[n_exec:] if e[1] >= first_stamp]
         rec["steps"] = int(status.get("step", len(pushes)))
@@ -679,6 +680,29 @@ class GraphRunner:
 
         limit = STEP_TIMEOUT * (trial.max_steps + 2)
         return self.wait(done, limit, f"the end of the episode ({trial.max_steps} steps max)")
+
+    def _wait_recorded(self, status: dict[str, str], n_push: int, n_exec: int) -> None:
+        """After the final status: wait until this client has received every ``planner/push``
+        of the episode (``step`` of them), the ``pusher/executed`` of the last push the planner
+        saw executed (``last_push_end``) and the estimate after it (the planner decided on one).
+        They come from other publishers than the status, so they can still be in flight (or
+        queued here) when it arrives."""
+        steps = int(status.get("step", 0))
+        try:
+            last_end = float(status.get("last_push_end", "-inf"))
+        except ValueError:
+            last_end = -math.inf
+
+        def complete() -> bool:
+            if len(self.rec.pushes) - n_push < steps:
+                return False
+            if not math.isfinite(last_end):
+                return True
+            return (any(e[2] >= last_end - 1e-6 for e in self.rec.executed[n_exec:])
+                    and any(st >= last_end - 1e-6 for st, _ in self.rec.est))
+
+        self.wait(complete, STEP_TIMEOUT, f"the {steps} planner/push, the pusher/executed "
+                  f"ending at {last_end:.3f} s and the estimate after it")
 
     def _com_error(self, pose0_true: np.ndarray, end_true: np.ndarray, order: int
                    ) -> float | None:
