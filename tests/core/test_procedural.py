@@ -14,6 +14,7 @@ import yaml
 
 from push_core.objects import load_object, object_from_dict
 from push_core.procedural import (
+    MIN_WIDTH,
     RANDOM_KINDS,
     SHAPE_CLASSES,
     benchmark_objects,
@@ -22,6 +23,7 @@ from push_core.procedural import (
     cross,
     disc,
     ellipse,
+    hull_width,
     l_shape,
     random_simple_polygon,
     rectangle,
@@ -115,6 +117,15 @@ def test_com_toward_edge_by_hand():
     np.testing.assert_allclose(object_from_dict(spec).com, [0.03, 0.0], atol=1e-7)
 
 
+def test_hull_width_by_hand():
+    assert hull_width(np.array([[0, 0], [0.1, 0], [0.1, 0.04], [0, 0.04]])) == \
+        pytest.approx(0.04)
+    assert hull_width(np.array([[0, 0], [1, 0], [0.5, 0.5], [0.5, 0.1]])) == pytest.approx(0.5)
+    # An equilateral triangle of side 1: its height.
+    tri = np.array([[0, 0], [1, 0], [0.5, math.sqrt(3) / 2]])
+    assert hull_width(tri) == pytest.approx(math.sqrt(3) / 2)
+
+
 def test_convex_hull_is_ccw_and_drops_inner_and_collinear_points():
     pts = np.array([[0, 0], [1, 0], [2, 0], [2, 2], [0, 2], [1, 1], [0.5, 1.5]], dtype=float)
     np.testing.assert_array_equal(convex_hull(pts), [[0, 0], [2, 0], [2, 2], [0, 2]])
@@ -130,6 +141,7 @@ def test_random_simple_polygons_are_valid_sized_and_cover_every_kind():
         extent = np.ptp(obj.polyline(), axis=0).max()
         assert 0.05 - 1e-6 <= extent <= 0.18 + 1e-6
         assert obj.thickness == 0.013
+        assert isinstance(obj.shape, Ellipse) or hull_width(obj.shape.vertices) >= MIN_WIDTH
         seen[kind].append(obj)
     for kind in ("star", "ell", "u", "cross", "radial"):
         assert sum(not o.shape.is_convex for o in seen[kind]) >= 15, kind

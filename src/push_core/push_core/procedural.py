@@ -38,6 +38,7 @@ from push_core.shapes import Ellipse, Polygon
 __all__ = [
     "DEFAULT_DENSITY",
     "DEFAULT_THICKNESS",
+    "MIN_WIDTH",
     "RANDOM_KINDS",
     "SHAPE_CLASSES",
     "TRAINING_KINDS",
@@ -47,6 +48,7 @@ __all__ = [
     "cross",
     "disc",
     "ellipse",
+    "hull_width",
     "l_shape",
     "object_dict",
     "random_simple_polygon",
@@ -70,6 +72,10 @@ RANDOM_KINDS = ("convex", "ellipse", "star", "blob", "ell", "radial", "u", "cros
 #: The benchmark's shape classes, in table order.
 SHAPE_CLASSES = ("disc", "ellipse", "polygon", "rectangle", "l_shape", "u_shape", "t_shape",
                  "cross", "nonconvex", "com_edge")
+#: Narrowest accepted random shape (width of its convex hull in the thinnest direction), m:
+#: the training family ``convex`` also draws needles 1.5 mm wide, which are no pushable flat
+#: object (the pusher is 9.6 mm across).
+MIN_WIDTH = 0.015
 #: Decimals kept in generated coordinates (0.1 micrometre): readable spec files.
 _DECIMALS = 7
 
@@ -335,7 +341,8 @@ def random_simple_polygon(rng: np.random.Generator, kind: str | None = None, *,
         families (``ell``: L or T), ``radial`` (4-14 vertices at sorted random angles and
         random radii 0.3-1: any mix of convex and reflex corners), ``u`` and ``cross`` (random
         proportions; a U's centroid is usually outside its footprint). ``ellipse`` has
-        semi-axis ratio 0.45-1 and is an exact disc one time in five.
+        semi-axis ratio 0.45-1 and is an exact disc one time in five. Polygons narrower than
+        :data:`MIN_WIDTH` (:func:`hull_width`) are drawn again.
     size_range : (float, float)
         Overall extent (largest side of the bounding box), m.
     thickness, density : float
@@ -360,6 +367,8 @@ def random_simple_polygon(rng: np.random.Generator, kind: str | None = None, *,
                                      "semi_axes": [size / 2, size / 2 * ratio]}
         else:
             pts = _random_polygon(rng, kind, size)
+            if hull_width(pts) < MIN_WIDTH:
+                continue
             shape = {"type": "polygon", "vertices": np.round(pts, _DECIMALS).tolist()}
         try:
             return object_dict(shape, thickness=thickness, density=density)
@@ -451,6 +460,18 @@ def convex_hull(pts: NDArray[np.float64]) -> NDArray[np.float64]:
 
     lower, upper = half(p), half(p[::-1])
     return np.array(lower[:-1] + upper[:-1])
+
+
+def hull_width(pts: NDArray[np.float64]) -> float:
+    """Width of the convex hull of points (N, 2) in its thinnest direction, m (the smallest
+    gap between two parallel lines enclosing the points: attained across one hull edge)."""
+    hull = convex_hull(np.asarray(pts, dtype=float))
+    edges = np.roll(hull, -1, axis=0) - hull
+    normals = np.stack([edges[:, 1], -edges[:, 0]], axis=1)
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    # Hull edge e: every vertex lies on its inner side; the deepest one sets the width.
+    depth = np.einsum("ekd,ed->ek", hull[None, :, :] - hull[:, None, :], normals)
+    return float(np.min(np.max(-depth, axis=1)))
 
 
 def centroid_inside_outline(vertices: NDArray[np.float64]) -> bool:
