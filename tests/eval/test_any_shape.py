@@ -20,6 +20,7 @@ import json
 import math
 import time
 import traceback
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -175,7 +176,8 @@ def test_one_loop_step_on_320_random_shapes_raises_nothing(tmp_path, one_torch_t
 def test_com_spec_mode_keeps_the_spec_com_and_randomises_the_rest():
     from sim_bridge.world import PushWorld, WorldConfig, quiet_stdout
 
-    path = "benchmarks/objects/com_edge/com_edge_rect.yaml"
+    path = str(Path(__file__).resolve().parents[2] / "benchmarks" / "objects" / "com_edge"
+               / "com_edge_rect.yaml")
     spec = load_object(path)
     trials = [Trial(object=path, com=com, index=3) for com in ("spec", "random")]
     kwargs = trials[0].world_kwargs()
