@@ -545,10 +545,12 @@ def benchmark_objects(seed: int = 0) -> dict[str, list[dict[str, Any]]]:
                     cross(0.15, 0.03, 0.11, 0.045, name="cross_15x11_w30")]
     r = rng["nonconvex"]
     for i, kind in enumerate(("star", "blob", "radial", "radial")):
-        while True:
+        for _ in range(100):  # these families are non-convex nearly always
             spec = random_simple_polygon(r, kind, size_range=(0.10, 0.16))
             if not object_from_dict(spec).shape.is_convex:
                 break
+        else:  # pragma: no cover
+            raise RuntimeError(f"no non-convex {kind} shape in 100 draws")
         out["nonconvex"].append({"name": f"nonconvex_{kind}{i}", **spec})
     r = rng["com_edge"]
     for name, base, fraction in (
