@@ -90,6 +90,9 @@ __all__ = [
 #: Mask size (pixels with depth) at which the base standard deviations apply: a ~100 cm^2
 #: object near the workspace centre in a 640 x 480 frame.
 NOMINAL_PIXELS = 5000
+#: Smallest share of the object points the footprint (largest component) must hold; less
+#: means the top-down view broke apart and its centroid would not be the object's.
+MIN_FOOTPRINT_SHARE = 0.9
 #: Points per row and per call of the remap in :meth:`TopDownView.sample_sdf` (OpenCV's maps
 #: must have fewer than 32767 rows and columns).
 _REMAP_WIDTH = 1024
@@ -100,6 +103,7 @@ class PerceptionError(ValueError):
     """A frame from which no pose can be measured; ``kind`` names the class of problem.
 
     Kinds: ``"empty_mask"``, ``"few_pixels"``, ``"no_depth"``, ``"out_of_view"``,
+    ``"fragmented"`` (the top-down view falls apart into pieces),
     ``"bad_input"`` (malformed arrays).
     """
 
@@ -337,7 +341,8 @@ def top_down_view(points: NDArray[np.float64], cfg: PerceptionConfig,
     Raises
     ------
     PerceptionError
-        kind ``"few_pixels"`` when no point is above the table.
+        kind ``"few_pixels"`` when no point is above the table, ``"fragmented"`` when the
+        largest component holds less than ``MIN_FOOTPRINT_SHARE`` of the points.
     """
     z = points[:, 2]
     top = float(np.quantile(z, 0.95)) if len(z) else 0.0
@@ -362,6 +367,12 @@ def top_down_view(points: NDArray[np.float64], cfg: PerceptionConfig,
     outer = max(contours, key=cv2.contourArea)
     img = np.zeros_like(img)
     cv2.drawContours(img, [outer], -1, 1, thickness=cv2.FILLED)
+    kept = float(np.mean(img[ij[:, 1], ij[:, 0]]))
+    if kept < MIN_FOOTPRINT_SHARE:  # e.g. a sliver narrower than the raster: no pose
+        raise PerceptionError("fragmented", f"the largest footprint component holds only "
+                              f"{100 * kept:.0f} % of the object points (need "
+                              f"{100 * MIN_FOOTPRINT_SHARE:.0f} %): the top-down view falls "
+                              "apart (an object narrower than a few millimetres?)")
     mom = cv2.moments(img, binaryImage=True)
     cells = mom["m00"]
     centroid = lo + (np.array([mom["m10"], mom["m01"]]) / cells + 0.5) * res
@@ -710,7 +721,8 @@ class EpisodeTracker:
         ------
         PerceptionError
             With ``kind`` ``"bad_input"``, ``"empty_mask"``, ``"out_of_view"``,
-            ``"few_pixels"`` or ``"no_depth"``; the tracker's state is unchanged.
+            ``"few_pixels"``, ``"no_depth"`` or ``"fragmented"``; the tracker's state is
+            unchanged.
         """
         cfg = self.cfg
         m, d, k, t = check_frame(mask, depth, camera_matrix, t_world_camera)

@@ -51,7 +51,8 @@ logged (at most once per second per class, with the number suppressed) and count
 (colour vs depth), ``bad_camera_info`` (K, size), ``frame_mismatch`` (image frame vs the
 extrinsics' child frame), ``missing_camera_info`` (colour and depth without camera_info of the
 same stamp), ``no_extrinsics``, ``empty_mask``, ``out_of_view`` (mask on the image border),
-``few_pixels``, ``no_depth`` (too few mask pixels with a valid depth).
+``few_pixels``, ``no_depth`` (too few mask pixels with a valid depth), ``fragmented`` (the
+top-down view falls apart, e.g. a sliver narrower than a few millimetres).
 
 Parameters (declared below with descriptions and ranges; defaults and units commented in
 ``ros_ws/config/push_perception.yaml``): ``weights``, ``torch_threads``, ``sync_queue`` (read
@@ -139,7 +140,7 @@ LATENCY_WINDOW = 100
 #: Outcome counters reported on /diagnostics, in this order.
 FAILURE_KINDS = ("bad_color", "bad_depth", "size_mismatch", "bad_camera_info",
                  "frame_mismatch", "missing_camera_info", "no_extrinsics", "empty_mask",
-                 "out_of_view", "few_pixels", "no_depth", "bad_input")
+                 "out_of_view", "few_pixels", "no_depth", "fragmented", "bad_input")
 
 
 # --------------------------------------------------------------------------------------------
