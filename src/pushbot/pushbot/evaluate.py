@@ -566,7 +566,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="state sources: gt (ground truth) and/or filter (rendered RGB-D "
                              "-> segmentation -> EKF) (default: gt)")
     parser.add_argument("--com", nargs="+", default=["centre"],
-                        help="COM: centre and/or random (default: centre)")
+                        help="COM: centre (geometric centre), random (uniform over the "
+                             "outline shrunk by 30 %%), spec (the object specification's "
+                             "com_offset) (default: centre)")
     parser.add_argument("--region", nargs="+", default=["small"],
                         help="goal regions: small (0.75 cm, 5 deg) medium (2.5 cm, 7.5 deg) "
                              "large (5 cm, 10 deg) (default: small)")
