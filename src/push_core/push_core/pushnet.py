@@ -266,8 +266,12 @@ class PushNetPlanner:
         return goal_reached(pose, goal, cfg.tolerance_xy, cfg.tolerance_theta, covariance,
                             cfg.stop_confidence, orientation)
 
-    def plan(self, outline: Outline, state: ArrayLike, goal: ArrayLike) -> PushNetPlan:
+    def plan(self, outline: Outline, state: ArrayLike, goal: ArrayLike,
+             avoid: ArrayLike | None = None) -> PushNetPlan:
         """Sample, predict and score pushes; return the best.
+
+        ``avoid`` (refused contact regions, as for :meth:`push_core.planner.Planner.plan`) is
+        accepted and not needed: the baseline draws new random pushes every step.
 
         Parameters
         ----------

@@ -51,11 +51,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from push_core.episode import EpisodeEngine, end_score, true_errors
 from push_core.estimator import EKFConfig, PushEKF
 from push_core.geometry import rot2, wrap_angle
-from push_core.planner import NoFeasiblePush, Planner, PlannerConfig, prepare_outline
+from push_core.planner import Planner, PlannerConfig, prepare_outline
 from push_core.pushnet import PushNetConfig, PushNetPlanner
-from push_core.symmetry import has_continuous_symmetry, symmetry_order_of_polygon
+from push_core.symmetry import symmetry_order_of_polygon
 from pushbot.protocol import Trial
 
 __all__ = ["EpisodeRunner", "end_score", "run_trial", "true_errors"]
@@ -64,37 +65,6 @@ __all__ = ["EpisodeRunner", "end_score", "run_trial", "true_errors"]
 GT_OUTLINE_SPACING = 0.002
 #: COM prior scale of the EKF when the COM is not estimated (> 0 is required; this pins it).
 PINNED_COM_PRIOR = 1e-9
-
-
-def true_errors(pose: NDArray[np.float64], goal: NDArray[np.float64], order: int
-                ) -> tuple[float, float]:
-    """Position (m) and absolute orientation error (rad) of ``pose`` against ``goal``, the
-    orientation modulo ``2 pi / order`` (closest equivalent)."""
-    dxy = float(math.hypot(goal[0] - pose[0], goal[1] - pose[1]))
-    period = 2.0 * math.pi / max(int(order), 1)
-    d = float(wrap_angle(goal[2] - pose[2]))
-    d -= period * round(d / period)
-    return dxy, abs(d)
-
-
-def end_score(polyline: NDArray[np.float64], end_true: NDArray[np.float64],
-              goal_true: NDArray[np.float64], tolerances: tuple[float, float]
-              ) -> dict[str, Any]:
-    """Success and true end errors of an episode (the record's scoring, one rule for the
-    in-process and the graph runs).
-
-    ``polyline``: the true object's outline (object frame). The orientation error is taken
-    modulo the outline's k-fold symmetry; for a continuously symmetric outline (a disc,
-    :func:`push_core.symmetry.has_continuous_symmetry`) it is reported but not counted
-    (``orientation_ignored``). Returns ``end_error_xy`` (m), ``end_error_theta`` (rad),
-    ``success`` and ``orientation_ignored``.
-    """
-    ignored = has_continuous_symmetry(polyline)
-    exy, eth = true_errors(end_true, goal_true, symmetry_order_of_polygon(polyline))
-    tol_xy, tol_theta = tolerances
-    return {"end_error_xy": exy, "end_error_theta": eth,
-            "success": bool(exy <= tol_xy and (ignored or eth <= tol_theta)),
-            "orientation_ignored": ignored}
 
 
 class EpisodeRunner:
@@ -193,35 +163,32 @@ class EpisodeRunner:
         rec["orientation_used"] = bool(outline.orientation_matters)  # the system's view
         rec["poses_true"].append(pose0_true.tolist())
         rec["poses_est"].append(state[:3].tolist())
-        refused_at: list[Any] = []  # outline points of refused pushes since the object moved
-        avoids = isinstance(planner, Planner)  # the pushnet baseline draws new pushes anyway
+        engine = EpisodeEngine(planner, trial.max_steps)
+        engine.new_goal(goal)
+        engine.set_outline(outline)
+        engine.estimate(world.sim_time, state, source.covariance())
         while True:
-            if planner.reached(state[:3], goal, source.covariance(), outline):
-                rec["reason"] = "goal reached"
-                break
-            if rec["steps"] >= trial.max_steps:
-                rec["reason"] = "max steps"
-                break
             t0 = time.perf_counter()
-            try:
-                plan = (planner.plan(outline, state, goal, avoid=refused_at) if avoids
-                        else planner.plan(outline, state, goal))
-            except NoFeasiblePush:
-                rec["reason"] = "no feasible push"
+            step = engine.step()
+            if step.action != "push":
+                if step.action in ("wait", "refused"):  # cannot happen in this loop
+                    raise RuntimeError(f"episode engine: {step.action} {step.reason}")
+                rec["reason"] = "goal reached" if step.action == "reached" else engine.failure
                 break
+            plan = step.plan
             rec["planning_ms"].append(1e3 * (time.perf_counter() - t0))
-            rec["steps"] += 1
-            push = [plan.approach.tolist(), plan.contact.tolist(), plan.end.tolist()]
-            rec["pushes"].append(push)
+            rec["steps"] = engine.steps
+            rec["pushes"].append([plan.approach.tolist(), plan.contact.tolist(),
+                                  plan.end.tolist()])
             try:
                 result = world.execute_push(plan.approach, plan.contact, plan.end)
-                refused_at = []
-            except ValueError:  # nothing moved: do not plan the same push again
+                engine.push_executed(world.sim_time)
+            except ValueError:  # refused, nothing moved: its contact region is avoided
                 rec["refused"] += 1
                 result = None
-                if avoids:
-                    refused_at.append(outline.points[plan.index])
+                engine.push_lost()
             state = source.after(result)
+            engine.estimate(world.sim_time, state, source.covariance())
             rec["poses_true"].append(world.object_pose().tolist())
             rec["poses_est"].append(state[:3].tolist())
         rec["perception_failures"] = source.failures

@@ -561,9 +561,9 @@ class GraphRunner:
             next((st for st, _ in self.rec.est if st >= t1), t1) for _, _, t1 in executed]
         rec["step_latency_ms"] = _latencies(executed, pushes)
         end_true = self._true_after(executed[-1][2]) if executed else pose0_true
+        from push_core.episode import end_score
         from push_core.objects import load_object
         from push_core.symmetry import symmetry_order_of_polygon
-        from pushbot.episode import end_score
 
         polyline = load_object(trial.object).polyline()
         order = symmetry_order_of_polygon(polyline)

@@ -1,0 +1,278 @@
+"""The episode engine: one goal, pushed for until it is reached, ROS-free (issue 13).
+
+One set of rules for every closed loop: ``planner_node`` (events from DDS), the in-process
+evaluation (``pushbot.episode``) and the ground-truth planner loop all drive an
+:class:`EpisodeEngine`, so graph and in-process runs make the same decisions by construction.
+The caller reports events (a new goal, an outline, an estimate, a push executed or lost) and
+asks :meth:`EpisodeEngine.step` what to do; the engine never blocks, never reads a clock and
+never talks to a simulator. Times are float seconds of whatever clock stamps the estimates and
+pushes (simulated time in the pipeline).
+
+Rules (docs/ARCHITECTURE.md, "Episode engine"):
+
+1. **Stale-estimate rule.** An estimate is *usable* when it is
+
+   a. newer than every estimate already used for this goal (a re-sent or older one is
+      ``ignored_duplicate``),
+   b. not older than the end of the last executed push (``stamp >= last_push_end``, else
+      ``ignored_stale``: it predates the push's effect), and
+   c. received while no push is in flight (``ignored_busy``; the newest estimate is kept and
+      used as soon as the push is reported, if it is still usable then).
+
+   Only the newest estimate is ever used; :meth:`EpisodeEngine.step` uses it at most once.
+2. **Goal check** on a usable estimate, before planning: the stop rule of
+   :func:`push_core.planner.goal_reached` (the estimate inside the goal region shrunk by its
+   uncertainty, the orientation ignored for a continuously symmetric outline) ->
+   ``reached``; ``max_steps`` pushes already sent -> ``failed`` (``max steps``).
+3. **Plan** (``Planner.plan`` with the avoid list) -> a push to execute (``pushing``, in
+   flight); :class:`push_core.planner.NoFeasiblePush` -> ``failed`` (``no feasible push``); a
+   plan that raises ``ValueError`` (an estimate it cannot use) leaves the episode as it is
+   and is reported as refused.
+4. **Executed push** (:meth:`EpisodeEngine.push_executed`): not in flight any more, its end
+   time is the new ``last_push_end``, the avoid list is cleared (the object may have moved).
+5. **Lost push** (:meth:`EpisodeEngine.push_lost`: the robot refused it, or it was not
+   reported in time): it counts as a step; its outline point joins the avoid list
+   (``Planner.plan(avoid=...)``, until a push is executed or a new outline arrives) and the
+   newest estimate becomes usable again (nothing moved, so it is not stale).
+6. A new goal starts a new episode (step 0) and re-opens the newest estimate once (the same
+   pose, a new question). A new outline clears the avoid list.
+
+Scoring (:func:`end_score`, :func:`true_errors`): success from the *true* end pose against the
+true goal, the orientation modulo the object's k-fold symmetry and not counted for a
+continuously symmetric outline (:mod:`push_core.symmetry`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from push_core.geometry import wrap_angle
+from push_core.planner import NoFeasiblePush, Outline, Planner, PushPlan
+from push_core.symmetry import has_continuous_symmetry, symmetry_order_of_polygon
+
+__all__ = [
+    "COUNTERS",
+    "EpisodeEngine",
+    "Step",
+    "end_score",
+    "true_errors",
+]
+
+#: Counters an :class:`EpisodeEngine` keeps (``planner_node`` reports them in its status).
+COUNTERS = ("estimates", "planned", "ignored_stale", "ignored_duplicate", "ignored_busy",
+            "lost")
+
+
+@dataclass(frozen=True)
+class Step:
+    """What :meth:`EpisodeEngine.step` decided.
+
+    Attributes
+    ----------
+    action : str
+        ``"push"`` (execute ``plan``), ``"reached"``, ``"failed"`` (``reason`` says why),
+        ``"refused"`` (the estimate could not be planned for: ``reason``) or ``"wait"``
+        (nothing to do until the next event).
+    plan : PushPlan or None
+        For ``"push"`` (a ``push_core.pushnet.PushNetPlan`` for that planner).
+    state : numpy.ndarray or None
+        The estimate the decision was made on, (7,).
+    reason : str
+    """
+
+    action: str
+    plan: PushPlan | None = None
+    state: NDArray[np.float64] | None = None
+    reason: str = ""
+
+
+@dataclass
+class EpisodeEngine:
+    """The closed-loop rules for one goal at a time (module docstring).
+
+    Parameters
+    ----------
+    planner : Planner
+        Plans the pushes and owns the stop rule (its tolerances and confidence); anything with
+        ``Planner``'s ``plan(outline, state, goal, avoid=...)`` and ``reached(pose, goal,
+        covariance, outline)``, e.g. ``push_core.pushnet.PushNetPlanner``.
+    max_steps : int
+        Pushes per episode (executed or lost) before it fails.
+
+    Attributes
+    ----------
+    phase : str
+        ``waiting`` | ``pushing`` | ``reached`` | ``failed``.
+    steps : int
+        Pushes sent in this episode.
+    failure : str
+        ``max steps`` or ``no feasible push`` once failed.
+    counts : dict
+        The :data:`COUNTERS` (over the engine's life, not reset by a new goal).
+    """
+
+    planner: Planner | Any
+    max_steps: int = 30
+    phase: str = "waiting"
+    steps: int = 0
+    failure: str = ""
+    goal: NDArray[np.float64] | None = None
+    outline: Outline | None = None
+    last_push_end: float = -math.inf
+    in_flight: bool = False
+    counts: dict[str, int] = field(default_factory=lambda: dict.fromkeys(COUNTERS, 0))
+    _latest: tuple[float, NDArray[np.float64], NDArray[np.float64] | None] | None = None
+    _used_stamp: float = -math.inf
+    _in_flight_point: NDArray[np.float64] | None = None
+    _avoid: list[NDArray[np.float64]] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        if not (callable(getattr(self.planner, "plan", None))
+                and callable(getattr(self.planner, "reached", None))):
+            raise ValueError(f"planner: expected a push_core.planner.Planner (or a planner "
+                             f"with its plan/reached), got {type(self.planner).__name__}")
+        if isinstance(self.max_steps, bool) or int(self.max_steps) != self.max_steps \
+                or self.max_steps < 1:
+            raise ValueError(f"max_steps: expected an integer >= 1, got {self.max_steps!r}")
+        self.max_steps = int(self.max_steps)
+
+    # ---- events --------------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Forget goal, estimates and pushes (a new scene); the outline and counters stay."""
+        self.goal, self._latest = None, None
+        self.phase, self.steps, self.failure = "waiting", 0, ""
+        self.last_push_end, self._used_stamp = -math.inf, -math.inf
+        self.in_flight, self._in_flight_point = False, None
+        self._avoid.clear()
+
+    def new_goal(self, goal: ArrayLike) -> None:
+        """Start an episode for ``goal`` (x, y, theta in ``world``): step 0; the newest
+        estimate is usable again."""
+        g = np.asarray(goal, dtype=np.float64).reshape(-1)
+        if g.shape != (3,) or not np.all(np.isfinite(g)):
+            raise ValueError(f"goal: expected 3 finite numbers, got {goal!r}")
+        self.goal = g
+        self.phase, self.steps, self.failure = "waiting", 0, ""
+        self._used_stamp = -math.inf
+
+    def set_outline(self, outline: Outline) -> None:
+        """The object's outline (``push_core.planner.prepare_outline``); clears the avoid
+        list (points of another outline)."""
+        if not isinstance(outline, Outline):
+            raise ValueError(f"outline: expected an Outline, got {type(outline).__name__}")
+        self.outline = outline
+        self._avoid.clear()
+
+    def estimate(self, stamp: float, state: ArrayLike,
+                 covariance: ArrayLike | None = None) -> None:
+        """A new estimate: state (7,) ``(x, y, theta, c_x, c_y, l, m)`` at ``stamp`` with its
+        covariance ((7, 7) or (3, 3); None = exact). Counted as stale, duplicate or busy when
+        rule 1 says so; the newest one is kept either way."""
+        s = np.array(state, dtype=np.float64).reshape(-1)
+        if s.shape != (7,) or not np.all(np.isfinite(s)) or not math.isfinite(stamp):
+            raise ValueError(f"estimate: expected a finite stamp and 7 finite state values, "
+                             f"got {stamp!r}, {state!r}")
+        cov = None if covariance is None else np.array(covariance, dtype=np.float64)
+        self.counts["estimates"] += 1
+        if self._latest is None or stamp >= self._latest[0]:
+            self._latest = (float(stamp), s, cov)
+        if stamp < self.last_push_end:
+            self.counts["ignored_stale"] += 1
+        elif stamp <= self._used_stamp:
+            self.counts["ignored_duplicate"] += 1
+        elif self.in_flight:
+            self.counts["ignored_busy"] += 1
+
+    def push_executed(self, end_stamp: float) -> None:
+        """The push in flight was executed; it ended at ``end_stamp``."""
+        self.last_push_end = max(self.last_push_end, float(end_stamp))
+        self.in_flight, self._in_flight_point = False, None
+        self._avoid.clear()
+
+    def push_lost(self) -> None:
+        """The push in flight was not executed (refused, or not reported in time): it stays
+        counted as a step, its contact region is avoided, the newest estimate is usable
+        again."""
+        if not self.in_flight:
+            return
+        self.in_flight = False
+        self.counts["lost"] += 1
+        self._used_stamp = -math.inf
+        if self._in_flight_point is not None:
+            self._avoid.append(self._in_flight_point)
+        self._in_flight_point = None
+
+    # ---- decision ------------------------------------------------------------------------------
+    @property
+    def finished(self) -> bool:
+        return self.phase in ("reached", "failed")
+
+    @property
+    def latest(self) -> tuple[float, NDArray[np.float64], NDArray[np.float64] | None] | None:
+        """(stamp, state, covariance) of the newest estimate, or None."""
+        return self._latest
+
+    def step(self) -> Step:
+        """Decide on the newest estimate if rule 1 allows it (module docstring, rules 2-3)."""
+        if (self._latest is None or self.goal is None or self.outline is None
+                or self.finished or self.in_flight):
+            return Step("wait")
+        stamp, state, cov = self._latest
+        if stamp < self.last_push_end or stamp <= self._used_stamp:
+            return Step("wait")
+        self._used_stamp = stamp
+        if self.planner.reached(state[:3], self.goal, cov, self.outline):
+            self.phase = "reached"
+            return Step("reached", state=state)
+        if self.steps >= self.max_steps:
+            self.phase, self.failure = "failed", "max steps"
+            return Step("failed", state=state, reason="max steps")
+        try:
+            plan = self.planner.plan(self.outline, state, self.goal, avoid=self._avoid)
+        except NoFeasiblePush as exc:
+            self.phase, self.failure = "failed", "no feasible push"
+            return Step("failed", state=state, reason=f"no feasible push: {exc}")
+        except ValueError as exc:
+            return Step("refused", state=state, reason=str(exc))
+        self.steps += 1
+        self.phase = "pushing"
+        self.counts["planned"] += 1
+        self.in_flight = True
+        index = getattr(plan, "index", None)  # the pushnet baseline has no contact point
+        self._in_flight_point = None if index is None else self.outline.points[index].copy()
+        return Step("push", plan=plan, state=state)
+
+
+# ------------------------------------------------------------------------------------ scoring
+def true_errors(pose: ArrayLike, goal: ArrayLike, order: int) -> tuple[float, float]:
+    """Position (m) and absolute orientation error (rad) of ``pose`` against ``goal``, the
+    orientation modulo ``2 pi / order`` (closest equivalent)."""
+    p, g = np.asarray(pose, dtype=np.float64), np.asarray(goal, dtype=np.float64)
+    dxy = float(math.hypot(g[0] - p[0], g[1] - p[1]))
+    period = 2.0 * math.pi / max(int(order), 1)
+    d = float(wrap_angle(g[2] - p[2]))
+    d -= period * round(d / period)
+    return dxy, abs(d)
+
+
+def end_score(polyline: ArrayLike, end_true: ArrayLike, goal_true: ArrayLike,
+              tolerances: tuple[float, float]) -> dict[str, Any]:
+    """Success and true end errors of an episode (one rule for every episode record).
+
+    ``polyline``: the true object's outline (object frame). The orientation error is taken
+    modulo the outline's k-fold symmetry; for a continuously symmetric outline (a disc,
+    :func:`push_core.symmetry.has_continuous_symmetry`) it is reported but not counted
+    (``orientation_ignored``). Returns ``end_error_xy`` (m), ``end_error_theta`` (rad),
+    ``success`` and ``orientation_ignored``.
+    """
+    ignored = has_continuous_symmetry(polyline)
+    exy, eth = true_errors(end_true, goal_true, symmetry_order_of_polygon(polyline))
+    tol_xy, tol_theta = tolerances
+    return {"end_error_xy": exy, "end_error_theta": eth,
+            "success": bool(exy <= tol_xy and (ignored or eth <= tol_theta)),
+            "orientation_ignored": ignored}
