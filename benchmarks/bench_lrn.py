@@ -4,8 +4,8 @@
    (``push_planner/models/affordances.pt``) vs the analytical one-step model (true COM and
    pusher friction, ``l`` of uniform pressure) vs "no motion", against the object motion that
    pybullet produces for the 10 representative pushes at 20 random contact points per sample
-   (:mod:`push_planner.affordance_data`, ``--test``; generated into ``--test-data`` if missing,
-   seed 1, so it differs from any test set used while training).
+   (:mod:`pushbot.experiments.affordance_data`, ``--test``; generated into ``--test-data`` if
+   missing, seed 1, so it differs from any test set used while training).
 2. **Speed**: affordances for butter's outline sampled every 1.5 mm (302 points x 10 pushes),
    torch with one thread; target median <= 20 ms (cached shape encoding, i.e. every planning
    step after the first of an episode); the first call with the encoding for information.
@@ -38,9 +38,9 @@ from push_core.affordances import analytical_affordances  # noqa: E402
 from push_core.learned import load_affordance_model  # noqa: E402
 from push_core.objects import TEST_OBJECTS, load_object  # noqa: E402
 from push_core.planner import Planner, PlannerConfig  # noqa: E402
-from push_planner.affordance_data import DataConfig, generate, load  # noqa: E402
 from push_planner.models import default_weights  # noqa: E402
-from push_planner.train_affordances import evaluate, metrics_table  # noqa: E402
+from pushbot.experiments.affordance_data import DataConfig, generate, load  # noqa: E402
+from pushbot.experiments.affordance_training import evaluate, metrics_table  # noqa: E402
 from sim_bridge.world import PushWorld, WorldConfig  # noqa: E402
 
 TARGET_MS = 20.0

@@ -5,7 +5,7 @@
    being a median of at most 10 ms; other variants for information. Wall clock, one call per
    repeat after a warm-up, random poses and goals (seeded).
 2. **lambda tuning** (eq. 5.1 weight, mm per degree): closed loop with ground-truth state
-   (``push_planner.closed_loop``) in the pybullet world with *randomised* physics
+   (``pushbot.experiments.planner_loop``) in the pybullet world with *randomised* physics
    (``WorldConfig(randomize=True)``: mass x[0.5, 2], COM anywhere in the outline shrunk by
    30 %, table friction 0.15-0.4, pusher friction 0.15-0.5; the state carries the true COM and
    pusher friction, ``l`` is the uniform-pressure value), the three tasks of SPEC section 5
@@ -40,7 +40,7 @@ from _results import format_section, update_section  # noqa: E402
 
 from push_core.objects import load_object  # noqa: E402
 from push_core.planner import Planner, PlannerConfig, prepare_outline  # noqa: E402
-from push_planner.closed_loop import EpisodeResult, run_episode  # noqa: E402
+from pushbot.experiments.planner_loop import EpisodeResult, run_episode  # noqa: E402
 from sim_bridge.world import PushWorld, WorldConfig  # noqa: E402
 
 TARGET_MS = 10.0

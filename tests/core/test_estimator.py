@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from push_core import active
 from push_core.estimator import (
     STATE_LABELS,
     ContactOutline,
@@ -21,7 +22,6 @@ from push_core.geometry import object_to_world
 from push_core.model import push_twist
 from push_core.objects import load_object
 from push_core.rollout import rollout_push
-from push_estimator import episodes
 
 
 def square(half: float, n_per_side: int = 1) -> np.ndarray:
@@ -220,7 +220,7 @@ def test_push_that_misses_changes_nothing() -> None:
 def informative_push(points: np.ndarray, normals: np.ndarray, pose: np.ndarray,
                      rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Pusher start and end (world): toward the object's centre +-30 deg, 2-4 cm, random gap."""
-    start, _, end = episodes.informative_push(points, normals, pose, rng)
+    start, _, end = active.informative_push(points, normals, pose, rng)
     return start, end
 
 
@@ -570,12 +570,12 @@ def test_most_informative_push_prefers_a_push_that_touches() -> None:
     ekf = PushEKF(points, normals)
     ekf.update_pose([0.0, 0.0, 0.0])
     rng = np.random.default_rng(4)
-    touching = episodes.informative_push(points, normals, ekf.state[:3], rng)
+    touching = active.informative_push(points, normals, ekf.state[:3], rng)
     far = tuple(np.asarray(q) + [0.3, 0.0] for q in touching)  # the same push, 30 cm away
-    assert episodes.most_informative_push(ekf, [far, touching]) == 1
-    assert episodes.most_informative_push(ekf, [touching, far]) == 0
+    assert active.most_informative_push(ekf, [far, touching]) == 1
+    assert active.most_informative_push(ekf, [touching, far]) == 0
     with pytest.raises(ValueError, match="empty"):
-        episodes.most_informative_push(ekf, [])
+        active.most_informative_push(ekf, [])
 
 
 def test_snapshot_and_restore_replay_exactly() -> None:

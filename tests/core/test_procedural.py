@@ -174,10 +174,10 @@ def _digest(shapes: list) -> str:
 
 
 def test_training_shapes_keep_the_draws_of_the_generated_training_data():
-    # Digest computed with push_perception.data.random_shape as it was when the segmentation
-    # and affordance training data were generated (before the object library accepted
-    # centroids outside the footprint). Seed 3 draws an L shape whose centroid is outside: the
-    # old rule rejected it, and so must training_shape.
+    # Digest computed with pushbot.experiments.perception_data.random_shape (then
+    # push_perception.data) as it was when the segmentation and affordance training data were
+    # generated (before the object library accepted centroids outside the footprint). Seed 3 draws
+    # an L shape whose centroid is outside: the old rule rejected it, and so must training_shape.
     rng = np.random.default_rng(3)
     kinds = (None, "convex", "ellipse", "star", "blob", "ell", None, "ell", "ell")
     shapes = [training_shape(rng, k) for k in kinds] + [float(rng.random())]

@@ -7,9 +7,10 @@ import math
 import numpy as np
 import pytest
 
+from push_core.active import informative_push
 from push_core.estimator import EKFConfig
-from push_estimator.episodes import informative_push, run_physics_episode
-from push_estimator.evaluation import main
+from pushbot.experiments.estimator_episodes import run_physics_episode
+from pushbot.experiments.estimator_evaluation import main
 
 
 def test_physics_episode_starts_at_the_centroid_and_learns() -> None:

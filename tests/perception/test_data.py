@@ -10,7 +10,7 @@ import pytest
 
 from push_core.geometry import closest_point_on_polyline, object_to_world
 from push_core.objects import TEST_OBJECTS, library_names, object_from_dict
-from push_perception.data import (
+from pushbot.experiments.perception_data import (
     SHAPE_KINDS,
     DataConfig,
     decode_depth,

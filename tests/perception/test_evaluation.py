@@ -7,7 +7,7 @@ import argparse
 import pytest
 
 from push_core.objects import load_object
-from push_perception.evaluation import (
+from pushbot.experiments.perception_evaluation import (
     EvalConfig,
     add_arguments,
     evaluate,

@@ -1,9 +1,9 @@
 """Acceptance test of the planner in closed loop with pybullet physics (issue 6).
 
-In-process, no ROS: ground-truth state (``push_planner.closed_loop``), the ``ana`` planner with
-one sampled contact point (k = 1), the translation task with 10 cm: the goal must be reached
-(0.75 cm, 5 deg) within 30 pushes in at least 95 % of 20 seeded trials per object. Trial i
-starts at the workspace centre with orientation ``2 pi i / 20`` and a goal 10 cm away in a
+In-process, no ROS: ground-truth state (``pushbot.experiments.planner_loop``), the ``ana``
+planner with one sampled contact point (k = 1), the translation task with 10 cm: the goal must
+be reached (0.75 cm, 5 deg) within 30 pushes in at least 95 % of 20 seeded trials per object.
+Trial i starts at the workspace centre with orientation ``2 pi i / 20`` and a goal 10 cm away in a
 direction drawn from ``default_rng([i, 6])``; the planner's seed is i. Every push the planner
 sends must be accepted by the world (valid geometry, inside the workspace).
 """
@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from push_core.planner import Planner, PlannerConfig
-from push_planner.closed_loop import run_episode, translation_goal
+from pushbot.experiments.planner_loop import run_episode, translation_goal
 from sim_bridge.world import PushWorld, WorldConfig
 
 pytestmark = pytest.mark.slow

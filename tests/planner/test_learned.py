@@ -23,7 +23,7 @@ from push_core.learned import (
 from push_core.objects import load_object
 from push_core.planner import Planner, PlannerConfig, prepare_outline
 from push_planner.models import default_weights
-from push_planner.train_affordances import MIRROR_PUSH
+from pushbot.experiments.affordance_training import MIRROR_PUSH
 
 
 def test_shape_encoding_geometry():
@@ -119,8 +119,8 @@ def test_bundled_model_plans_and_beats_no_motion_on_a_straight_push():
 
 @pytest.mark.slow
 def test_data_generation_and_training_end_to_end(tmp_path: Path):
-    from push_planner.affordance_data import DataConfig, generate, load
-    from push_planner.train_affordances import run
+    from pushbot.experiments.affordance_data import DataConfig, generate, load
+    from pushbot.experiments.affordance_training import run
 
     cfg = DataConfig(n_samples=2, shard_size=2, points_per_sample=2, library_fraction=1.0)
     generate(cfg, tmp_path / "train", progress=False)
@@ -152,7 +152,7 @@ def test_data_generation_and_training_end_to_end(tmp_path: Path):
 
 def generate_again(cfg, tmp_path: Path) -> np.ndarray:
     """The same shard generated again: the data are reproducible."""
-    from push_planner.affordance_data import generate, load
+    from pushbot.experiments.affordance_data import generate, load
 
     generate(cfg, tmp_path / "again", progress=False)
     return load(tmp_path / "again")["motion"]

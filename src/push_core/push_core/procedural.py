@@ -18,9 +18,9 @@ the convex hull.
 
 Random shapes: :func:`random_simple_polygon` (the any-shape tests and benchmarks) and
 :func:`training_shape` (the perception and affordance training data,
-``push_perception.data.random_shape``). ``training_shape`` is frozen: it keeps the acceptance
-rule of the object library when the data were generated (area centroid inside the outline) and
-its random draws, so the committed training data stay reproducible.
+``pushbot.experiments.perception_data.random_shape``). ``training_shape`` is frozen: it keeps
+the acceptance rule of the object library when the data were generated (area centroid inside
+the outline) and its random draws, so the committed training data stay reproducible.
 """
 
 from __future__ import annotations
@@ -283,10 +283,10 @@ def _ray_exit(vertices: NDArray[np.float64], direction: NDArray[np.float64]) -> 
 def training_shape(rng: np.random.Generator, kind: str | None = None) -> dict[str, Any]:
     """A random object specification of the perception/affordance training data.
 
-    Frozen (module docstring): ``push_perception.data.random_shape`` is this function, and the
-    committed training sets were drawn with it. A candidate is accepted when the object
-    library accepts it *and* its area centroid lies inside its outline (the library's rule
-    then), so the draws are the same as before the library accepted L/U shapes.
+    Frozen (module docstring): ``pushbot.experiments.perception_data.random_shape`` is this
+    function, and the committed training sets were drawn with it. A candidate is accepted when
+    the object library accepts it *and* its area centroid lies inside its outline (the
+    library's rule then), so the draws are the same as before the library accepted L/U shapes.
 
     Parameters
     ----------

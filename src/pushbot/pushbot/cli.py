@@ -34,29 +34,30 @@ def _version() -> str:
         return 'unknown'
 
 
-#: Subcommand groups whose targets live in the node packages: group -> (summary, {target:
+#: Subcommand groups whose targets live in :mod:`pushbot.experiments` (and
+#: :mod:`pushbot.evaluate`), not in the node packages: group -> (summary, {target:
 #: (module, summary)}). Each module defines ``add_arguments(parser)`` and ``run(args) -> int``
 #: and keeps heavy imports (torch, pybullet, rclpy) inside ``run``, so ``pushbot --help`` stays
 #: fast and works even when those are broken.
 TARGETS: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
     'data': ('generate training data sets', {
-        'perception': ('push_perception.data',
+        'perception': ('pushbot.experiments.perception_data',
                        'render RGB-D frames with masks, poses and outlines (segmentation CNN)'),
-        'affordances': ('push_planner.affordance_data',
+        'affordances': ('pushbot.experiments.affordance_data',
                         'pybullet pushes: 20 contact points x 10 representative pushes per '
                         'object sample (learned affordances)'),
     }),
     'train': ('train learned models', {
-        'segmentation': ('push_perception.train',
+        'segmentation': ('pushbot.experiments.perception_training',
                          'train the two-stage segmentation CNN on `pushbot data perception` data'),
-        'affordances': ('push_planner.train_affordances',
+        'affordances': ('pushbot.experiments.affordance_training',
                         'train the learned affordance CNN on `pushbot data affordances` data'),
     }),
     'eval': ('evaluate components on held-out objects', {
-        'perception': ('push_perception.evaluation',
+        'perception': ('pushbot.experiments.perception_evaluation',
                        'mask IoU, pose, orientation, outline accuracy and latency (tri1, butter, '
                        'hex)'),
-        'estimator': ('push_estimator.evaluation',
+        'estimator': ('pushbot.experiments.estimator_evaluation',
                       'COM, l and m estimation and NEES/NIS of the EKF on pybullet (butter, '
                       'tri1, hex)'),
         'push': ('pushbot.evaluate',

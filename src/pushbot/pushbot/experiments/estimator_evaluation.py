@@ -9,7 +9,7 @@ by an observation. Every push is drawn at a random outline point, toward the obj
 the world accepts it; pushes bring the object back when it is more than 8 cm from the
 workspace centre). ``--push-policy`` (one or both, comma-separated; each gets its own tables):
 ``active`` (default) executes, of 16 such draws, the one the filter expects to shrink its COM
-covariance most (``push_estimator.episodes.most_informative_push``: the smallest trace of the
+covariance most (``push_core.active.most_informative_push``: the smallest trace of the
 COM block of :meth:`push_core.estimator.PushEKF.expected_covariance`); ``random`` executes the
 first draw. The filter (:class:`push_core.estimator.PushEKF`, default settings) gets what the
 robot would get: the object's outline (library shape sampled every 2 mm with outward normals,
@@ -33,7 +33,8 @@ the "without estimation" baseline |c_true| (COM assumed at the centroid) and the
 a physics engine: final / initial and its change over the last 3 pushes) and m (error to the
 simulated pusher friction); NEES over (x, y, theta, c_x, c_y, m) and NIS with their chi-square
 bands; gated observations. ``--write`` puts the report into ``docs/RESULTS.md`` (section
-``eval_estimator``) of the source checkout. The work is in :mod:`push_estimator.episodes`.
+``eval_estimator``) of the source checkout. The work is in
+:mod:`pushbot.experiments.estimator_episodes`.
 """
 
 from __future__ import annotations
@@ -111,7 +112,7 @@ def _comma_list(option: str, value: str, allowed: Sequence[str]) -> list[str] | 
 
 def run(args: argparse.Namespace, argv: Sequence[str] | None = None) -> int:
     """Run the evaluation for parsed ``args``; returns the exit code (2 on bad arguments)."""
-    from push_estimator.episodes import OBSERVATIONS, PUSH_POLICIES
+    from pushbot.experiments.estimator_episodes import OBSERVATIONS, PUSH_POLICIES
 
     sources = _comma_list("--observations", args.observations, OBSERVATIONS)
     policies = _comma_list("--push-policy", args.push_policy, PUSH_POLICIES)
@@ -133,7 +134,7 @@ def run(args: argparse.Namespace, argv: Sequence[str] | None = None) -> int:
 
     from push_core.estimator import EKFConfig
     from push_core.objects import load_object
-    from push_estimator.episodes import load_perception, report, run_physics_episode
+    from pushbot.experiments.estimator_episodes import load_perception, report, run_physics_episode
 
     for name in names:
         try:
@@ -182,7 +183,7 @@ def run(args: argparse.Namespace, argv: Sequence[str] | None = None) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m push_estimator.evaluation [options]``; the same as ``pushbot eval
+    """``python -m pushbot.experiments.estimator_evaluation [options]``; the same as ``pushbot eval
     estimator``."""
     parser = argparse.ArgumentParser(prog="pushbot eval estimator",
                                      description=__doc__.splitlines()[0])

@@ -1,10 +1,10 @@
 """Train the learned affordance model (``pushbot train affordances``; SPEC section 2 step 4).
 
-Reads a data set of ``pushbot data affordances`` (:mod:`push_planner.affordance_data`), trains
-:class:`push_core.learned.AffordanceNet` on the CPU (one intra-op thread, seeded), evaluates it
-against pybullet on a held-out test set (``pushbot data affordances --test``: tri1, butter, hex)
-next to the analytical model, and writes the weights plus a model card (``MODEL_CARD.md``
-beside them).
+Reads a data set of ``pushbot data affordances`` (:mod:`pushbot.experiments.affordance_data`),
+trains :class:`push_core.learned.AffordanceNet` on the CPU (one intra-op thread, seeded),
+evaluates it against pybullet on a held-out test set (``pushbot data affordances --test``: tri1,
+butter, hex) next to the analytical model, and writes the weights plus a model card
+(``MODEL_CARD.md`` beside them).
 
 Training: every sample appears in ``rotations`` rotated copies of its object frame (random
 angles, seeded) and their mirror images (y -> -y: the outline order reverses, push angles and
@@ -195,7 +195,7 @@ def run(args: argparse.Namespace) -> int:
     import torch
 
     from push_core.learned import FORMAT_VERSION, AffordanceNet, LearnedAffordances
-    from push_planner.affordance_data import load
+    from pushbot.experiments.affordance_data import load
 
     torch.set_num_threads(1)
     torch.manual_seed(args.seed)
@@ -287,7 +287,7 @@ def model_card(meta: dict[str, Any], weights_name: str) -> str:
         "# Model card: learned affordances (`lrn`)",
         "",
         f"Weights: `{weights_name}` (`push_core.learned.load_affordance_model`). Written by "
-        "`push_planner.train_affordances` on " + meta["date"] + "; do not edit by hand.",
+        "`pushbot.experiments.affordance_training` on " + meta["date"] + "; do not edit by hand.",
         "",
         "## Model",
         "`push_core.learned.AffordanceNet`: 64 x 64 shape encoding (4 mm pixels; occupancy, "
@@ -300,12 +300,12 @@ def model_card(meta: dict[str, Any], weights_name: str) -> str:
         "Does not use l or m.",
         "",
         "## Data",
-        f"- `pushbot data affordances` (module `push_planner.affordance_data`), seed "
+        f"- `pushbot data affordances` (module `pushbot.experiments.affordance_data`), seed "
         f"{d['seed']}: {meta['samples']} object samples ({meta['validation_samples']} held "
         f"out for validation), {d['points_per_sample']} contact points x 10 representative "
         f"pushes each, {meta['executed_pushes']} executed pushes; objects: library objects "
         f"except tri1, butter, hex (p = {d['library_fraction']}) and procedural shapes "
-        "(push_perception.data.random_shape); randomised mass, COM, frictions "
+        "(pushbot.experiments.perception_data.random_shape); randomised mass, COM, frictions "
         "(sim_bridge.world); pybullet default physics, 20 mm/s.",
         f"- Training: {meta['variants_per_sample']} variants per sample ({meta['rotations']} "
         f"rotations x mirror), AdamW lr {meta['lr']}, batch {meta['batch']} samples, "
@@ -330,7 +330,7 @@ def model_card(meta: dict[str, Any], weights_name: str) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m push_planner.train_affordances``."""
+    """``python -m pushbot.experiments.affordance_training``."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_arguments(parser)
     return run(parser.parse_args(argv))

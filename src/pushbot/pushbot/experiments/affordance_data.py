@@ -16,9 +16,9 @@ frame origin expressed in the object frame before the push, and the rotation.
 
 Objects: with probability ``library_fraction`` a library object other than the held-out test
 objects (``push_core.objects.TEST_OBJECTS`` = tri1, butter, hex), otherwise a procedural shape
-from :func:`push_perception.data.random_shape` (convex polygons, ellipses, stars, smooth blobs
-with waists, L/T shapes; 5-18 cm). ``--test`` instead draws only the held-out objects (the
-evaluation set).
+from :func:`pushbot.experiments.perception_data.random_shape` (convex polygons, ellipses,
+stars, smooth blobs with waists, L/T shapes; 5-18 cm). ``--test`` instead draws only the
+held-out objects (the evaluation set).
 
 Files: ``DIR/shard_00000.npz`` ... with ``shard_size`` samples each, shard ``k`` generated from
 ``numpy.random.SeedSequence([seed, k])`` only (reproducible, resumable: existing shards are
@@ -101,7 +101,7 @@ def _objects(test: bool) -> tuple[str, ...]:
 def generate_shard(cfg: DataConfig, index: int, workdir: Path) -> dict[str, NDArray[Any]]:
     """Simulate shard ``index`` (deterministic in ``(cfg, index)``); arrays as in the module
     docstring."""
-    from push_perception.data import random_shape
+    from pushbot.experiments.perception_data import random_shape
     from sim_bridge.world import PushWorld, WorldConfig, push_points
 
     rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, index]))
@@ -245,7 +245,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m push_planner.affordance_data``."""
+    """``python -m pushbot.experiments.affordance_data``."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_arguments(parser)
     return run(parser.parse_args(argv))
