@@ -43,7 +43,7 @@ SQUARE = np.concatenate([a + np.arange(10)[:, None] / 10 * (b - a)
                          for a, b in zip(_CORNERS, np.roll(_CORNERS, -1, 0), strict=True)])
 SQUARE_NORMALS = np.repeat([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]], 10, axis=0)
 TIMEOUT = 10.0
-CONFIG = FilePath(__file__).resolve().parents[2] / "ros_ws" / "config" / "push_estimator.yaml"
+CONFIG = FilePath(__file__).resolve().parents[2] / "src/pushbot_bringup/config/push_estimator.yaml"
 
 pytestmark = pytest.mark.ros
 

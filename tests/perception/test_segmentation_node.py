@@ -182,7 +182,7 @@ def harness(ros_context: Any) -> Iterator[Harness]:
 def test_parameter_yaml_documents_every_parameter_with_its_default() -> None:
     import yaml
 
-    path = Path(__file__).resolve().parents[2] / "ros_ws" / "config" / "push_perception.yaml"
+    path = Path(__file__).resolve().parents[2] / "src/pushbot_bringup/config/push_perception.yaml"
     params = yaml.safe_load(path.read_text())[NODE]["ros__parameters"]
     assert params["use_sim_time"] is True
     for spec in PARAMETERS:

@@ -423,7 +423,7 @@ def test_parameter_ranges_are_declared(ros_context: Any) -> None:
 
 
 def test_parameter_yaml_documents_every_parameter_with_its_default() -> None:
-    path = REPO / "ros_ws" / "config" / "push_planner.yaml"
+    path = REPO / "src/pushbot_bringup/config/push_planner.yaml"
     text = path.read_text()
     params = yaml.safe_load(text)["planner_node"]["ros__parameters"]
     assert params["use_sim_time"] is True
@@ -441,7 +441,7 @@ def test_parameter_yaml_documents_every_parameter_with_its_default() -> None:
 @pytest.mark.slow
 def test_node_process_starts_with_the_yaml_and_refuses_bad_parameters(
         ros_context: Any, wait_for: Callable[..., bool], processes: Any) -> None:
-    config = str(REPO / "ros_ws" / "config" / "push_planner.yaml")
+    config = str(REPO / "src/pushbot_bringup/config/push_planner.yaml")
     bad = processes.node("planner_node", "--ros-args", "--params-file", config,
                          "-p", "method:=best")
     assert bad.wait(timeout=60) == 2

@@ -268,7 +268,7 @@ def test_parameter_yaml_documents_every_parameter_with_its_default() -> None:
 
     from sim_bridge.sim_bridge_node import PARAMETERS
 
-    path = FilePath(__file__).resolve().parents[2] / "ros_ws" / "config" / "sim_bridge.yaml"
+    path = FilePath(__file__).resolve().parents[2] / "src/pushbot_bringup/config/sim_bridge.yaml"
     text = path.read_text()
     params = yaml.safe_load(text)["sim_bridge_node"]["ros__parameters"]
     assert params["use_sim_time"] is False  # the bridge is the clock source
