@@ -1,0 +1,353 @@
+"""The pybullet scene of the sim bridge: table, one flat object (convex pieces), pusher.
+
+ROS-free; :class:`sim_bridge.world.PushWorld` is the entry point (this module builds its
+bodies). Frames and units: ``docs/ARCHITECTURE.md`` and :mod:`sim_bridge.world`; SI
+throughout, quaternions (x, y, z, w).
+
+Bodies
+------
+- Table: an infinite static plane (collision) drawn as a 1.5 m x 1.5 m slab.
+- Object: a compound of convex prisms, one per piece of
+  ``shape.convex_pieces(tolerance=COLLISION_TOLERANCE)`` (a true convex decomposition of the
+  outline simplified to within 0.5 mm, so non-convex outlines such as butter keep their
+  concavities), with a collision margin of 0.1 mm (pybullet's default 1 mm inflates the
+  outline by 1 mm). Visual: a mesh of the true outline (top face triangulated, side walls;
+  within 0.02 mm), so images show the exact outline. Mass from the spec; inertia diagonal
+  ``(I_xx, I_yy, I_zz)`` about the COM with ``I_zz = ObjectSpec.moment_of_inertia`` and the
+  tilt inertias of the uniform plate. The COM enters pybullet through the base inertial frame
+  (``baseInertialFramePosition``), so collision and visual shapes stay in the object frame.
+  Linear/angular damping 0, restitution 0, spinning and rolling friction 0. The object has a
+  friction anchor (``changeDynamics(frictionAnchor=1)``): without it a resting object creeps
+  on the table with nothing touching it (bullet's support contacts switch between corners).
+- Friction: bullet combines the lateral friction coefficients of two touching bodies by
+  multiplying them. The object's coefficient is therefore 1.0, the table's is
+  ``friction_table`` and the pusher's is ``friction_pusher``, so the object-table pair sees
+  ``friction_table`` and the pusher-object pair ``friction_pusher``. The pusher never touches
+  the table (collisions between them are disabled; it hovers 2 mm above it).
+- Pusher: a dynamic vertical cylinder (radius ``pusher_radius``, 60 mm long, 0.1 kg) held by
+  a force-limited fixed constraint to the world (``Scene.drive``), parked high above the robot
+  side of the table, out of the camera's view; :mod:`sim_bridge.physics` moves it.
+
+Randomisation (``WorldConfig.randomize``; explicit overrides always win), drawn by
+:func:`simulated_spec` from the world's physics stream:
+
+- mass: the spec's mass times a log-uniform factor in ``MASS_FACTOR_RANGE`` = [0.5, 2];
+- COM: uniform over the object's outline shrunk by ``COM_SHRINK`` = 30 % about the area
+  centroid (scaled by 0.7);
+- friction_table uniform in ``FRICTION_TABLE_RANGE`` = [0.15, 0.4];
+- friction_pusher uniform in ``FRICTION_PUSHER_RANGE`` = [0.15, 0.5].
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pybullet as p
+from numpy.typing import NDArray
+from pybullet_utils.bullet_client import BulletClient
+
+from push_core.geometry import closest_point_on_polyline
+from push_core.objects import ObjectSpec, load_object
+from push_core.shapes import Ellipse, Polygon
+from sim_bridge.rendering import Appearance
+
+if TYPE_CHECKING:
+    from sim_bridge.world import WorldConfig
+
+__all__ = [
+    "COLLISION_TOLERANCE",
+    "COM_SHRINK",
+    "FRICTION_PUSHER_RANGE",
+    "FRICTION_TABLE_RANGE",
+    "INITIAL_SETTLE_STEPS",
+    "MASS_FACTOR_RANGE",
+    "OBJECT_MARGIN",
+    "PUSHER_LENGTH",
+    "PUSHER_MASS",
+    "PUSHER_MAX_FORCE",
+    "PUSHER_PARK",
+    "VISUAL_TOLERANCE",
+    "Scene",
+    "build_scene",
+    "park_position",
+    "simulated_spec",
+    "yaw_quaternion",
+]
+
+#: Randomisation ranges (see the module docstring).
+MASS_FACTOR_RANGE = (0.5, 2.0)
+COM_SHRINK = 0.3
+FRICTION_TABLE_RANGE = (0.15, 0.4)
+FRICTION_PUSHER_RANGE = (0.15, 0.5)
+
+#: Pusher geometry and drive.
+PUSHER_LENGTH = 0.06
+PUSHER_MASS = 0.1
+PUSHER_MAX_FORCE = 100.0  # N, force limit of the driving constraint
+PUSHER_PARK = (-0.45, 0.0, 0.30)  # parked pusher: axis x, y and bottom height, m
+
+#: Largest deviation of the collision outline from the true outline (Douglas-Peucker tolerance
+#: passed to ``Polygon.convex_pieces``), m. push_core's default, 0.3 mm, cuts butter into many
+#: slivers along its concave waist; 0.5 mm gives about half as many pieces and makes butter's
+#: physics markedly faster (push + frame timings: docs/RESULTS.md, section bench_sim).
+#: Convex polygons and ellipses are not simplified.
+COLLISION_TOLERANCE = 5e-4
+#: Largest deviation of the visual mesh's outline from the true outline, m.
+VISUAL_TOLERANCE = 2e-5
+#: Collision margin of the object's convex pieces, m (pybullet's default is 1 mm).
+OBJECT_MARGIN = 1e-4
+#: Steps run after building the scene so that resting contacts are established.
+INITIAL_SETTLE_STEPS = 24
+
+_TABLE_HALF_SIZE = 0.75
+_PUSHER_RGB = (0.15, 0.15, 0.17)
+
+
+@dataclass(frozen=True)
+class Scene:
+    """The pybullet bodies of one scene.
+
+    Attributes
+    ----------
+    table, object, pusher : int
+        Body ids.
+    drive : int
+        The pusher's fixed constraint to the world; its pivot is the commanded position.
+    inertial_offset : (3,) ndarray
+        COM in the object frame, ``(c_x, c_y, thickness / 2)``, m (pybullet reports the COM
+        frame; ``object frame = COM frame - R @ inertial_offset``).
+    """
+
+    table: int
+    object: int
+    pusher: int
+    drive: int
+    inertial_offset: NDArray[np.float64]
+
+
+def park_position() -> NDArray[np.float64]:
+    """Centre of the parked pusher in ``world`` (3,), m."""
+    x, y, bottom = PUSHER_PARK
+    return np.array([x, y, bottom + PUSHER_LENGTH / 2.0])
+
+
+def build_scene(client: BulletClient, cfg: WorldConfig, spec: ObjectSpec,
+                look: Appearance) -> Scene:
+    """Set the physics engine up and create table, object and parked pusher in ``client``.
+
+    No physics step is run (the world settles the new scene itself).
+    """
+    c = client
+    c.setPhysicsEngineParameter(fixedTimeStep=cfg.time_step,
+                                numSolverIterations=cfg.solver_iterations, numSubSteps=0,
+                                deterministicOverlappingPairs=1, enableFileCaching=0)
+    c.setGravity(0.0, 0.0, -9.81)
+
+    plane = c.createCollisionShape(p.GEOM_PLANE)
+    slab = c.createVisualShape(p.GEOM_BOX, halfExtents=[_TABLE_HALF_SIZE] * 2 + [0.01],
+                               visualFramePosition=[0.0, 0.0, -0.01],
+                               rgbaColor=[*look.table_rgb, 1.0],
+                               specularColor=[0.05, 0.05, 0.05])
+    table = c.createMultiBody(0.0, plane, slab, [0.0, 0.0, 0.0])
+    c.changeDynamics(table, -1, lateralFriction=spec.friction_table,
+                     spinningFriction=0.0, rollingFriction=0.0, restitution=0.0)
+
+    body, inertial_offset = _create_object(c, cfg, spec, look)
+
+    radius = cfg.pusher_radius
+    col = c.createCollisionShape(p.GEOM_CYLINDER, radius=radius, height=PUSHER_LENGTH)
+    vis = c.createVisualShape(p.GEOM_CYLINDER, radius=radius, length=PUSHER_LENGTH,
+                              rgbaColor=[*_PUSHER_RGB, 1.0])
+    park = park_position()
+    pusher = c.createMultiBody(PUSHER_MASS, col, vis, park.tolist())
+    c.changeDynamics(pusher, -1, lateralFriction=spec.friction_pusher,
+                     spinningFriction=0.0, rollingFriction=0.0, restitution=0.0,
+                     linearDamping=0.0, angularDamping=0.0)
+    c.setCollisionFilterPair(pusher, table, -1, -1, 0)
+    drive = c.createConstraint(pusher, -1, -1, -1, p.JOINT_FIXED, [0, 0, 0], [0, 0, 0],
+                               park.tolist())
+    c.changeConstraint(drive, park.tolist(), maxForce=PUSHER_MAX_FORCE)
+    return Scene(table=table, object=body, pusher=pusher, drive=drive,
+                 inertial_offset=inertial_offset)
+
+
+def _create_object(c: BulletClient, cfg: WorldConfig, spec: ObjectSpec,
+                   look: Appearance) -> tuple[int, NDArray[np.float64]]:
+    """The object body at ``cfg.object_pose`` and its inertial offset (3,)."""
+    t = spec.thickness
+    tmp = Path(tempfile.mkdtemp(prefix="pushbot_sim_"))
+    try:
+        obj_file = tmp / "collision.obj"
+        obj_text, (verts, normals, indices) = _object_geometry(spec.shape, t)
+        obj_file.write_text(obj_text)
+        col = c.createCollisionShape(p.GEOM_MESH, fileName=str(obj_file))
+        vis = c.createVisualShape(p.GEOM_MESH, vertices=verts, normals=normals,
+                                  indices=indices, rgbaColor=[*look.object_rgb, 1.0],
+                                  specularColor=[0.4, 0.4, 0.4])
+        x, y, theta = cfg.object_pose
+        body = c.createMultiBody(
+            spec.mass, col, vis, [x, y, OBJECT_MARGIN], yaw_quaternion(theta),
+            baseInertialFramePosition=[float(spec.com[0]), float(spec.com[1]), t / 2.0])
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    if body < 0:
+        raise RuntimeError("pybullet could not create the object body")
+    inertial_offset = np.array([spec.com[0], spec.com[1], t / 2.0])
+    c.changeDynamics(body, -1, lateralFriction=1.0, spinningFriction=0.0,
+                     rollingFriction=0.0, restitution=0.0, linearDamping=0.0,
+                     angularDamping=0.0, collisionMargin=OBJECT_MARGIN, frictionAnchor=1,
+                     localInertiaDiagonal=_inertia_diagonal(spec).tolist())
+    return body, inertial_offset
+
+
+def yaw_quaternion(theta: float) -> list[float]:
+    """Quaternion (x, y, z, w) of a rotation by ``theta`` about z."""
+    return [0.0, 0.0, float(np.sin(theta / 2.0)), float(np.cos(theta / 2.0))]
+
+
+# ------------------------------------------------------------- the simulated object
+_LIBRARY_CACHE: dict[str, ObjectSpec] = {}
+_GEOMETRY_CACHE: dict[tuple[int, float], tuple[object, str, tuple]] = {}
+
+
+def _load_object(name_or_path: str | Path) -> ObjectSpec:
+    """``load_object`` with library objects cached (validating a dense measured outline such
+    as butter's is slow); specification files are read every time, they may have changed."""
+    key = str(name_or_path)
+    if key in _LIBRARY_CACHE:
+        return _LIBRARY_CACHE[key]
+    spec = load_object(name_or_path)
+    if spec.source == f"library:{key}":
+        _LIBRARY_CACHE[key] = spec
+    return spec
+
+
+def simulated_spec(cfg: WorldConfig, rng: np.random.Generator) -> ObjectSpec:
+    """The library spec with randomisation (if enabled) and then explicit overrides applied.
+
+    All random values are drawn in a fixed order whether or not they are used, so an override
+    of one parameter does not change the others.
+    """
+    spec = _load_object(cfg.object)
+    factor = float(np.exp(rng.uniform(*np.log(MASS_FACTOR_RANGE))))
+    com = _random_com(spec, rng)
+    mu_table = float(rng.uniform(*FRICTION_TABLE_RANGE))
+    mu_pusher = float(rng.uniform(*FRICTION_PUSHER_RANGE))
+    changes: dict[str, object] = {}
+    if cfg.randomize:
+        changes.update(mass=spec.mass * factor, com=com, friction_table=mu_table,
+                       friction_pusher=mu_pusher)
+    for name, key in (("mass", "mass"), ("com_offset", "com"),
+                      ("friction_table", "friction_table"),
+                      ("friction_pusher", "friction_pusher")):
+        value = getattr(cfg, name)
+        if value is not None:
+            changes[key] = value
+    return spec.replace(**changes) if changes else spec
+
+
+def _random_com(spec: ObjectSpec, rng: np.random.Generator) -> NDArray[np.float64]:
+    """A point uniform over the outline scaled by ``1 - COM_SHRINK`` about the area centroid."""
+    outline = spec.polyline()
+    scale = 1.0 - COM_SHRINK
+    lo, hi = outline.min(axis=0) * scale, outline.max(axis=0) * scale
+    for _ in range(1000):
+        q = rng.uniform(lo, hi)
+        _, _, dist, _ = closest_point_on_polyline(outline, np.stack([q / scale, q]))
+        if np.all(dist < 0):
+            return q
+    return np.zeros(2)  # unreachable for any sensible outline
+
+
+def _inertia_diagonal(spec: ObjectSpec) -> NDArray[np.float64]:
+    """(I_xx, I_yy, I_zz) about the COM, kg m^2: I_zz from the spec, the tilt inertias of a
+    uniform plate of the spec's outline and thickness (second moments of the polyline)."""
+    v = spec.polyline() - spec.com
+    w = np.roll(v, -1, axis=0)
+    cr = v[:, 0] * w[:, 1] - w[:, 0] * v[:, 1]
+    area = 0.5 * cr.sum()
+    sxx = np.sum(cr * (v[:, 1] ** 2 + v[:, 1] * w[:, 1] + w[:, 1] ** 2)) / 12.0  # int y^2
+    syy = np.sum(cr * (v[:, 0] ** 2 + v[:, 0] * w[:, 0] + w[:, 0] ** 2)) / 12.0  # int x^2
+    density = spec.mass / area
+    tilt = spec.mass * spec.thickness**2 / 12.0
+    return np.array([density * sxx + tilt, density * syy + tilt, spec.moment_of_inertia])
+
+
+# ------------------------------------------------------------------------ geometry
+def _object_geometry(shape: Polygon | Ellipse, thickness: float) -> tuple[str, tuple]:
+    """Collision OBJ text and visual mesh of a shape, cached per shape object (randomised
+    specs share their library shape), at most 32 entries."""
+    key = (id(shape), thickness)
+    hit = _GEOMETRY_CACHE.get(key)
+    if hit is not None and hit[0] is shape:
+        return hit[1], hit[2]
+    pieces = (shape.convex_pieces() if isinstance(shape, Ellipse)
+              else shape.convex_pieces(tolerance=COLLISION_TOLERANCE))
+    geometry = (_prisms_obj(pieces, thickness), _extruded_mesh(shape, thickness))
+    if len(_GEOMETRY_CACHE) >= 32:
+        _GEOMETRY_CACHE.pop(next(iter(_GEOMETRY_CACHE)))
+    _GEOMETRY_CACHE[key] = (shape, *geometry)
+    return geometry
+
+
+def _prisms_obj(pieces: list[NDArray[np.float64]], thickness: float) -> str:
+    """Wavefront OBJ text with one closed prism per convex piece (one ``o`` group each);
+    pybullet turns each group into a convex hull of a compound collision shape."""
+    lines = []
+    base = 1
+    for k, piece in enumerate(pieces):
+        n = len(piece)
+        lines.append(f"o piece{k}")
+        for z in (0.0, thickness):
+            lines += [f"v {x:.9f} {y:.9f} {z:.9f}" for x, y in piece]
+        lines.append("f " + " ".join(str(base + i) for i in reversed(range(n))))
+        lines.append("f " + " ".join(str(base + n + i) for i in range(n)))
+        for i in range(n):
+            j = (i + 1) % n
+            lines.append(f"f {base + i} {base + j} {base + n + j} {base + n + i}")
+        base += 2 * n
+    return "\n".join(lines) + "\n"
+
+
+def _extruded_mesh(shape: Polygon | Ellipse,
+                   thickness: float) -> tuple[list[list[float]], list[list[float]], list[int]]:
+    """Visual mesh of the true outline: top face and side walls (the bottom is never seen).
+
+    Dense measured outlines are simplified to within ``VISUAL_TOLERANCE`` (0.02 mm, a small
+    fraction of a pixel at the default viewpoint), which makes their frames cheaper to render
+    and their scenes faster to build (render timings: docs/RESULTS.md, section bench_sim).
+
+    Returns vertices (N, 3), per-vertex normals (N, 3) and triangle indices (3 T,) with
+    counter-clockwise (outward) winding.
+    """
+    if isinstance(shape, Ellipse):
+        outline = shape.polyline(max_spacing=0.003)  # chord error < 0.03 mm for a > 3 cm
+        tris = np.array([[0, i, i + 1] for i in range(1, len(outline) - 1)])
+    else:
+        simple = shape.simplified(VISUAL_TOLERANCE)
+        outline = simple.vertices
+        tris = simple.triangles()
+    n = len(outline)
+    top = np.column_stack([outline, np.full(n, thickness)])
+    verts = [top]
+    normals = [np.tile([0.0, 0.0, 1.0], (n, 1))]
+    indices = [tris.reshape(-1)]
+    # Side walls: four vertices per edge so each wall has its own flat normal.
+    a, b = outline, np.roll(outline, -1, axis=0)
+    d = b - a
+    nrm = np.column_stack([d[:, 1], -d[:, 0], np.zeros(n)])
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    quad = np.stack([np.column_stack([a, np.zeros(n)]), np.column_stack([b, np.zeros(n)]),
+                     np.column_stack([b, np.full(n, thickness)]),
+                     np.column_stack([a, np.full(n, thickness)])], axis=1)  # (n, 4, 3)
+    verts.append(quad.reshape(-1, 3))
+    normals.append(np.repeat(nrm, 4, axis=0))
+    first = n + 4 * np.arange(n)[:, None]
+    indices.append((first + np.array([0, 1, 2, 0, 2, 3])).reshape(-1))
+    return (np.concatenate(verts).tolist(), np.concatenate(normals).tolist(),
+            np.concatenate(indices).astype(int).tolist())
