@@ -69,8 +69,8 @@ def test_doctor_passes_with_two_process_pubsub() -> None:
     pubsub = [line for line in lines if 'pub/sub' in line]
     assert len(pubsub) == 1 and pubsub[0].startswith('OK'), result.stdout
     assert '5/5 messages' in pubsub[0]
-    for label in ('rclpy', 'RMW implementation', 'torch', 'pybullet', 'OpenCV', 'filterpy',
-                  'numpy', 'ROS_DOMAIN_ID', 'discovery range'):
+    for label in ('rclpy', 'RMW implementation', 'torch', 'pybullet', 'OpenCV', 'numpy',
+                  'ROS_DOMAIN_ID', 'discovery range'):
         assert any(line.startswith('OK') and label in line for line in lines), label
     assert re.search(rf'ROS_DOMAIN_ID\s+{os.environ["ROS_DOMAIN_ID"]}$', result.stdout, re.M)
     assert re.search(r'discovery range\s+LOCALHOST$', result.stdout, re.M)

@@ -99,7 +99,7 @@ def test_contact_outline_decimates_and_keeps_the_outline() -> None:
 
 def test_closest_feature_loop_equals_the_vectorised_search(
         monkeypatch: pytest.MonkeyPatch) -> None:
-    import push_core.estimator as estimator
+    import push_core.contact as estimator
 
     outline = ContactOutline.from_points(*library_outline("tri1"), tolerance=5e-4)
     assert len(outline.vertices) <= estimator._SMALL_POLYGON  # the loop is used for tri1

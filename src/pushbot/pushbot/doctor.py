@@ -2,7 +2,7 @@
 
 Checks, one output line each (``OK`` or ``FAIL`` and a reason):
 
-- versions of rclpy, the RMW implementation, torch, pybullet, OpenCV, filterpy and numpy
+- versions of rclpy, the RMW implementation, torch, pybullet, OpenCV and numpy
   (a missing or broken import is a FAIL with a hint, never a traceback);
 - the DDS environment: ``ROS_DOMAIN_ID``, ``ROS_AUTOMATIC_DISCOVERY_RANGE``, the RMW in use;
 - a real two-process publish/subscribe round trip on this machine: a subscriber and a
@@ -131,7 +131,6 @@ def check_versions() -> list[Check]:
         check_module('pybullet', 'pybullet', ('pybullet',)),
         check_module('OpenCV', 'cv2', ('opencv-python-headless', 'opencv-python'),
                      lambda m: m.__version__),
-        check_module('filterpy', 'filterpy', ('filterpy',)),
         check_module('numpy', 'numpy', ('numpy',), lambda m: m.__version__),
     ]
     return checks
