@@ -34,19 +34,17 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import format_section, update_section  # noqa: E402
 
 from push_core.objects import TEST_OBJECTS  # noqa: E402
-from push_perception.conversions import (  # noqa: E402
-    depth_to_metres,
-    mask_image_msg,
-    pose_with_covariance_msg,
-)
 from push_perception.core import EpisodeTracker  # noqa: E402
 from push_perception.model import Segmenter  # noqa: E402
-from sim_bridge.conversions import (  # noqa: E402
+from push_ros.images import (  # noqa: E402
     depth_image_msg,
+    depth_to_metres,
     image_to_array,
+    mask_image_msg,
     rgb_image_msg,
-    stamp_from_seconds,
 )
+from push_ros.poses import pose_with_covariance_msg  # noqa: E402
+from push_ros.stamps import stamp_from_seconds  # noqa: E402
 from sim_bridge.world import PushWorld, WorldConfig  # noqa: E402
 
 TARGET_MS = 30.0

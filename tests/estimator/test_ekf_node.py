@@ -27,14 +27,13 @@ from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
 from push_core.estimator import EKFConfig, PushEKF, predict_push
-from push_estimator.conversions import (
-    outline_cloud_msg,
-    pose_with_covariance_msg,
-    stamp_from_seconds,
-    state_from_array_msg,
-    yaw_from_quaternion,
-)
-from push_estimator.ekf_node import LATCHED, RELIABLE, EkfNode, TFMessage
+from push_estimator.ekf_node import EkfNode, TFMessage
+from push_ros.outline import outline_cloud_msg
+from push_ros.poses import pose_with_covariance_msg, yaw_from_quaternion
+from push_ros.qos import LATCHED_QOS as LATCHED
+from push_ros.qos import RELIABLE_QOS as RELIABLE
+from push_ros.stamps import stamp_from_seconds
+from push_ros.state import state_from_array_msg
 
 HALF = 0.03
 #: A 6 cm square, 10 points per side, counter-clockwise, with outward normals.
@@ -113,8 +112,12 @@ class EkfHarness:
     def observe(self, pose: Any, stamp: float, frame: str = "world",
                 covariance: np.ndarray | None = None) -> None:
         cov = np.zeros((3, 3)) if covariance is None else covariance
-        self.pub_obs.publish(pose_with_covariance_msg(pose, cov, stamp_from_seconds(stamp),
-                                                      frame))
+        finite = np.all(np.isfinite(pose))
+        msg = pose_with_covariance_msg(pose if finite else (0.0, 0.0, 0.0), cov,
+                                       stamp_from_seconds(stamp), frame)
+        if not finite:  # the codec refuses to write NaN; another publisher might not
+            msg.pose.pose.position.x, msg.pose.pose.position.y = (float(v) for v in pose[:2])
+        self.pub_obs.publish(msg)
 
     def push(self, start: Any, end: Any, t_start: float, t_end: float,
              n_poses: int = 2) -> None:
@@ -170,6 +173,10 @@ def test_topics_types_qos_and_service(tester: EkfHarness) -> None:
         infos = [i for i in n.get_publishers_info_by_topic(topic) if i.node_name == "ekf_node"]
         assert [i.topic_type for i in infos] == [kind], topic
         assert infos[0].qos_profile.reliability == ReliabilityPolicy.RELIABLE
+        # The estimates are latched (a late subscriber gets the last one); diagnostics not.
+        latched = topic.startswith("/estimator/")
+        assert infos[0].qos_profile.durability == (
+            DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE), topic
     subs = {"/perception/outline": DurabilityPolicy.TRANSIENT_LOCAL,
             "/perception/object_pose": DurabilityPolicy.VOLATILE,
             "/pusher/executed": DurabilityPolicy.VOLATILE}

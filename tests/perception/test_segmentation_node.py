@@ -35,20 +35,18 @@ from rclpy.qos import (  # noqa: E402
 from sensor_msgs.msg import CameraInfo, Image, PointCloud2  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
-from push_perception.conversions import outline_from_cloud  # noqa: E402
 from push_perception.segmentation_node import PARAMETERS, SegmentationNode  # noqa: E402
-from pushbot.graph import spin_until  # noqa: E402
-from sim_bridge.conversions import (  # noqa: E402
-    CAMERA_FRAME,
-    WORLD_FRAME,
+from push_ros.frames import CAMERA_FRAME, WORLD_FRAME  # noqa: E402
+from push_ros.images import (  # noqa: E402
     camera_info_msg,
     depth_image_msg,
     image_to_array,
     rgb_image_msg,
-    stamp_from_seconds,
-    transform_msg,
-    xytheta_from_pose,
 )
+from push_ros.outline import outline_from_cloud  # noqa: E402
+from push_ros.poses import transform_msg, xytheta_from_pose  # noqa: E402
+from push_ros.stamps import stamp_from_seconds  # noqa: E402
+from pushbot.graph import spin_until  # noqa: E402
 
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
@@ -194,7 +192,8 @@ def test_parameter_yaml_documents_every_parameter_with_its_default() -> None:
 def test_rendered_frames_give_pose_outline_and_mask(harness: Harness,
                                                     frames: dict[str, Rendered]) -> None:
     h, a, b = harness, frames["a"], frames["b"]
-    assert h.node.get_parameter("use_sim_time").value is True  # the default
+    # Real-robot default (issue 13): wall time unless use_sim_time is set (YAML, graph runner).
+    assert h.node.get_parameter("use_sim_time").value is False
     h.send_extrinsics(a.t)
     first = h.pose_for(a)
     assert first.header.frame_id == WORLD_FRAME

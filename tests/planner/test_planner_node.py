@@ -32,9 +32,12 @@ from visualization_msgs.msg import MarkerArray
 from push_core.geometry import closest_point_on_polyline
 from push_core.objects import load_object
 from push_core.planner import AVOID_RADIUS
-from push_planner.conversions import outline_cloud, stamp_from_seconds, state_msg
 from push_planner.models import default_weights
-from push_planner.planner_node import LATCHED_QOS, PARAMETERS, RELIABLE_QOS, PlannerNode
+from push_planner.planner_node import PARAMETERS, PlannerNode
+from push_ros.outline import outline_cloud_msg as outline_cloud
+from push_ros.qos import LATCHED_QOS, RELIABLE_QOS
+from push_ros.stamps import stamp_from_seconds
+from push_ros.state import state_array_msg as state_msg
 
 pytestmark = pytest.mark.ros
 
@@ -116,9 +119,11 @@ def make_harness(ros_context: Any, wait_for: Callable[..., bool],
     pubs = {
         "outline": client.create_publisher(PointCloud2, "perception/outline", LATCHED_QOS),
         "goal": client.create_publisher(PoseStamped, "goal_pose", RELIABLE_QOS),
-        "state": client.create_publisher(Float64MultiArray, "estimator/state", RELIABLE_QOS),
+        # The estimator's outputs are latched (what ekf_node offers; the planner subscribes
+        # transient local, which a volatile publisher cannot serve).
+        "state": client.create_publisher(Float64MultiArray, "estimator/state", LATCHED_QOS),
         "pose": client.create_publisher(PoseWithCovarianceStamped, "estimator/object_pose",
-                                        RELIABLE_QOS),
+                                        LATCHED_QOS),
         "executed": client.create_publisher(Path, "pusher/executed", RELIABLE_QOS),
     }
     h = Harness(node, client, executor, wait_for, pubs)
@@ -391,10 +396,12 @@ def test_episode_parameters_apply_on_reset(ros_context: Any,
         assert (cfg.k, cfg.seed, cfg.tolerance_xy, h.node.params.max_steps) == (5, 11, 0.02, 7)
         # Structural parameters stay read-only.
         assert not h.node.set_parameters([Parameter("push_speed", value=0.05)])[0].successful
-        # An invalid combination is refused at the reset and the previous values kept.
-        assert h.node.set_parameters([Parameter("method", value="best")])[0].successful
-        result = call_reset()
-        assert not result.success and "parameter 'method'" in result.message
+        # An invalid value is refused when set (push_ros.node's on-set validation), with the
+        # reason, and the previous values kept.
+        refused = h.node.set_parameters([Parameter("method", value="best")])[0]
+        assert not refused.successful and "parameter 'method'" in refused.reason
+        assert h.node.get_parameter("method").value == "ana"
+        assert call_reset().success
         assert h.node.params.planner.method == "ana" and h.node.params.planner.k == 5
     finally:
         h.executor.shutdown()

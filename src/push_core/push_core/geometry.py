@@ -315,3 +315,110 @@ def closest_point_on_polyline(
     closest = np.stack([cx, cy], -1).reshape(*lead, 2)
     normal = np.stack([nx, ny], -1).reshape(*lead, 2)
     return closest, normal, (sign * dist).reshape(lead), seg.reshape(lead)
+
+
+# --------------------------------------------------------------------------------------------
+# Quaternions (x, y, z, w): the order of geometry_msgs/Quaternion and of pybullet.
+# --------------------------------------------------------------------------------------------
+#: The one quaternion rule of the pipeline: a quaternion is accepted when it is finite and its
+#: norm is within this of 1 (it is then normalised); a *planar* orientation (a yaw, every
+#: reader of a planar pose) also needs ``|q_x|, |q_y|`` at most this (a rotation about z).
+QUATERNION_TOLERANCE = 1e-3
+
+
+class NonFiniteError(ValueError):
+    """A value holds NaN or infinity (a ``ValueError``, so callers may lump it in)."""
+
+
+def check_quaternion(q: ArrayLike) -> NDArray[np.float64]:
+    """Validate a quaternion (x, y, z, w) and return it normalised, shape (4,).
+
+    Raises
+    ------
+    NonFiniteError
+        A NaN or infinite component.
+    ValueError
+        Not 4 values, (near) zero norm, or a norm further than :data:`QUATERNION_TOLERANCE`
+        from 1.
+    """
+    v = np.asarray(q, dtype=float)
+    if v.shape != (4,):
+        raise ValueError(f"quaternion must be 4 numbers (x, y, z, w), got shape {v.shape}")
+    if not np.all(np.isfinite(v)):
+        raise NonFiniteError(f"quaternion (x, y, z, w) = {v.tolist()} is not finite")
+    norm = float(np.linalg.norm(v))
+    if norm < 1e-9:
+        raise ValueError("quaternion has zero norm")
+    if abs(norm - 1.0) > QUATERNION_TOLERANCE:
+        raise ValueError(f"quaternion (x, y, z, w) = {v.tolist()} is not unit length "
+                         f"(norm {norm:.6g}, tolerance {QUATERNION_TOLERANCE})")
+    return v / norm
+
+
+def quaternion_from_yaw(theta: float) -> NDArray[np.float64]:
+    """Quaternion (x, y, z, w) = (0, 0, sin(theta / 2), cos(theta / 2)) of a yaw, radians."""
+    half = 0.5 * float(theta)
+    return np.array([0.0, 0.0, np.sin(half), np.cos(half)])
+
+
+def yaw_from_quaternion(q: ArrayLike) -> float:
+    """Yaw (radians in (-pi, pi]) of a planar orientation quaternion (x, y, z, w).
+
+    The planarity rule (:data:`QUATERNION_TOLERANCE`): unit norm and ``|q_x|, |q_y|`` at most
+    the tolerance, i.e. a rotation about z; the yaw is the z angle of the ZYX decomposition.
+
+    Raises
+    ------
+    NonFiniteError
+        A NaN or infinite component.
+    ValueError
+        See :func:`check_quaternion`; or a rotation that is not about z.
+    """
+    x, y, z, w = check_quaternion(q)
+    if max(abs(x), abs(y)) > QUATERNION_TOLERANCE:
+        raise ValueError(f"quaternion (x, y, z, w) = {[x, y, z, w]} is not a rotation about z "
+                         f"(a planar pose has |q_x|, |q_y| <= {QUATERNION_TOLERANCE})")
+    return float(np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z)))
+
+
+def matrix_from_quaternion(q: ArrayLike) -> NDArray[np.float64]:
+    """Rotation matrix (3, 3) of a quaternion (x, y, z, w) (see :func:`check_quaternion`)."""
+    x, y, z, w = check_quaternion(q)
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def quaternion_from_matrix(rotation: ArrayLike) -> NDArray[np.float64]:
+    """Quaternion (x, y, z, w) with ``w >= 0`` of a proper rotation matrix (3, 3).
+
+    Raises
+    ------
+    ValueError
+        If the matrix is not finite, not orthonormal or has determinant <= 0 (to 1e-6).
+    """
+    r = np.asarray(rotation, dtype=float)
+    if r.shape != (3, 3) or not np.all(np.isfinite(r)):
+        raise ValueError(f"rotation must be a finite (3, 3) array, got shape {r.shape}")
+    if not np.allclose(r @ r.T, np.eye(3), atol=1e-6) or np.linalg.det(r) <= 0:
+        raise ValueError("rotation must be orthonormal with determinant +1")
+    # Shepperd's method: pivot on the largest of w, x, y, z for numerical stability.
+    trace = np.trace(r)
+    i = int(np.argmax([trace, r[0, 0], r[1, 1], r[2, 2]]))
+    if i == 0:
+        s = 2.0 * np.sqrt(1.0 + trace)
+        q = [(r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s, s / 4]
+    elif i == 1:
+        s = 2.0 * np.sqrt(1.0 + r[0, 0] - r[1, 1] - r[2, 2])
+        q = [s / 4, (r[0, 1] + r[1, 0]) / s, (r[0, 2] + r[2, 0]) / s, (r[2, 1] - r[1, 2]) / s]
+    elif i == 2:
+        s = 2.0 * np.sqrt(1.0 + r[1, 1] - r[0, 0] - r[2, 2])
+        q = [(r[0, 1] + r[1, 0]) / s, s / 4, (r[1, 2] + r[2, 1]) / s, (r[0, 2] - r[2, 0]) / s]
+    else:
+        s = 2.0 * np.sqrt(1.0 + r[2, 2] - r[0, 0] - r[1, 1])
+        q = [(r[0, 2] + r[2, 0]) / s, (r[1, 2] + r[2, 1]) / s, s / 4, (r[1, 0] - r[0, 1]) / s]
+    quat = np.asarray(q, dtype=float)
+    quat /= np.linalg.norm(quat)
+    return -quat if quat[3] < 0 else quat

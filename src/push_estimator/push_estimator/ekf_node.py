@@ -68,43 +68,37 @@ status 2). Frames: ``world`` and ``object`` (parameters ``world_frame``, ``objec
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
-import rclpy
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PointStamped, PoseWithCovarianceStamped
 from nav_msgs.msg import Path
-from rcl_interfaces.msg import (
-    FloatingPointRange,
-    IntegerRange,
-    ParameterDescriptor,
-)
 from rclpy.clock import Clock, ClockType
-from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
 from push_core.estimator import STATE_LABELS, EKFConfig, PushEKF
-from push_estimator.conversions import (
-    NonFiniteError,
+from push_core.geometry import NonFiniteError
+from push_ros.diagnostics import diagnostic_array, status_msg
+from push_ros.frames import OBJECT_FRAME, WORLD_FRAME
+from push_ros.node import ParamSpec, ThrottledLog, declare_config, run_node
+from push_ros.outline import outline_from_cloud
+from push_ros.paths import executed_push_from_path
+from push_ros.poses import (
     center_of_mass_msg,
-    observation_from_msg,
-    outline_from_cloud,
+    planar_matrix,
+    pose_with_covariance_from_msg,
     pose_with_covariance_msg,
-    push_from_path,
-    stamp_from_seconds,
-    state_array_msg,
     transform_msg,
 )
+from push_ros.qos import LATCHED_QOS, RELIABLE_QOS
+from push_ros.stamps import stamp_from_seconds
+from push_ros.state import state_array_msg
 
 try:  # Only on a full ROS install: tf2_msgs has no PyPI wheel (ARCHITECTURE.md, tf note).
     from tf2_msgs.msg import TFMessage
@@ -114,82 +108,94 @@ except ImportError:  # pragma: no cover - depends on the install
 __all__ = ["EkfNode", "EkfNodeParams", "main"]
 
 NODE_NAME = "ekf_node"
-RELIABLE = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
-                      reliability=ReliabilityPolicy.RELIABLE,
-                      durability=DurabilityPolicy.VOLATILE)
-LATCHED = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                     reliability=ReliabilityPolicy.RELIABLE,
-                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
 #: Seconds between repeated log lines of one kind (the counters count every event).
 LOG_THROTTLE_S = 2.0
 #: Tolerance (m) under which a re-published outline counts as the same outline.
 SAME_OUTLINE_TOL = 1e-6
 
 _DEFAULTS = EKFConfig()
-#: (parameter name, EKFConfig field or None, default, description, (low, high) or None,
-#: read_only). Node-only parameters have no EKFConfig field.
-PARAMETERS: tuple[tuple[str, str | None, Any, str, tuple[float, float] | None, bool], ...] = (
-    ("world_frame", None, "world", "Frame of observations, pushes and the estimated pose.",
-     None, True),
-    ("object_frame", None, "object", "Frame of the outline and the COM.", None, True),
-    ("publish_tf", None, True, "Publish world -> object on /tf (only where tf2_msgs exists).",
-     None, True),
-    ("diagnostics_period", None, 1.0, "Period of the regular /diagnostics message, s (wall "
-     "time).", (0.1, 60.0), True),
-    ("observation.use_message_covariance", None, True, "Use the covariance of "
-     "perception/object_pose when it is symmetric positive definite.", None, False),
-    ("observation.position_sigma", "position_sigma", _DEFAULTS.position_sigma,
-     "Observation noise of x and y (standard deviation), m.", (1e-5, 0.1), False),
-    ("observation.angle_sigma", "angle_sigma", _DEFAULTS.angle_sigma,
-     "Observation noise of theta (standard deviation), rad.", (1e-5, 1.0), False),
-    ("symmetry_order", "symmetry_order", 0, "Rotational symmetry order of the object's "
-     "outline: 1 = none, k = looks the same after 2 pi / k, 0 = detect from the outline.",
-     (0, 64), False),
-    ("symmetry_tolerance", "symmetry_tolerance", _DEFAULTS.symmetry_tolerance,
-     "Largest outline mismatch of a symmetry when detecting it, m.", (1e-5, 0.02), False),
-    ("pusher_radius", "pusher_radius", _DEFAULTS.pusher_radius, "Radius of the pusher, m.",
-     (0.0, 0.05), False),
-    ("substep", "substep", _DEFAULTS.substep, "Longest model step along a push, m.",
-     (1e-4, 0.2), False),
-    ("contact_tol", "contact_tol", _DEFAULTS.contact_tol, "Contact test tolerance, m.",
-     (0.0, 0.01), False),
-    ("outline_tolerance", "outline_tolerance", _DEFAULTS.outline_tolerance,
-     "Douglas-Peucker tolerance of the contact outline, m.", (1e-5, 0.01), False),
-    ("iterations", "iterations", _DEFAULTS.iterations, "Linearisations of a push per "
-     "observation (1 = plain EKF, 2 = one re-linearisation).", (1, 10), False),
-    ("initial.com_prior_fraction", "com_prior_fraction", _DEFAULTS.com_prior_fraction,
-     "COM prior covariance = fraction^2 x the outline area's second moment (1 = anywhere in "
-     "the object).", (1e-3, 10.0), False),
-    ("initial.l_sigma_fraction", "l_sigma_fraction", _DEFAULTS.l_sigma_fraction,
-     "Initial standard deviation of l as a fraction of l_0.", (1e-3, 10.0), False),
-    ("initial.m", "m_init", _DEFAULTS.m_init, "Initial pusher-object friction coefficient.",
-     (0.01, 5.0), False),
-    ("initial.m_sigma", "m_sigma", _DEFAULTS.m_sigma, "Initial standard deviation of m.",
-     (1e-4, 5.0), False),
-    ("limits.l_min_fraction", "l_min_fraction", _DEFAULTS.l_min_fraction,
-     "Lower clip of l as a fraction of l_0 (upper clip: outline radius).", (1e-3, 0.99),
-     False),
-    ("limits.m_min", None, _DEFAULTS.m_range[0], "Lower clip of m.", (1e-3, 5.0), False),
-    ("limits.m_max", None, _DEFAULTS.m_range[1], "Upper clip of m.", (1e-3, 5.0), False),
-    ("process_noise.position_min", "position_noise_min", _DEFAULTS.position_noise_min,
-     "x, y process noise per push, constant part, m.", (0.0, 0.1), False),
-    ("process_noise.position_per_metre", "position_noise_per_metre",
-     _DEFAULTS.position_noise_per_metre, "x, y process noise per metre of pusher travel in "
-     "contact, m/m.", (0.0, 10.0), False),
-    ("process_noise.angle_min", "angle_noise_min", _DEFAULTS.angle_noise_min,
-     "theta process noise per push, constant part, rad.", (0.0, 1.0), False),
-    ("process_noise.angle_per_metre", "angle_noise_per_metre",
-     _DEFAULTS.angle_noise_per_metre, "theta process noise per metre of pusher travel in "
-     "contact, rad/m.", (0.0, 100.0), False),
-    ("process_noise.com", "com_noise", _DEFAULTS.com_noise, "COM random walk per push "
-     "(each axis), m.", (0.0, 0.1), False),
-    ("process_noise.l", "l_noise", _DEFAULTS.l_noise, "l random walk per push, m.",
-     (0.0, 0.1), False),
-    ("process_noise.m", "m_noise", _DEFAULTS.m_noise, "m random walk per push.", (0.0, 1.0),
-     False),
-    ("gate_probability", "gate_probability", _DEFAULTS.gate_probability, "Chi-square "
-     "probability (3 dof) of the innovation gate; 1 disables gating.", (1e-6, 1.0), False),
+#: The parameter table (node-only parameters first); :data:`_FIELDS` maps the others to the
+#: :class:`EKFConfig` field they set.
+PARAMETERS: tuple[ParamSpec, ...] = (
+    ParamSpec("world_frame", WORLD_FRAME, "Frame of observations, pushes and the estimated pose.",
+              read_only=True),
+    ParamSpec("object_frame", OBJECT_FRAME, "Frame of the outline and the COM.", read_only=True),
+    ParamSpec("publish_tf", True, "Publish world -> object on /tf (only where tf2_msgs "
+              "exists).", read_only=True),
+    ParamSpec("diagnostics_period", 1.0, "Period of the regular /diagnostics message, s (wall "
+              "time).", (0.1, 60.0), read_only=True),
+    ParamSpec("observation.use_message_covariance", True, "Use the covariance of "
+              "perception/object_pose when it is symmetric positive definite."),
+    ParamSpec("observation.position_sigma", _DEFAULTS.position_sigma,
+              "Observation noise of x and y (standard deviation), m.", (1e-5, 0.1)),
+    ParamSpec("observation.angle_sigma", _DEFAULTS.angle_sigma,
+              "Observation noise of theta (standard deviation), rad.", (1e-5, 1.0)),
+    ParamSpec("symmetry_order", 0, "Rotational symmetry order of the object's outline: 1 = "
+              "none, k = looks the same after 2 pi / k, 0 = detect from the outline.", (0, 64)),
+    ParamSpec("symmetry_tolerance", _DEFAULTS.symmetry_tolerance,
+              "Largest outline mismatch of a symmetry when detecting it, m.", (1e-5, 0.02)),
+    ParamSpec("pusher_radius", _DEFAULTS.pusher_radius, "Radius of the pusher, m.",
+              (0.0, 0.05)),
+    ParamSpec("substep", _DEFAULTS.substep, "Longest model step along a push, m.", (1e-4, 0.2)),
+    ParamSpec("contact_tol", _DEFAULTS.contact_tol, "Contact test tolerance, m.", (0.0, 0.01)),
+    ParamSpec("outline_tolerance", _DEFAULTS.outline_tolerance,
+              "Douglas-Peucker tolerance of the contact outline, m.", (1e-5, 0.01)),
+    ParamSpec("iterations", _DEFAULTS.iterations, "Linearisations of a push per observation "
+              "(1 = plain EKF, 2 = one re-linearisation).", (1, 10)),
+    ParamSpec("initial.com_prior_fraction", _DEFAULTS.com_prior_fraction,
+              "COM prior covariance = fraction^2 x the outline area's second moment (1 = "
+              "anywhere in the object).", (1e-3, 10.0)),
+    ParamSpec("initial.l_sigma_fraction", _DEFAULTS.l_sigma_fraction,
+              "Initial standard deviation of l as a fraction of l_0.", (1e-3, 10.0)),
+    ParamSpec("initial.m", _DEFAULTS.m_init, "Initial pusher-object friction coefficient.",
+              (0.01, 5.0)),
+    ParamSpec("initial.m_sigma", _DEFAULTS.m_sigma, "Initial standard deviation of m.",
+              (1e-4, 5.0)),
+    ParamSpec("limits.l_min_fraction", _DEFAULTS.l_min_fraction,
+              "Lower clip of l as a fraction of l_0 (upper clip: outline radius).",
+              (1e-3, 0.99)),
+    ParamSpec("limits.m_min", _DEFAULTS.m_range[0], "Lower clip of m.", (1e-3, 5.0)),
+    ParamSpec("limits.m_max", _DEFAULTS.m_range[1], "Upper clip of m.", (1e-3, 5.0)),
+    ParamSpec("process_noise.position_min", _DEFAULTS.position_noise_min,
+              "x, y process noise per push, constant part, m.", (0.0, 0.1)),
+    ParamSpec("process_noise.position_per_metre", _DEFAULTS.position_noise_per_metre,
+              "x, y process noise per metre of pusher travel in contact, m/m.", (0.0, 10.0)),
+    ParamSpec("process_noise.angle_min", _DEFAULTS.angle_noise_min,
+              "theta process noise per push, constant part, rad.", (0.0, 1.0)),
+    ParamSpec("process_noise.angle_per_metre", _DEFAULTS.angle_noise_per_metre,
+              "theta process noise per metre of pusher travel in contact, rad/m.",
+              (0.0, 100.0)),
+    ParamSpec("process_noise.com", _DEFAULTS.com_noise, "COM random walk per push (each "
+              "axis), m.", (0.0, 0.1)),
+    ParamSpec("process_noise.l", _DEFAULTS.l_noise, "l random walk per push, m.", (0.0, 0.1)),
+    ParamSpec("process_noise.m", _DEFAULTS.m_noise, "m random walk per push.", (0.0, 1.0)),
+    ParamSpec("gate_probability", _DEFAULTS.gate_probability, "Chi-square probability (3 dof) "
+              "of the innovation gate; 1 disables gating.", (1e-6, 1.0)),
 )
+_FIELDS: dict[str, str] = {
+    "observation.position_sigma": "position_sigma",
+    "observation.angle_sigma": "angle_sigma",
+    "symmetry_order": "symmetry_order",
+    "symmetry_tolerance": "symmetry_tolerance",
+    "pusher_radius": "pusher_radius",
+    "substep": "substep",
+    "contact_tol": "contact_tol",
+    "outline_tolerance": "outline_tolerance",
+    "iterations": "iterations",
+    "initial.com_prior_fraction": "com_prior_fraction",
+    "initial.l_sigma_fraction": "l_sigma_fraction",
+    "initial.m": "m_init",
+    "initial.m_sigma": "m_sigma",
+    "limits.l_min_fraction": "l_min_fraction",
+    "process_noise.position_min": "position_noise_min",
+    "process_noise.position_per_metre": "position_noise_per_metre",
+    "process_noise.angle_min": "angle_noise_min",
+    "process_noise.angle_per_metre": "angle_noise_per_metre",
+    "process_noise.com": "com_noise",
+    "process_noise.l": "l_noise",
+    "process_noise.m": "m_noise",
+    "gate_probability": "gate_probability",
+}
 
 
 @dataclass(frozen=True)
@@ -224,12 +230,12 @@ class EkfNodeParams:
             Naming the parameter (through :class:`EKFConfig` validation where it is a filter
             setting).
         """
-        kwargs = {field: values[name] for name, field, *_ in PARAMETERS if field is not None}
+        kwargs = {field: values[name] for name, field in _FIELDS.items()}
         kwargs["m_range"] = (values["limits.m_min"], values["limits.m_max"])
         try:
             config = EKFConfig(**kwargs)
         except ValueError as exc:
-            names = {field: name for name, field, *_ in PARAMETERS if field is not None}
+            names = {field: name for name, field in _FIELDS.items()}
             names["m_range"] = "limits.m_min/limits.m_max"
             field = next((f.name for f in fields(EKFConfig) if str(exc).startswith(f.name)),
                          None)
@@ -242,18 +248,6 @@ class EkfNodeParams:
                    publish_tf=bool(values["publish_tf"]),
                    diagnostics_period=float(values["diagnostics_period"]),
                    use_message_covariance=bool(values["observation.use_message_covariance"]))
-
-
-def _descriptor(description: str, bounds: tuple[float, float] | None, read_only: bool,
-                integer: bool) -> ParameterDescriptor:
-    desc = ParameterDescriptor(description=description, read_only=read_only)
-    if bounds is not None and integer:
-        desc.integer_range = [IntegerRange(from_value=int(bounds[0]), to_value=int(bounds[1]),
-                                           step=1)]
-    elif bounds is not None:
-        desc.floating_point_range = [FloatingPointRange(from_value=float(bounds[0]),
-                                                        to_value=float(bounds[1]), step=0.0)]
-    return desc
 
 
 @dataclass
@@ -299,17 +293,7 @@ class EkfNode(Node):
 
     def __init__(self, node_name: str = NODE_NAME, **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
-        # use_sim_time defaults to true here (the pipeline runs on /clock); an explicit value
-        # (command line, parameter file, constructor override) wins. rclpy declares the
-        # parameter itself, so "was it given" can only be read from its override table.
-        if "use_sim_time" not in getattr(self, "_parameter_overrides", {}):
-            self.set_parameters([Parameter("use_sim_time", Parameter.Type.BOOL, True)])
-        for name, _, default, description, bounds, read_only in PARAMETERS:
-            integer = isinstance(default, int) and not isinstance(default, bool)
-            self.declare_parameter(name, default,
-                                   _descriptor(description, bounds, read_only, integer))
-        self.params = EkfNodeParams.from_values(
-            {name: self.get_parameter(name).value for name, *_ in PARAMETERS})
+        self.params = declare_config(self, PARAMETERS, EkfNodeParams.from_values)
 
         self._ekf: PushEKF | None = None
         self._outline: np.ndarray | None = None
@@ -319,21 +303,23 @@ class EkfNode(Node):
         self._previous_episode = math.nan  # stamp of the last observation before ~/reset
         self._last_nis = math.nan
         self._problem = ""  # the most recent problem, "" after a good input
-        self._logged: dict[str, tuple[float, int]] = {}  # kind -> (last log time, suppressed)
+        self._log = ThrottledLog(self.get_logger(), LOG_THROTTLE_S)
 
         self._pub_pose = self.create_publisher(PoseWithCovarianceStamped,
-                                               "estimator/object_pose", RELIABLE)
+                                               "estimator/object_pose", LATCHED_QOS)
         self._pub_com = self.create_publisher(PointStamped, "estimator/center_of_mass",
-                                              RELIABLE)
-        self._pub_state = self.create_publisher(Float64MultiArray, "estimator/state", RELIABLE)
-        self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", RELIABLE)
+                                              LATCHED_QOS)
+        self._pub_state = self.create_publisher(Float64MultiArray, "estimator/state",
+                                                LATCHED_QOS)
+        self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", RELIABLE_QOS)
         self._pub_tf = None
         if TFMessage is not None and self.params.publish_tf:
-            self._pub_tf = self.create_publisher(TFMessage, "/tf", RELIABLE)
-        self.create_subscription(PointCloud2, "perception/outline", self._on_outline, LATCHED)
+            self._pub_tf = self.create_publisher(TFMessage, "/tf", RELIABLE_QOS)
+        self.create_subscription(PointCloud2, "perception/outline", self._on_outline,
+                                 LATCHED_QOS)
         self.create_subscription(PoseWithCovarianceStamped, "perception/object_pose",
-                                 self._on_observation, RELIABLE)
-        self.create_subscription(Path, "pusher/executed", self._on_push, RELIABLE)
+                                 self._on_observation, RELIABLE_QOS)
+        self.create_subscription(Path, "pusher/executed", self._on_push, RELIABLE_QOS)
         self.create_service(Trigger, "~/reset", self._on_reset)
         self.create_timer(self.params.diagnostics_period, self._publish_diagnostics,
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
@@ -357,18 +343,10 @@ class EkfNode(Node):
         ``LOG_THROTTLE_S`` per kind; the count says how many were not logged)."""
         self._counts[counter] += 1
         self._problem = text
-        now = time.monotonic()
-        last, suppressed = self._logged.get(counter, (-math.inf, 0))
-        if now - last >= LOG_THROTTLE_S:
-            if suppressed:
-                text += f" ({suppressed} more of this kind since the last message)"
-            if error:
-                self.get_logger().error(text)
-            else:
-                self.get_logger().warning(text)
-            self._logged[counter] = (now, 0)
+        if error:
+            self._log.error(counter, text)
         else:
-            self._logged[counter] = (last, suppressed + 1)
+            self._log.warning(counter, text)
         self._publish_diagnostics()
 
     def _parse(self, parse: Callable[[Any, str], Any], msg: Any, topic: str) -> Any:
@@ -413,7 +391,7 @@ class EkfNode(Node):
             self._drop("dropped_before_outline", "dropped perception/object_pose: no outline "
                        "yet (waiting for perception/outline)")
             return
-        obs = self._parse(observation_from_msg, msg, "perception/object_pose")
+        obs = self._parse(pose_with_covariance_from_msg, msg, "perception/object_pose")
         if obs is None:
             return
         if obs.stamp in (self._last_observation, self._previous_episode):
@@ -446,7 +424,7 @@ class EkfNode(Node):
             self._drop("dropped_before_init", "dropped pusher/executed: the filter is not "
                        "initialised yet (needs the outline and a first observation)")
             return
-        push = self._parse(push_from_path, msg, "pusher/executed")
+        push = self._parse(executed_push_from_path, msg, "pusher/executed")
         if push is None:
             return
         if any(e.push == push_key(push) for e in self._history):
@@ -538,48 +516,33 @@ class EkfNode(Node):
         x, p = self._ekf.state, self._ekf.covariance
         stamp = stamp_from_seconds(max(stamp_s, 0.0))
         world, obj = self.params.world_frame, self.params.object_frame
-        self._pub_pose.publish(pose_with_covariance_msg(x[0:3], p[0:3, 0:3], stamp, world))
+        self._pub_pose.publish(pose_with_covariance_msg(x[0:3], p[0:3, 0:3], stamp, world,
+                                                        unmeasured_variance=0.0))
         self._pub_com.publish(center_of_mass_msg(x[3:5], stamp, obj))
         self._pub_state.publish(state_array_msg(x, p))
         if self._pub_tf is not None:
-            self._pub_tf.publish(TFMessage(transforms=[transform_msg(x[0:3], stamp, world,
-                                                                     obj)]))
+            self._pub_tf.publish(TFMessage(transforms=[
+                transform_msg(planar_matrix(x[0:3]), stamp, world, obj)]))
 
     def _publish_diagnostics(self) -> None:
-        status = DiagnosticStatus()
-        status.name = f"{self.get_fully_qualified_name()}: estimator"
-        status.hardware_id = "push_estimator"
-        status.level = DiagnosticStatus.WARN if self._problem else DiagnosticStatus.OK
-        status.message = self._status() + (f"; {self._problem}" if self._problem else "")
-        values = {"state": self._status(), **{k: str(v) for k, v in self._counts.items()},
+        level = DiagnosticStatus.WARN if self._problem else DiagnosticStatus.OK
+        message = self._status() + (f"; {self._problem}" if self._problem else "")
+        values = {"state": self._status(), **self._counts,
                   "last_problem": self._problem, "last_nis": f"{self._last_nis:.3f}"}
         if self._ekf is not None:
             values["symmetry_order"] = str(self._ekf.outline.symmetry_order)
             if self._ekf.initialized:
                 values.update({label: f"{v:.6g}"
                                for label, v in zip(STATE_LABELS, self._ekf.state, strict=True)})
-        status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
-        array = DiagnosticArray(status=[status])
-        array.header.stamp = self.get_clock().now().to_msg()
+        status = status_msg(f"{self.get_fully_qualified_name()}: estimator", level, message,
+                            values, hardware_id="push_estimator")
+        array = diagnostic_array(status, self.get_clock().now().to_msg())
         self._pub_diag.publish(array)
 
 
 def main(args: list[str] | None = None) -> None:
     """Entry point of ``ekf_node`` (``ros2 run push_estimator ekf_node`` / ``pushbot run``)."""
-    rclpy.init(args=args)
-    try:
-        node = EkfNode()
-    except (ValueError, ParameterException) as exc:
-        rclpy.logging.get_logger(NODE_NAME).fatal(f"invalid configuration: {exc}")
-        rclpy.try_shutdown()
-        raise SystemExit(2) from None
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(EkfNode, NODE_NAME, args)
 
 
 if __name__ == "__main__":

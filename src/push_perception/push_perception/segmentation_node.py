@@ -87,48 +87,31 @@ from typing import Any
 
 import cv2
 import numpy as np
-import rclpy
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from geometry_msgs.msg import PoseWithCovarianceStamped
 from rclpy.clock import Clock, ClockType
-from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from rclpy.parameter import Parameter
-from rclpy.qos import (
-    DurabilityPolicy,
-    HistoryPolicy,
-    QoSProfile,
-    ReliabilityPolicy,
-    qos_profile_sensor_data,
-)
 from sensor_msgs.msg import CameraInfo, Image, PointCloud2
 from std_srvs.srv import Trigger
 
-from push_perception.conversions import (
-    depth_to_metres,
-    mask_image_msg,
-    outline_cloud_msg,
-    pose_with_covariance_msg,
-)
 from push_perception.core import EpisodeTracker, PerceptionConfig, PerceptionError
-from sim_bridge.conversions import (
+from push_ros.diagnostics import diagnostic_array, status_msg
+from push_ros.extrinsics import CameraExtrinsics
+from push_ros.images import (
     camera_matrix_from_info,
+    depth_to_metres,
     image_to_array,
-    matrix_from_transform,
-    seconds_from_stamp,
+    mask_image_msg,
 )
+from push_ros.node import ParamSpec, ThrottledLog, declare_config, parameter_values, run_node
+from push_ros.outline import outline_cloud_msg
+from push_ros.poses import pose_with_covariance_msg
+from push_ros.qos import LATCHED_QOS, RELIABLE_QOS, SENSOR_QOS
+from push_ros.stamps import seconds_from_stamp
 
 __all__ = ["PARAMETERS", "SegmentationNode", "SegmentationParams", "main"]
 
 NODE_NAME = "segmentation_node"
-RELIABLE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
-                          reliability=ReliabilityPolicy.RELIABLE,
-                          durability=DurabilityPolicy.VOLATILE)
-LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                         reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
 #: Seconds between two log lines of the same kind (every event is counted on /diagnostics).
 LOG_THROTTLE_S = 1.0
 #: Period of the regular /diagnostics message, seconds of steady time.
@@ -146,58 +129,47 @@ FAILURE_KINDS = ("bad_color", "bad_depth", "size_mismatch", "bad_camera_info",
 # --------------------------------------------------------------------------------------------
 # Parameters
 # --------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class _ParamSpec:
-    """One declared parameter: name, default, description, bounds, read-only flag."""
-
-    name: str
-    default: Any
-    description: str
-    bounds: tuple[float, float] | None = None
-    read_only: bool = False
-
-
 _GEOMETRY = {f.name: f.default for f in dataclasses.fields(PerceptionConfig)}
-PARAMETERS: tuple[_ParamSpec, ...] = (
-    _ParamSpec("weights", "", "Segmentation network weights (.pt); empty = the bundled "
-               "push_perception/models/segmentation.pt.", read_only=True),
-    _ParamSpec("torch_threads", 1, "torch intra-op threads for the CNN.", (1, 16),
-               read_only=True),
-    _ParamSpec("sync_queue", 5, "Stamps kept per stream while matching colour, depth and "
-               "camera_info.", (1, 100), read_only=True),
-    _ParamSpec("threshold", 0.5, "Probability above which a pixel is the object.",
-               (0.01, 0.99), read_only=True),
-    _ParamSpec("min_coarse_cells", 3, "Smallest coarse CNN component accepted as the object, "
-               "cells of 8 x 8 px at 640 x 480.", (1, 10000), read_only=True),
-    _ParamSpec("publish_mask", True, "Publish perception/mask."),
-    _ParamSpec("resolution", _GEOMETRY["resolution"], "Cell size of the top-down view, m.",
-               (2e-4, 5e-3)),
-    _ParamSpec("min_height", _GEOMETRY["min_height"], "Mask points lower than this above the "
-               "table are dropped (table pixels), m.", (0.0, 0.05)),
-    _ParamSpec("closing_radius", _GEOMETRY["closing_radius"], "Morphological closing of the "
-               "top-down view, cells.", (0, 10)),
-    _ParamSpec("outline_spacing", _GEOMETRY["outline_spacing"], "Distance between outline "
-               "points, m.", (2e-4, 0.02)),
-    _ParamSpec("outline_smoothing", _GEOMETRY["outline_smoothing"], "Gaussian smoothing "
-               "along the outline (standard deviation), m.", (0.0, 0.01)),
-    _ParamSpec("outline_offset", _GEOMETRY["outline_offset"], "Extra outward offset of the "
-               "outline (calibration), m.", (-0.005, 0.005)),
-    _ParamSpec("symmetry_tolerance", _GEOMETRY["symmetry_tolerance"], "Orientation minima "
-               "within this chamfer cost of the best are symmetric equivalents, m.",
-               (0.0, 0.01)),
-    _ParamSpec("min_pixels", _GEOMETRY["min_pixels"], "Fewer mask pixels (with depth) than "
-               "this: no pose.", (3, 10**7)),
-    _ParamSpec("min_valid_fraction", _GEOMETRY["min_valid_fraction"], "Smaller fraction of "
-               "mask pixels with depth than this: no pose.", (0.0, 1.0)),
-    _ParamSpec("max_border_pixels", _GEOMETRY["max_border_pixels"], "More mask pixels than "
-               "this on the image border: object out of view, no pose.", (0, 10**7)),
-    _ParamSpec("sigma_position", _GEOMETRY["sigma_position"], "Base standard deviation of x "
-               "and y (5000 pixels, full depth), m.", (1e-6, 1.0)),
-    _ParamSpec("sigma_theta", _GEOMETRY["sigma_theta"], "Base standard deviation of the "
-               "relative yaw, rad.", (1e-6, math.pi)),
-    _ParamSpec("match_cost_floor", _GEOMETRY["match_cost_floor"], "Chamfer residual of a "
-               "correct rotation match; only the excess widens the yaw's deviation, m.",
-               (0.0, 0.01)),
+PARAMETERS: tuple[ParamSpec, ...] = (
+    ParamSpec("weights", "", "Segmentation network weights (.pt); empty = the bundled "
+              "push_perception/models/segmentation.pt.", read_only=True),
+    ParamSpec("torch_threads", 1, "torch intra-op threads for the CNN.", (1, 16),
+              read_only=True),
+    ParamSpec("sync_queue", 5, "Stamps kept per stream while matching colour, depth and "
+              "camera_info.", (1, 100), read_only=True),
+    ParamSpec("threshold", 0.5, "Probability above which a pixel is the object.",
+              (0.01, 0.99), read_only=True),
+    ParamSpec("min_coarse_cells", 3, "Smallest coarse CNN component accepted as the object, "
+              "cells of 8 x 8 px at 640 x 480.", (1, 10000), read_only=True),
+    ParamSpec("publish_mask", True, "Publish perception/mask."),
+    ParamSpec("resolution", _GEOMETRY["resolution"], "Cell size of the top-down view, m.",
+              (2e-4, 5e-3)),
+    ParamSpec("min_height", _GEOMETRY["min_height"], "Mask points lower than this above the "
+              "table are dropped (table pixels), m.", (0.0, 0.05)),
+    ParamSpec("closing_radius", _GEOMETRY["closing_radius"], "Morphological closing of the "
+              "top-down view, cells.", (0, 10)),
+    ParamSpec("outline_spacing", _GEOMETRY["outline_spacing"], "Distance between outline "
+              "points, m.", (2e-4, 0.02)),
+    ParamSpec("outline_smoothing", _GEOMETRY["outline_smoothing"], "Gaussian smoothing "
+              "along the outline (standard deviation), m.", (0.0, 0.01)),
+    ParamSpec("outline_offset", _GEOMETRY["outline_offset"], "Extra outward offset of the "
+              "outline (calibration), m.", (-0.005, 0.005)),
+    ParamSpec("symmetry_tolerance", _GEOMETRY["symmetry_tolerance"], "Orientation minima "
+              "within this chamfer cost of the best are symmetric equivalents, m.",
+              (0.0, 0.01)),
+    ParamSpec("min_pixels", _GEOMETRY["min_pixels"], "Fewer mask pixels (with depth) than "
+              "this: no pose.", (3, 10**7)),
+    ParamSpec("min_valid_fraction", _GEOMETRY["min_valid_fraction"], "Smaller fraction of "
+              "mask pixels with depth than this: no pose.", (0.0, 1.0)),
+    ParamSpec("max_border_pixels", _GEOMETRY["max_border_pixels"], "More mask pixels than "
+              "this on the image border: object out of view, no pose.", (0, 10**7)),
+    ParamSpec("sigma_position", _GEOMETRY["sigma_position"], "Base standard deviation of x "
+              "and y (5000 pixels, full depth), m.", (1e-6, 1.0)),
+    ParamSpec("sigma_theta", _GEOMETRY["sigma_theta"], "Base standard deviation of the "
+              "relative yaw, rad.", (1e-6, math.pi)),
+    ParamSpec("match_cost_floor", _GEOMETRY["match_cost_floor"], "Chamfer residual of a "
+              "correct rotation match; only the excess widens the yaw's deviation, m.",
+              (0.0, 0.01)),
 )
 _GEOMETRY_NAMES = tuple(n for n in _GEOMETRY if any(p.name == n for p in PARAMETERS))
 
@@ -239,36 +211,6 @@ class SegmentationParams:
                    publish_mask=bool(values["publish_mask"]), geometry=config)
 
 
-def _descriptor(spec: _ParamSpec) -> ParameterDescriptor:
-    desc = ParameterDescriptor(description=spec.description, read_only=spec.read_only)
-    if spec.bounds is not None:
-        low, high = spec.bounds
-        if isinstance(spec.default, int) and not isinstance(spec.default, bool):
-            desc.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=1)]
-        else:
-            desc.floating_point_range = [FloatingPointRange(from_value=float(low),
-                                                            to_value=float(high), step=0.0)]
-    return desc
-
-
-class _LogLimiter:
-    """At most one log line per kind every ``period`` seconds (steady time); counts the rest."""
-
-    def __init__(self, period: float) -> None:
-        self.period = period
-        self._state: dict[str, tuple[float, int]] = {}
-
-    def check(self, kind: str) -> tuple[bool, int]:
-        """(log now?, number of suppressed lines of this kind since the last one logged)."""
-        now = time.monotonic()
-        last, suppressed = self._state.get(kind, (-math.inf, 0))
-        if now - last < self.period:
-            self._state[kind] = (last, suppressed + 1)
-            return False, 0
-        self._state[kind] = (now, 0)
-        return True, suppressed
-
-
 # --------------------------------------------------------------------------------------------
 # The node
 # --------------------------------------------------------------------------------------------
@@ -283,14 +225,7 @@ class SegmentationNode(Node):
 
     def __init__(self, node_name: str = NODE_NAME, **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
-        # use_sim_time defaults to true (the simulator's clock) unless given explicitly on the
-        # command line, in a params file or as an override; rclpy has no public query for
-        # "was this parameter given", hence the look at the overrides it collected.
-        if "use_sim_time" not in self._parameter_overrides:
-            self.set_parameters([Parameter("use_sim_time", value=True)])
-        for spec in PARAMETERS:
-            self.declare_parameter(spec.name, spec.default, _descriptor(spec))
-        self._params = self._read_params()
+        self._params = declare_config(self, PARAMETERS, SegmentationParams.from_values)
 
         import torch
 
@@ -304,8 +239,6 @@ class SegmentationNode(Node):
         self._tracker = EpisodeTracker(self._params.geometry)
 
         self._pending: OrderedDict[tuple[int, int], dict[str, Any]] = OrderedDict()
-        self._extrinsics: np.ndarray | None = None
-        self._extrinsics_frame = ""
         self._counts = {"frames": 0, "poses": 0, "resets": 0, "previous_episode": 0,
                         **dict.fromkeys(FAILURE_KINDS, 0)}
         self._last_error = ""
@@ -314,24 +247,24 @@ class SegmentationNode(Node):
         self._last_stamp = 0.0
         self._last_frame = -math.inf  # stamp (s) of the last frame processed
         self._episode_after = -math.inf  # frames with this stamp belong to the last episode
-        self._limiter = _LogLimiter(LOG_THROTTLE_S)
+        self._log = ThrottledLog(self.get_logger(), LOG_THROTTLE_S)
 
         self._pub_mask = self.create_publisher(Image, "perception/mask",
-                                               qos_profile_sensor_data)
+                                               SENSOR_QOS)
         self._pub_pose = self.create_publisher(PoseWithCovarianceStamped,
                                                "perception/object_pose", RELIABLE_QOS)
         self._pub_outline = self.create_publisher(PointCloud2, "perception/outline",
                                                   LATCHED_QOS)
         self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", RELIABLE_QOS)
-        sensor = qos_profile_sensor_data
+        sensor = SENSOR_QOS
         self.create_subscription(Image, "camera/color/image_raw",
                                  lambda m: self._on_stream("rgb", m), sensor)
         self.create_subscription(Image, "camera/aligned_depth_to_color/image_raw",
                                  lambda m: self._on_stream("depth", m), sensor)
         self.create_subscription(CameraInfo, "camera/color/camera_info",
                                  lambda m: self._on_stream("info", m), sensor)
-        self.create_subscription(TransformStamped, "camera/color/extrinsics",
-                                 self._on_extrinsics, LATCHED_QOS)
+        self._extrinsics = CameraExtrinsics(
+            self, lambda exc: self._fail("bad_input", f"rejected camera extrinsics: {exc}"))
         self.create_service(Trigger, "~/reset", self._on_reset)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_diagnostics, clock=steady)
@@ -342,17 +275,9 @@ class SegmentationNode(Node):
 
     # ---- parameters --------------------------------------------------------------------------
     def _read_params(self) -> SegmentationParams:
-        return SegmentationParams.from_values(
-            {spec.name: self.get_parameter(spec.name).value for spec in PARAMETERS})
+        return SegmentationParams.from_values(parameter_values(self, PARAMETERS))
 
     # ---- inputs ------------------------------------------------------------------------------
-    def _on_extrinsics(self, msg: TransformStamped) -> None:
-        try:
-            self._extrinsics = matrix_from_transform(msg)
-        except ValueError as exc:
-            self._fail("bad_input", f"rejected camera/color/extrinsics: {exc}")
-            return
-        self._extrinsics_frame = msg.child_frame_id
 
     def _on_stream(self, stream: str, msg: Any) -> None:
         """Collect colour, depth and camera_info by stamp; process a complete triple."""
@@ -410,21 +335,22 @@ class SegmentationNode(Node):
                 raise PerceptionError("bad_camera_info", f"camera_info is for {info.width}x"
                                       f"{info.height} images, the images are "
                                       f"{depth.shape[1]}x{depth.shape[0]}")
-            if self._extrinsics is None:
-                raise PerceptionError("no_extrinsics", "no camera/color/extrinsics received "
-                                      "yet (latched, from the camera driver or sim_bridge)")
             frame = rgb_msg.header.frame_id
-            if frame != depth_msg.header.frame_id or (self._extrinsics_frame
-                                                      and frame != self._extrinsics_frame):
+            extrinsics, extrinsics_frame = self._extrinsics.lookup(frame)
+            if extrinsics is None:
+                raise PerceptionError("no_extrinsics", "no camera extrinsics yet (tf2 world -> "
+                                      f"{frame!r} or the latched camera/color/extrinsics)")
+            if frame != depth_msg.header.frame_id or (extrinsics_frame
+                                                      and frame != extrinsics_frame):
                 raise PerceptionError("frame_mismatch", f"colour frame {frame!r}, depth frame "
                                       f"{depth_msg.header.frame_id!r} and extrinsics child "
-                                      f"{self._extrinsics_frame!r} must be the same frame")
-            seg = self._segmenter(rgb, depth, k, self._extrinsics)
+                                      f"{extrinsics_frame!r} must be the same frame")
+            seg = self._segmenter(rgb, depth, k, extrinsics)
             if self._params.publish_mask:
                 self._pub_mask.publish(mask_image_msg(seg.mask, stamp, frame))
             if seg.box is None:
                 raise PerceptionError("empty_mask", "the CNN found no object in the frame")
-            meas = self._tracker.update(seg.mask, depth, k, self._extrinsics)
+            meas = self._tracker.update(seg.mask, depth, k, extrinsics)
         except PerceptionError as exc:
             self._fail(exc.kind, str(exc))
             return
@@ -457,11 +383,7 @@ class SegmentationNode(Node):
         """Count, rate-limit-log and report a frame (or input) that gave no pose."""
         self._counts[kind] += 1
         self._last_error = f"{kind}: {message}"
-        log, suppressed = self._limiter.check(kind)
-        if log:
-            if suppressed:
-                message += f" ({suppressed} similar message(s) suppressed)"
-            self.get_logger().warning(f"no pose ({kind}): {message}")
+        self._log.warning(kind, f"no pose ({kind}): {message}")
         if self._ok is not False:
             self._ok = False
             self._publish_diagnostics()
@@ -485,43 +407,26 @@ class SegmentationNode(Node):
         return response
 
     def _publish_diagnostics(self) -> None:
-        status = DiagnosticStatus()
-        status.name = f"{self.get_fully_qualified_name()}: perception"
-        status.hardware_id = "rgbd_camera"
         if self._ok is None:
-            status.level, status.message = DiagnosticStatus.OK, "waiting for camera frames"
+            level, message = DiagnosticStatus.OK, "waiting for camera frames"
         elif self._ok:
-            status.level, status.message = DiagnosticStatus.OK, "tracking"
+            level, message = DiagnosticStatus.OK, "tracking"
         else:
-            status.level = DiagnosticStatus.WARN
-            status.message = f"no pose for the last frame: {self._last_error}"
+            level = DiagnosticStatus.WARN
+            message = f"no pose for the last frame: {self._last_error}"
         latency = (f"{1e3 * statistics.median(self._latency):.1f}" if self._latency else "")
-        values = {**{k: str(v) for k, v in self._counts.items()},
-                  "last_error": self._last_error, "latency_ms_median": latency,
+        values = {**self._counts, "last_error": self._last_error, "latency_ms_median": latency,
                   "has_reference": str(self._tracker.outline is not None).lower(),
                   "last_stamp": f"{self._last_stamp:.6f}"}
-        status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
-        array = DiagnosticArray(status=[status])
-        array.header.stamp = self.get_clock().now().to_msg()
+        status = status_msg(f"{self.get_fully_qualified_name()}: perception", level, message,
+                            values, hardware_id="rgbd_camera")
+        array = diagnostic_array(status, self.get_clock().now().to_msg())
         self._pub_diag.publish(array)
 
 
 def main(args: list[str] | None = None) -> None:
     """Entry point of ``segmentation_node`` (``ros2 run`` / ``pushbot run``)."""
-    rclpy.init(args=args)
-    try:
-        node = SegmentationNode()
-    except (ValueError, ParameterException) as exc:
-        rclpy.logging.get_logger(NODE_NAME).fatal(f"invalid configuration: {exc}")
-        rclpy.try_shutdown()
-        raise SystemExit(2) from None
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(SegmentationNode, NODE_NAME, args)
 
 
 if __name__ == "__main__":

@@ -96,16 +96,11 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from nav_msgs.msg import Path
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.clock import Clock, ClockType
-from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
@@ -119,25 +114,19 @@ from push_core.planner import (
     PlannerConfig,
     prepare_outline,
 )
-from push_planner.conversions import (
-    affordance_markers,
-    estimate_from_msg,
-    goal_from_msg,
-    outline_from_cloud,
-    push_path,
-    seconds_from_stamp,
-    state_from_msg,
-    status_msg,
-)
+from push_planner.conversions import affordance_markers
+from push_ros.diagnostics import diagnostic_array, status_msg
+from push_ros.frames import WORLD_FRAME
+from push_ros.node import ParamSpec, declare_config, parameter_values, run_node
+from push_ros.outline import outline_from_cloud
+from push_ros.paths import push_path
+from push_ros.poses import check_frame, pose_with_covariance_from_msg, xytheta_from_pose
+from push_ros.qos import LATCHED_QOS, RELIABLE_QOS, latched_reader_qos
+from push_ros.stamps import seconds_from_stamp
+from push_ros.state import state_from_array_msg
 
 __all__ = ["PARAMETERS", "PlannerNode", "PlannerNodeParams", "main"]
 
-RELIABLE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
-                          reliability=ReliabilityPolicy.RELIABLE,
-                          durability=DurabilityPolicy.VOLATILE)
-LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                         reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
 #: Period of /diagnostics and of the push-timeout check, seconds of wall time.
 DIAGNOSTICS_PERIOD_S = 1.0
 #: Pairing tolerances of estimator/object_pose and estimator/state (m, rad).
@@ -149,51 +138,42 @@ PAIR_BUFFER = 10
 ORIENTATION_IGNORED = "orientation ignored: rotationally symmetric outline"
 
 
-@dataclass(frozen=True)
-class _ParamSpec:
-    name: str
-    default: Any
-    description: str
-    bounds: tuple[float, float] | None = None
-    episode: bool = False  # settable; applied on ~/reset (read-only otherwise)
-
-
-PARAMETERS: tuple[_ParamSpec, ...] = (
-    _ParamSpec("method", "ana", "Contact selection: ana | lrn (softmax over eq. 5.1 with "
-               "analytical / learned affordances), geo | rdn (geometric / uniform baselines).",
-               episode=True),
-    _ParamSpec("direct", False, "Choose the push from the affordances with linear length "
-               "rescaling instead of optimising it with rollouts.", episode=True),
-    _ParamSpec("k", 3, "Contact points sampled per step.", (1, 1000), episode=True),
-    _ParamSpec("lambda", 2.0, "Rotation weight of eq. 5.1, millimetres per degree.",
-               (0.0, 1000.0), episode=True),
-    _ParamSpec("temperature", 2.0, "Softmax temperature of the contact sampling, millimetres "
-               "(score units), > 0.", (0.0, 1e6), episode=True),
-    _ParamSpec("goal_tolerance.xy", 0.0075, "Goal position tolerance, m.", (1e-4, 1.0),
-               episode=True),
-    _ParamSpec("goal_tolerance.theta", math.radians(5.0), "Goal orientation tolerance, rad.",
-               (1e-4, math.pi), episode=True),
-    _ParamSpec("goal_tolerance.confidence", 0.99, "Confidence of the stop rule: the goal "
-               "counts as reached when the estimate lies inside the goal region shrunk by "
-               "Phi^-1(confidence) of its standard deviations (0.5 = stop on the point "
-               "estimate).", (0.5, 0.999999), episode=True),
-    _ParamSpec("max_steps", 30, "Pushes per episode before it fails.", (1, 100000), episode=True),
-    _ParamSpec("push_speed", 0.02, "Pusher speed the plan's pose stamps assume, m/s.",
-               (1e-3, 0.5)),
-    _ParamSpec("approach_clearance", 0.005, "Approach point before the touching position, m.",
-               (1e-3, 0.1)),
-    _ParamSpec("pusher_radius", 0.0048, "Radius of the cylindrical pusher, m.", (0.0, 0.05)),
-    _ParamSpec("workspace.x_min", -0.25, "Workspace rectangle in world (goals and every pusher "
-               "point must lie inside), m.", (-10.0, 10.0)),
-    _ParamSpec("workspace.x_max", 0.25, "See workspace.x_min, m.", (-10.0, 10.0)),
-    _ParamSpec("workspace.y_min", -0.3, "See workspace.x_min, m.", (-10.0, 10.0)),
-    _ParamSpec("workspace.y_max", 0.3, "See workspace.x_min, m.", (-10.0, 10.0)),
-    _ParamSpec("push_timeout", 30.0, "Wall-clock seconds to wait for pusher/executed before a "
-               "push counts as lost.", (0.1, 3600.0)),
-    _ParamSpec("seed", 0, "Seed of the contact sampling (re-seeded on ~/reset).", (0, 2**31 - 1),
-               episode=True),
-    _ParamSpec("lrn_weights", "", "Weights of the learned affordance model (method lrn); "
-               "empty = the bundled model."),
+#: The parameter table. Episode parameters are settable (applied on ``~/reset``); the
+#: structural ones are read-only.
+PARAMETERS: tuple[ParamSpec, ...] = (
+    ParamSpec("method", "ana", "Contact selection: ana | lrn (softmax over eq. 5.1 with "
+              "analytical / learned affordances), geo | rdn (geometric / uniform baselines)."),
+    ParamSpec("direct", False, "Choose the push from the affordances with linear length "
+              "rescaling instead of optimising it with rollouts."),
+    ParamSpec("k", 3, "Contact points sampled per step.", (1, 1000)),
+    ParamSpec("lambda", 2.0, "Rotation weight of eq. 5.1, millimetres per degree.",
+              (0.0, 1000.0)),
+    ParamSpec("temperature", 2.0, "Softmax temperature of the contact sampling, millimetres "
+              "(score units), > 0.", (0.0, 1e6)),
+    ParamSpec("goal_tolerance.xy", 0.0075, "Goal position tolerance, m.", (1e-4, 1.0)),
+    ParamSpec("goal_tolerance.theta", math.radians(5.0), "Goal orientation tolerance, rad.",
+              (1e-4, math.pi)),
+    ParamSpec("goal_tolerance.confidence", 0.99, "Confidence of the stop rule: the goal "
+              "counts as reached when the estimate lies inside the goal region shrunk by "
+              "Phi^-1(confidence) of its standard deviations (0.5 = stop on the point "
+              "estimate).", (0.5, 0.999999)),
+    ParamSpec("max_steps", 30, "Pushes per episode before it fails.", (1, 100000)),
+    ParamSpec("push_speed", 0.02, "Pusher speed the plan's pose stamps assume, m/s.",
+              (1e-3, 0.5), read_only=True),
+    ParamSpec("approach_clearance", 0.005, "Approach point before the touching position, m.",
+              (1e-3, 0.1), read_only=True),
+    ParamSpec("pusher_radius", 0.0048, "Radius of the cylindrical pusher, m.", (0.0, 0.05),
+              read_only=True),
+    ParamSpec("workspace.x_min", -0.25, "Workspace rectangle in world (goals and every pusher "
+              "point must lie inside), m.", (-10.0, 10.0), read_only=True),
+    ParamSpec("workspace.x_max", 0.25, "See workspace.x_min, m.", (-10.0, 10.0), read_only=True),
+    ParamSpec("workspace.y_min", -0.3, "See workspace.x_min, m.", (-10.0, 10.0), read_only=True),
+    ParamSpec("workspace.y_max", 0.3, "See workspace.x_min, m.", (-10.0, 10.0), read_only=True),
+    ParamSpec("push_timeout", 30.0, "Wall-clock seconds to wait for pusher/executed before a "
+              "push counts as lost.", (0.1, 3600.0), read_only=True),
+    ParamSpec("seed", 0, "Seed of the contact sampling (re-seeded on ~/reset).", (0, 2**31 - 1)),
+    ParamSpec("lrn_weights", "", "Weights of the learned affordance model (method lrn); "
+              "empty = the bundled model.", read_only=True),
 )
 
 # PlannerConfig field -> parameter name, for error messages.
@@ -261,18 +241,6 @@ class PlannerNodeParams:
                    lrn_weights=str(values["lrn_weights"]))
 
 
-def _descriptor(spec: _ParamSpec) -> ParameterDescriptor:
-    desc = ParameterDescriptor(description=spec.description, read_only=not spec.episode)
-    if spec.bounds is not None:
-        low, high = spec.bounds
-        if isinstance(spec.default, int) and not isinstance(spec.default, bool):
-            desc.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=1)]
-        else:
-            desc.floating_point_range = [
-                FloatingPointRange(from_value=float(low), to_value=float(high), step=0.0)]
-    return desc
-
-
 def _load_learned_model(weights: str) -> Any:
     """The learned affordance model (``push_core.learned``), ``ValueError`` if unavailable."""
     try:
@@ -288,6 +256,26 @@ def _load_learned_model(weights: str) -> Any:
         raise ValueError(f"parameter 'lrn_weights': cannot load {path!r}: {exc}") from None
 
 
+def _goal_from_msg(msg: PoseStamped,
+                   workspace: tuple[tuple[float, float], tuple[float, float]]
+                   ) -> np.ndarray:
+    """Goal ``(x, y, theta)`` in ``world`` of ``goal_pose``; its position on the workspace.
+
+    Raises
+    ------
+    ValueError
+        Wrong frame, non-finite values, a quaternion that breaks the planarity rule, or a
+        position outside ``workspace`` ((xmin, xmax), (ymin, ymax)), m.
+    """
+    check_frame(msg.header.frame_id, WORLD_FRAME)
+    goal = xytheta_from_pose(msg)
+    (x0, x1), (y0, y1) = workspace
+    if not (x0 <= goal[0] <= x1 and y0 <= goal[1] <= y1):
+        raise ValueError(f"position ({goal[0]:.4f}, {goal[1]:.4f}) m is off the workspace "
+                         f"x in [{x0}, {x1}], y in [{y0}, {y1}] m")
+    return goal
+
+
 class PlannerNode(Node):
     """ROS wrapper of :class:`push_core.planner.Planner`; see the module docstring.
 
@@ -299,9 +287,7 @@ class PlannerNode(Node):
 
     def __init__(self, node_name: str = "planner_node", **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
-        for spec in PARAMETERS:
-            self.declare_parameter(spec.name, spec.default, _descriptor(spec))
-        self.params = self._read_params()
+        self.params = declare_config(self, PARAMETERS, PlannerNodeParams.from_values)
         self._model = (_load_learned_model(self.params.lrn_weights)
                        if self.params.planner.method == "lrn" else None)
         self._planner = Planner(self.params.planner, affordance_model=self._model)
@@ -322,10 +308,11 @@ class PlannerNode(Node):
                                                   RELIABLE_QOS)
         self._pub_status = self.create_publisher(DiagnosticStatus, "planner/status", LATCHED_QOS)
         self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", RELIABLE_QOS)
+        estimates = latched_reader_qos(PAIR_BUFFER)  # late subscriber: the last estimate
         self.create_subscription(Float64MultiArray, "estimator/state", self._on_state,
-                                 RELIABLE_QOS)
+                                 estimates)
         self.create_subscription(PoseWithCovarianceStamped, "estimator/object_pose",
-                                 self._on_pose, RELIABLE_QOS)
+                                 self._on_pose, estimates)
         self.create_subscription(PointCloud2, "perception/outline", self._on_outline,
                                  LATCHED_QOS)
         self.create_subscription(PoseStamped, "goal_pose", self._on_goal, RELIABLE_QOS)
@@ -363,8 +350,7 @@ class PlannerNode(Node):
         self._states.clear()
 
     def _read_params(self) -> PlannerNodeParams:
-        return PlannerNodeParams.from_values(
-            {spec.name: self.get_parameter(spec.name).value for spec in PARAMETERS})
+        return PlannerNodeParams.from_values(parameter_values(self, PARAMETERS))
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response
                   ) -> Trigger.Response:
@@ -401,7 +387,7 @@ class PlannerNode(Node):
 
     def _on_goal(self, msg: PoseStamped) -> None:
         try:
-            goal = goal_from_msg(msg, self.params.planner.workspace)
+            goal = _goal_from_msg(msg, self.params.planner.workspace)
         except ValueError as exc:
             self._refuse("goal_pose", str(exc))
             return
@@ -431,16 +417,16 @@ class PlannerNode(Node):
 
     def _on_pose(self, msg: PoseWithCovarianceStamped) -> None:
         try:
-            pose, stamp = estimate_from_msg(msg)
+            estimate = pose_with_covariance_from_msg(msg)
         except ValueError as exc:
             self._refuse("estimator/object_pose", str(exc))
             return
-        self._poses.append((stamp, pose))
+        self._poses.append((estimate.stamp, estimate.pose))
         self._pair()
 
     def _on_state(self, msg: Float64MultiArray) -> None:
         try:
-            state, covariance = state_from_msg(msg)
+            state, covariance = state_from_array_msg(msg)
         except ValueError as exc:
             self._refuse("estimator/state", str(exc))
             return
@@ -474,7 +460,7 @@ class PlannerNode(Node):
         self._publish_status()
 
     def _on_executed(self, msg: Path) -> None:
-        if msg.header.frame_id != "world" or not msg.poses:
+        if msg.header.frame_id != WORLD_FRAME or not msg.poses:
             self._refuse("pusher/executed", f"expected poses in 'world', got "
                          f"{len(msg.poses)} poses in {msg.header.frame_id!r}")
             return
@@ -587,29 +573,14 @@ class PlannerNode(Node):
         self._publish_diagnostics(status)
 
     def _publish_diagnostics(self, status: DiagnosticStatus | None = None) -> None:
-        msg = DiagnosticArray()
-        msg.header.stamp = self.get_clock().now().to_msg()
-        msg.status = [status or self._status()]
-        self._pub_diag.publish(msg)
+        self._pub_diag.publish(diagnostic_array(status or self._status(),
+                                                self.get_clock().now().to_msg()))
 
 
 def main(args: list[str] | None = None) -> None:
     """Entry point of ``planner_node`` (``ros2 run push_planner planner_node`` / ``pushbot run
     planner_node``)."""
-    rclpy.init(args=args)
-    try:
-        node = PlannerNode()
-    except (ValueError, ParameterException) as exc:
-        rclpy.logging.get_logger("planner_node").fatal(f"invalid configuration: {exc}")
-        rclpy.try_shutdown()
-        raise SystemExit(2) from None
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(PlannerNode, "planner_node", args)
 
 
 if __name__ == "__main__":

@@ -319,6 +319,8 @@ class GraphRunner:
         )
         from sensor_msgs.msg import CameraInfo, Image, PointCloud2
 
+        from push_ros.qos import latched_reader_qos
+
         apply_default_profile()
         self._context = Context()
         rclpy.init(args=[], context=self._context)
@@ -332,8 +334,9 @@ class GraphRunner:
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
         sub = node.create_subscription
         sub(PoseStamped, "sim/object_pose", self._on_true, reliable)
-        sub(PoseWithCovarianceStamped, "estimator/object_pose", self._on_est, reliable)
-        sub(PointStamped, "estimator/center_of_mass", self._on_com, reliable)
+        estimates = latched_reader_qos(100)  # the estimator's outputs are latched
+        sub(PoseWithCovarianceStamped, "estimator/object_pose", self._on_est, estimates)
+        sub(PointStamped, "estimator/center_of_mass", self._on_com, estimates)
         sub(PathMsg, "planner/push", self._on_push, reliable)
         sub(PathMsg, "pusher/executed", self._on_executed, reliable)
         sub(DiagnosticStatus, "planner/status", self._on_status, latched)
@@ -353,29 +356,31 @@ class GraphRunner:
 
     # ---- callbacks ---------------------------------------------------------------------------
     def _on_true(self, msg: Any) -> None:
-        from sim_bridge.conversions import seconds_from_stamp, xytheta_from_pose
+        from push_ros.poses import xytheta_from_pose
+        from push_ros.stamps import seconds_from_stamp
 
         self.rec.true.append((seconds_from_stamp(msg.header.stamp), xytheta_from_pose(msg)))
 
     def _on_est(self, msg: Any) -> None:
-        from sim_bridge.conversions import seconds_from_stamp, xytheta_from_pose
+        from push_ros.poses import xytheta_from_pose
+        from push_ros.stamps import seconds_from_stamp
 
         self.rec.est.append((seconds_from_stamp(msg.header.stamp),
                              xytheta_from_pose(msg.pose.pose)))
 
     def _on_com(self, msg: Any) -> None:
-        from sim_bridge.conversions import seconds_from_stamp
+        from push_ros.stamps import seconds_from_stamp
 
         self.rec.com.append((seconds_from_stamp(msg.header.stamp),
                              np.array([msg.point.x, msg.point.y])))
 
     def _on_push(self, msg: Any) -> None:
-        from sim_bridge.conversions import points_from_path
+        from push_ros.paths import points_from_path
 
         self.rec.pushes.append((time.monotonic(), np.asarray(points_from_path(msg))[:, :2]))
 
     def _on_executed(self, msg: Any) -> None:
-        from sim_bridge.conversions import seconds_from_stamp
+        from push_ros.stamps import seconds_from_stamp
 
         stamps = [seconds_from_stamp(p.header.stamp) for p in msg.poses]
         if stamps:
@@ -387,31 +392,33 @@ class GraphRunner:
         self.rec.status.append(values)
 
     def _on_rgb(self, msg: Any) -> None:
-        from sim_bridge.conversions import image_to_array, seconds_from_stamp
+        from push_ros.images import image_to_array
+        from push_ros.stamps import seconds_from_stamp
 
         stamp = seconds_from_stamp(msg.header.stamp)
         if stamp not in self.rec.frames:
             self.rec.frames[stamp] = image_to_array(msg).copy()
 
     def _on_mask(self, msg: Any) -> None:
-        from sim_bridge.conversions import image_to_array, seconds_from_stamp
+        from push_ros.images import image_to_array
+        from push_ros.stamps import seconds_from_stamp
 
         stamp = seconds_from_stamp(msg.header.stamp)
         if stamp not in self.rec.masks:
             self.rec.masks[stamp] = image_to_array(msg) > 0
 
     def _on_info(self, msg: Any) -> None:
-        from sim_bridge.conversions import camera_matrix_from_info
+        from push_ros.images import camera_matrix_from_info
 
         self.rec.camera_matrix = camera_matrix_from_info(msg)
 
     def _on_extrinsics(self, msg: Any) -> None:
-        from sim_bridge.conversions import matrix_from_transform
+        from push_ros.poses import matrix_from_transform
 
         self.rec.t_world_camera = matrix_from_transform(msg)
 
     def _on_outline(self, msg: Any) -> None:
-        from push_planner.conversions import outline_from_cloud
+        from push_ros.outline import outline_from_cloud
 
         self.rec.outline = outline_from_cloud(msg)[0]
 

@@ -80,7 +80,6 @@ from __future__ import annotations
 
 import math
 import threading
-import time
 import traceback
 from collections.abc import Callable
 from concurrent.futures import Future as ThreadFuture
@@ -89,45 +88,24 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import rclpy
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, TransformStamped
 from nav_msgs.msg import Path
-from rcl_interfaces.msg import (
-    FloatingPointRange,
-    IntegerRange,
-    ParameterDescriptor,
-    ParameterType,
-)
 from rclpy.clock import Clock, ClockType
-from rclpy.exceptions import ParameterException, ParameterUninitializedException
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from rclpy.parameter import Parameter
-from rclpy.qos import (
-    DurabilityPolicy,
-    HistoryPolicy,
-    QoSProfile,
-    ReliabilityPolicy,
-    qos_profile_sensor_data,
-)
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import CameraInfo, Image
 from std_srvs.srv import Trigger
 
 from push_core.objects import load_object
-from sim_bridge.conversions import (
-    CAMERA_FRAME,
-    WORLD_FRAME,
-    camera_info_msg,
-    depth_image_msg,
-    path_from_points,
-    pose_stamped_msg,
-    push_points_from_path,
-    rgb_image_msg,
-    stamp_from_seconds,
-    transform_msg,
-)
+from push_ros.diagnostics import diagnostic_array, status_msg
+from push_ros.frames import CAMERA_FRAME, PUSHER_FRAME, WORLD_FRAME
+from push_ros.images import camera_info_msg, depth_image_msg, rgb_image_msg
+from push_ros.node import ParamSpec, ThrottledLog, declare_config, parameter_values, run_node
+from push_ros.paths import path_from_points, push_points_from_path
+from push_ros.poses import pose_stamped_msg, transform_msg
+from push_ros.qos import CLOCK_QOS, LATCHED_QOS, RELIABLE_QOS, SENSOR_QOS
+from push_ros.stamps import stamp_from_seconds
 from sim_bridge.world import CameraConfig, PushWorld, WorldConfig
 
 try:  # Only on a full ROS install: tf2_msgs has no PyPI wheel (ARCHITECTURE.md, tf note).
@@ -137,25 +115,6 @@ except ImportError:  # pragma: no cover - depends on the install
 
 __all__ = ["SimBridgeNode", "SimBridgeParams", "main"]
 
-PUSHER_FRAME = "pusher"
-RELIABLE_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=10,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
-LATCHED_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
-CLOCK_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
 #: Seconds between repeated log lines of the same kind (the diagnostics count every event).
 LOG_THROTTLE_S = 1.0
 #: Period of the regular /diagnostics message, seconds of wall time.
@@ -165,48 +124,36 @@ DIAGNOSTICS_PERIOD_S = 1.0
 # --------------------------------------------------------------------------------------------
 # Parameters
 # --------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class _ParamSpec:
-    """One declared parameter: name, default (None = typed, no default), text and bounds."""
-
-    name: str
-    default: Any
-    description: str
-    bounds: tuple[float, float] | None = None
-    read_only: bool = False
-    constraints: str = ""
-
-
 _UNSET_OR_NEGATIVE = "negative = the object spec's value"
-PARAMETERS: tuple[_ParamSpec, ...] = (
-    _ParamSpec("object", "butter", "Object library name (e.g. butter, rect1) or path to a "
-               ".json/.yaml object specification file."),
-    _ParamSpec("initial_pose.x", 0.0, "Initial x of the object frame in world, m.", (-1.0, 1.0)),
-    _ParamSpec("initial_pose.y", 0.0, "Initial y of the object frame in world, m.", (-1.0, 1.0)),
-    _ParamSpec("initial_pose.theta", 0.0, "Initial yaw of the object frame in world, rad.",
-               (-math.pi, math.pi)),
-    _ParamSpec("com_offset", None, "Centre of mass (x, y) in the object frame, m; unset or "
-               "empty = the object spec's COM.", constraints="2 values or empty"),
-    _ParamSpec("mass", -1.0, "Object mass, kg.", (-1.0, 100.0), constraints=_UNSET_OR_NEGATIVE),
-    _ParamSpec("friction_table", -1.0, "Object-table Coulomb friction coefficient.",
-               (-1.0, 10.0), constraints=_UNSET_OR_NEGATIVE),
-    _ParamSpec("friction_pusher", -1.0, "Pusher-object Coulomb friction coefficient.",
-               (-1.0, 10.0), constraints=_UNSET_OR_NEGATIVE),
-    _ParamSpec("seed", 0, "Seed of the randomisation (physics and appearance).", (0, 2**31 - 1)),
-    _ParamSpec("randomize", False, "Randomise mass, COM and frictions from the seed."),
-    _ParamSpec("image_width", 640, "Camera image width, px.", (32, 1920)),
-    _ParamSpec("image_height", 480, "Camera image height, px.", (24, 1080)),
-    _ParamSpec("depth_noise", False, "Add D415-like depth noise and dropouts."),
-    _ParamSpec("randomize_appearance", False, "Randomise lighting, table and object colours "
-               "from the seed."),
-    _ParamSpec("randomize_camera", False, "Jitter the camera pose from the seed (the published "
-               "extrinsics are the true, jittered pose)."),
-    _ParamSpec("idle_frame_rate", 2.0, "Rate of repeated camera frames, object pose and /clock "
-               "while idle, Hz (wall time).", (0.1, 30.0), read_only=True),
-    _ParamSpec("clock_rate", 50.0, "Rate of /clock messages while the physics runs, Hz (wall "
-               "time).", (1.0, 1000.0), read_only=True),
-    _ParamSpec("push_speed", 0.02, "Pusher speed along the push, m/s.", (0.001, 0.2)),
-    _ParamSpec("pusher_radius", 0.0048, "Radius of the cylindrical pusher, m.", (0.001, 0.05)),
+PARAMETERS: tuple[ParamSpec, ...] = (
+    ParamSpec("object", "butter", "Object library name (e.g. butter, rect1) or path to a "
+              ".json/.yaml object specification file."),
+    ParamSpec("initial_pose.x", 0.0, "Initial x of the object frame in world, m.", (-1.0, 1.0)),
+    ParamSpec("initial_pose.y", 0.0, "Initial y of the object frame in world, m.", (-1.0, 1.0)),
+    ParamSpec("initial_pose.theta", 0.0, "Initial yaw of the object frame in world, rad.",
+              (-math.pi, math.pi)),
+    ParamSpec("com_offset", None, "Centre of mass (x, y) in the object frame, m; unset or "
+              "empty = the object spec's COM.", constraints="2 values or empty"),
+    ParamSpec("mass", -1.0, "Object mass, kg.", (-1.0, 100.0), constraints=_UNSET_OR_NEGATIVE),
+    ParamSpec("friction_table", -1.0, "Object-table Coulomb friction coefficient.",
+              (-1.0, 10.0), constraints=_UNSET_OR_NEGATIVE),
+    ParamSpec("friction_pusher", -1.0, "Pusher-object Coulomb friction coefficient.",
+              (-1.0, 10.0), constraints=_UNSET_OR_NEGATIVE),
+    ParamSpec("seed", 0, "Seed of the randomisation (physics and appearance).", (0, 2**31 - 1)),
+    ParamSpec("randomize", False, "Randomise mass, COM and frictions from the seed."),
+    ParamSpec("image_width", 640, "Camera image width, px.", (32, 1920)),
+    ParamSpec("image_height", 480, "Camera image height, px.", (24, 1080)),
+    ParamSpec("depth_noise", False, "Add D415-like depth noise and dropouts."),
+    ParamSpec("randomize_appearance", False, "Randomise lighting, table and object colours "
+              "from the seed."),
+    ParamSpec("randomize_camera", False, "Jitter the camera pose from the seed (the published "
+              "extrinsics are the true, jittered pose)."),
+    ParamSpec("idle_frame_rate", 2.0, "Rate of repeated camera frames, object pose and /clock "
+              "while idle, Hz (wall time).", (0.1, 30.0), read_only=True),
+    ParamSpec("clock_rate", 50.0, "Rate of /clock messages while the physics runs, Hz (wall "
+              "time).", (1.0, 1000.0), read_only=True),
+    ParamSpec("push_speed", 0.02, "Pusher speed along the push, m/s.", (0.001, 0.2)),
+    ParamSpec("pusher_radius", 0.0048, "Radius of the cylindrical pusher, m.", (0.001, 0.05)),
 )
 
 
@@ -347,25 +294,6 @@ def _spec_default_if_negative(value: float) -> float | None:
     return None if value < 0.0 else float(value)
 
 
-def _descriptor(spec: _ParamSpec) -> ParameterDescriptor:
-    desc = ParameterDescriptor(
-        description=spec.description,
-        read_only=spec.read_only,
-        additional_constraints=spec.constraints,
-    )
-    if spec.default is None:
-        desc.type = ParameterType.PARAMETER_DOUBLE_ARRAY
-    if spec.bounds is not None:
-        low, high = spec.bounds
-        if isinstance(spec.default, int) and not isinstance(spec.default, bool):
-            desc.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=1)]
-        else:
-            desc.floating_point_range = [
-                FloatingPointRange(from_value=float(low), to_value=float(high), step=0.0)
-            ]
-    return desc
-
-
 # --------------------------------------------------------------------------------------------
 # The node
 # --------------------------------------------------------------------------------------------
@@ -392,15 +320,12 @@ class SimBridgeNode(Node):
 
     def __init__(self, node_name: str = "sim_bridge_node", **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
-        for spec in PARAMETERS:
-            default = Parameter.Type.DOUBLE_ARRAY if spec.default is None else spec.default
-            self.declare_parameter(spec.name, default, _descriptor(spec))
+        self._params = declare_config(self, PARAMETERS, SimBridgeParams.from_values)
         if self.get_parameter("use_sim_time").value:
             self.get_logger().warning(
                 "use_sim_time is true, but the sim bridge is the /clock source; its timers run "
                 "on the steady clock regardless"
             )
-        self._params = self._read_params()
         config = self._params.world_config()
 
         self._lock = threading.Lock()  # guards the state below, not pybullet
@@ -412,7 +337,7 @@ class SimBridgeNode(Node):
                         "pushes_rejected_invalid": 0, "pushes_failed": 0, "resets": 0}
         self._last_error = ""
         self._error_active = False
-        self._log_state: dict[str, tuple[float, int]] = {}  # kind -> (last logged, suppressed)
+        self._log = ThrottledLog(self.get_logger(), LOG_THROTTLE_S)
         self._clock_lock = threading.Lock()  # makes /clock monotonic across threads
         self._last_clock = -1.0
         self._epoch = 0.0  # published time = epoch + world.sim_time
@@ -427,11 +352,11 @@ class SimBridgeNode(Node):
             raise
 
         self._pub_rgb = self.create_publisher(
-            Image, "camera/color/image_raw", qos_profile_sensor_data)
+            Image, "camera/color/image_raw", SENSOR_QOS)
         self._pub_depth = self.create_publisher(
-            Image, "camera/aligned_depth_to_color/image_raw", qos_profile_sensor_data)
+            Image, "camera/aligned_depth_to_color/image_raw", SENSOR_QOS)
         self._pub_info = self.create_publisher(
-            CameraInfo, "camera/color/camera_info", qos_profile_sensor_data)
+            CameraInfo, "camera/color/camera_info", SENSOR_QOS)
         self._pub_extrinsics = self.create_publisher(
             TransformStamped, "camera/color/extrinsics", LATCHED_QOS)
         self._pub_clock = self.create_publisher(ClockMsg, "/clock", CLOCK_QOS)
@@ -456,13 +381,7 @@ class SimBridgeNode(Node):
 
     # ---- parameters --------------------------------------------------------------------------
     def _read_params(self) -> SimBridgeParams:
-        values: dict[str, Any] = {}
-        for spec in PARAMETERS:
-            try:
-                values[spec.name] = self.get_parameter(spec.name).value
-            except ParameterUninitializedException:  # typed, no default (com_offset)
-                values[spec.name] = None
-        return SimBridgeParams.from_values(values)
+        return SimBridgeParams.from_values(parameter_values(self, PARAMETERS))
 
     # ---- worker-thread jobs (all pybullet calls live here) -----------------------------------
     def _capture_scene(self) -> _Capture:
@@ -628,19 +547,16 @@ class SimBridgeNode(Node):
         with self._lock:
             busy, counts = self._busy, dict(self._counts)
             last_error, error_active = self._last_error, self._error_active
-        status = DiagnosticStatus()
-        status.name = f"{self.get_fully_qualified_name()}: simulation"
-        status.hardware_id = "pybullet"
-        status.level = DiagnosticStatus.WARN if error_active else DiagnosticStatus.OK
-        status.message = f"busy: {busy}" if busy else "idle"
+        message = f"busy: {busy}" if busy else "idle"
         if error_active:
-            status.message += f"; last error: {last_error}"
+            message += f"; last error: {last_error}"
         values = {"state": "busy" if busy else "idle", "object": self._params.object,
-                  **{k: str(v) for k, v in counts.items()}, "last_error": last_error,
+                  **counts, "last_error": last_error,
                   "sim_time": f"{max(self._last_clock, 0.0):.6f}"}
-        status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
-        array = DiagnosticArray(status=[status])
-        array.header.stamp = stamp_from_seconds(max(self._last_clock, 0.0))
+        level = DiagnosticStatus.WARN if error_active else DiagnosticStatus.OK
+        status = status_msg(f"{self.get_fully_qualified_name()}: simulation", level, message,
+                            values, hardware_id="pybullet")
+        array = diagnostic_array(status, stamp_from_seconds(max(self._last_clock, 0.0)))
         self._publish_safely(self._pub_diag, array)
 
     # ---- executor callbacks ------------------------------------------------------------------
@@ -728,25 +644,12 @@ class SimBridgeNode(Node):
         self._publish_diagnostics()
 
     def _log_limited(self, kind: str, message: str, warning: bool = False) -> None:
-        """Log at most one line per ``kind`` every ``LOG_THROTTLE_S`` s (any thread).
-
-        Suppressed lines are counted and the count is reported with the next line that is
-        logged; every event is also counted on /diagnostics, so nothing goes unnoticed.
-        """
-        now = time.monotonic()
-        with self._lock:
-            last, suppressed = self._log_state.get(kind, (-math.inf, 0))
-            if now - last < LOG_THROTTLE_S:
-                self._log_state[kind] = (last, suppressed + 1)
-                return
-            self._log_state[kind] = (now, 0)
-        if suppressed:
-            message += f" ({suppressed} similar message(s) suppressed before this one)"
-        # Two call sites: rclpy binds one severity to each logging call site.
+        """Log at most one line per ``kind`` every ``LOG_THROTTLE_S`` s (any thread); every
+        event is also counted on /diagnostics, so nothing goes unnoticed."""
         if warning:
-            self.get_logger().warning(message)
+            self._log.warning(kind, message)
         else:
-            self.get_logger().error(message)
+            self._log.error(kind, message)
 
     def destroy_node(self) -> None:
         """Let a running push finish, stop the worker, then destroy the ROS entities."""
@@ -758,20 +661,7 @@ class SimBridgeNode(Node):
 
 def main(args: list[str] | None = None) -> None:
     """Entry point of ``sim_bridge_node`` (``ros2 run`` / ``pushbot run``)."""
-    rclpy.init(args=args)
-    try:
-        node = SimBridgeNode()
-    except (ValueError, ParameterException) as exc:
-        rclpy.logging.get_logger("sim_bridge_node").fatal(f"invalid configuration: {exc}")
-        rclpy.try_shutdown()
-        raise SystemExit(2) from None
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(SimBridgeNode, "sim_bridge_node", args)
 
 
 if __name__ == "__main__":

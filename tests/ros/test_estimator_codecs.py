@@ -1,4 +1,4 @@
-"""push_estimator.conversions: messages built directly, no rclpy.init."""
+"""push_ros codecs of the estimator inputs and outputs: messages built directly, no rclpy.init."""
 
 from __future__ import annotations
 
@@ -10,22 +10,20 @@ from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from nav_msgs.msg import Path
 
 from push_core.estimator import STATE_LABELS
-from push_estimator.conversions import (
-    NonFiniteError,
+from push_ros import NonFiniteError
+from push_ros.outline import outline_cloud_msg, outline_from_cloud
+from push_ros.paths import executed_push_from_path as push_from_path
+from push_ros.poses import (
     center_of_mass_msg,
-    observation_from_msg,
-    outline_cloud_msg,
-    outline_from_cloud,
+    planar_matrix,
     pose_with_covariance_msg,
-    push_from_path,
-    quaternion_from_yaw,
-    seconds_from_stamp,
-    stamp_from_seconds,
-    state_array_msg,
-    state_from_array_msg,
+    quaternion_msg,
     transform_msg,
     yaw_from_quaternion,
 )
+from push_ros.poses import pose_with_covariance_from_msg as observation_from_msg
+from push_ros.stamps import seconds_from_stamp, stamp_from_seconds
+from push_ros.state import state_array_msg, state_from_array_msg
 
 POINTS = np.array([[0.03, -0.03], [0.03, 0.03], [-0.03, 0.03], [-0.03, -0.03]])
 NORMALS = np.array([[0.7071, -0.7071], [0.7071, 0.7071], [-0.7071, 0.7071], [-0.7071, -0.7071]])
@@ -42,7 +40,7 @@ def test_stamps_round_trip() -> None:
 
 @pytest.mark.parametrize("theta", [0.0, 0.3, -2.0, math.pi])
 def test_yaw_round_trip(theta: float) -> None:
-    assert yaw_from_quaternion(quaternion_from_yaw(theta)) == pytest.approx(
+    assert yaw_from_quaternion(quaternion_msg(theta)) == pytest.approx(
         math.atan2(math.sin(theta), math.cos(theta)))
 
 
@@ -60,7 +58,8 @@ def test_outline_codec_raises_the_estimators_non_finite_error() -> None:
 
 def test_observation_parses_pose_and_planar_covariance() -> None:
     cov = np.diag([4e-6, 9e-6, 1e-4])
-    msg = pose_with_covariance_msg([0.1, -0.2, 2.5], cov, stamp_from_seconds(3.5))
+    msg = pose_with_covariance_msg([0.1, -0.2, 2.5], cov, stamp_from_seconds(3.5),
+                                   unmeasured_variance=0.0)  # the estimator's outputs
     obs = observation_from_msg(msg)
     assert obs.stamp == 3.5
     np.testing.assert_allclose(obs.pose, [0.1, -0.2, 2.5])
@@ -72,7 +71,8 @@ def test_observation_parses_pose_and_planar_covariance() -> None:
 def test_observation_without_usable_covariance_gives_none() -> None:
     msg = pose_with_covariance_msg([0.0, 0.0, 0.0], np.zeros((3, 3)), stamp_from_seconds(1.0))
     assert observation_from_msg(msg).covariance is None  # all zeros = unknown
-    msg = pose_with_covariance_msg([0.0, 0.0, 0.0], -np.eye(3), stamp_from_seconds(1.0))
+    # The one writer refuses a negative variance; another publisher may send one.
+    msg.pose.covariance = (-np.eye(6)).ravel().tolist()
     assert observation_from_msg(msg).covariance is None
 
 
@@ -146,6 +146,7 @@ def test_state_array_has_the_documented_layout() -> None:
 def test_com_point_and_transform() -> None:
     com = center_of_mass_msg([0.004, -0.002], stamp_from_seconds(1.0))
     assert com.header.frame_id == "object" and (com.point.x, com.point.y) == (0.004, -0.002)
-    tf = transform_msg([0.1, 0.2, math.pi / 2], stamp_from_seconds(1.0))
+    tf = transform_msg(planar_matrix([0.1, 0.2, math.pi / 2]), stamp_from_seconds(1.0),
+                       "world", "object")
     assert (tf.header.frame_id, tf.child_frame_id) == ("world", "object")
     assert tf.transform.rotation.z == pytest.approx(math.sqrt(0.5))

@@ -1,4 +1,5 @@
-"""push_perception.conversions: outline clouds, pose with covariance, mask and depth images."""
+"""push_ros codecs of the perception outputs: outline clouds, pose with covariance, mask and
+depth images (32FC1, 16UC1)."""
 
 from __future__ import annotations
 
@@ -10,17 +11,10 @@ import pytest
 from builtin_interfaces.msg import Time
 from sensor_msgs.msg import Image, PointCloud2, PointField
 
-from push_perception.conversions import (
-    OUTLINE_FIELDS,
-    UNMEASURED_VARIANCE,
-    NonFiniteError,
-    depth_to_metres,
-    mask_image_msg,
-    outline_cloud_msg,
-    outline_from_cloud,
-    pose_with_covariance_msg,
-)
-from sim_bridge.conversions import image_to_array, xytheta_from_pose
+from push_ros import NonFiniteError
+from push_ros.images import depth_to_metres, image_to_array, mask_image_msg
+from push_ros.outline import OUTLINE_FIELDS, outline_cloud_msg, outline_from_cloud
+from push_ros.poses import UNMEASURED_VARIANCE, pose_with_covariance_msg, xytheta_from_pose
 
 STAMP = Time(sec=12, nanosec=345)
 

@@ -1,4 +1,5 @@
-"""Unit tests of push_planner.conversions: messages built directly, no rclpy.init."""
+"""push_ros codecs the planner uses and its own affordance markers: messages built directly,
+no rclpy.init."""
 
 from __future__ import annotations
 
@@ -11,20 +12,16 @@ from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Quaternion
 
 from push_core.objects import load_object
 from push_core.planner import Planner, PlannerConfig, prepare_outline
-from push_planner.conversions import (
-    affordance_markers,
-    estimate_from_msg,
-    goal_from_msg,
-    outline_cloud,
-    outline_from_cloud,
-    push_path,
-    seconds_from_stamp,
-    stamp_from_seconds,
-    state_from_msg,
-    state_msg,
-    status_msg,
-    yaw_from_quaternion,
-)
+from push_planner.conversions import affordance_markers
+from push_planner.planner_node import _goal_from_msg as goal_from_msg
+from push_ros.diagnostics import status_msg
+from push_ros.outline import outline_cloud_msg as outline_cloud
+from push_ros.outline import outline_from_cloud
+from push_ros.paths import push_path
+from push_ros.poses import pose_with_covariance_from_msg, yaw_from_quaternion
+from push_ros.stamps import seconds_from_stamp, stamp_from_seconds
+from push_ros.state import state_array_msg as state_msg
+from push_ros.state import state_from_array_msg as state_from_msg
 
 WORKSPACE = ((-0.25, 0.25), (-0.3, 0.3))
 
@@ -76,9 +73,9 @@ def test_estimate_pose_and_stamp():
     msg.header.stamp = stamp_from_seconds(3.25)
     msg.pose.pose.position.x = 0.02
     msg.pose.pose.orientation = yaw_q(-1.0)
-    pose, stamp = estimate_from_msg(msg)
-    np.testing.assert_allclose(pose, [0.02, 0.0, -1.0], atol=1e-12)
-    assert stamp == 3.25
+    estimate = pose_with_covariance_from_msg(msg)
+    np.testing.assert_allclose(estimate.pose, [0.02, 0.0, -1.0], atol=1e-12)
+    assert estimate.stamp == 3.25
 
 
 def test_state_round_trip_and_layout_checks():

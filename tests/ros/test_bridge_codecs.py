@@ -1,4 +1,5 @@
-"""Unit tests of sim_bridge.conversions: message <-> array, no rclpy.init, no node."""
+"""push_ros codecs the sim bridge uses (time, images, camera info, poses, transforms, paths)
+and the quaternion maths of push_core.geometry: messages built directly, no rclpy.init."""
 
 import math
 
@@ -8,29 +9,25 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
 
-from sim_bridge.conversions import (
-    CAMERA_FRAME,
-    WORLD_FRAME,
+from push_core.geometry import matrix_from_quaternion, quaternion_from_matrix, quaternion_from_yaw
+from push_ros.frames import CAMERA_FRAME, WORLD_FRAME
+from push_ros.images import (
     camera_info_msg,
     camera_matrix_from_info,
     depth_image_msg,
     image_to_array,
-    matrix_from_quaternion,
+    rgb_image_msg,
+)
+from push_ros.paths import path_from_points, points_from_path, push_points_from_path
+from push_ros.poses import (
     matrix_from_transform,
-    path_from_points,
-    points_from_path,
     pose_msg,
     pose_stamped_msg,
-    push_points_from_path,
-    quaternion_from_matrix,
-    quaternion_from_yaw,
-    rgb_image_msg,
-    seconds_from_stamp,
-    stamp_from_seconds,
     transform_msg,
     xytheta_from_pose,
     yaw_from_quaternion,
 )
+from push_ros.stamps import seconds_from_stamp, stamp_from_seconds
 
 K = np.array([[615.0, 0.0, 320.5], [0.0, 612.0, 239.5], [0.0, 0.0, 1.0]])
 STAMP = Time(sec=12, nanosec=500_000_000)

@@ -1,0 +1,290 @@
+"""Images and camera info <-> arrays: the one image codec, with validation before reshaping.
+
+Encodings: ``rgb8`` / ``bgr8`` (H, W, 3) uint8, ``mono8`` (H, W) uint8 (the perception mask,
+255 = object), ``32FC1`` (H, W) float32 (depth in metres along the optical axis, NaN = no
+return: the sim bridge) and ``16UC1`` / ``mono16`` (depth in millimetres, 0 = no return: the
+RealSense driver's ``aligned_depth_to_color``). Rows may be padded (``step >= width *
+bytes_per_pixel``); ``is_bigendian`` selects the byte order; ``len(data) != height * step`` is
+refused before any reshape (the cv_bridge pitfall). CameraInfo: an ideal pinhole (``plumb_bob``
+with zero distortion) is written; a valid K (finite, fx, fy > 0, last row (0, 0, 1)) is
+required when reading.
+"""
+
+from __future__ import annotations
+
+import sys
+from array import array
+
+import numpy as np
+from builtin_interfaces.msg import Time
+from sensor_msgs.msg import CameraInfo, Image
+
+from push_ros.frames import CAMERA_FRAME
+
+__all__ = [
+    "camera_info_msg",
+    "camera_matrix_from_info",
+    "depth_image_msg",
+    "depth_to_metres",
+    "image_to_array",
+    "mask_image_msg",
+    "rgb_image_msg",
+]
+
+#: Numpy dtype and channels of the encodings :func:`image_to_array` decodes.
+_ENCODINGS: dict[str, tuple[np.dtype, int]] = {
+    "rgb8": (np.dtype(np.uint8), 3),
+    "bgr8": (np.dtype(np.uint8), 3),
+    "mono8": (np.dtype(np.uint8), 1),
+    "32FC1": (np.dtype(np.float32), 1),
+    "16UC1": (np.dtype(np.uint16), 1),
+    "mono16": (np.dtype(np.uint16), 1),
+}
+
+
+def rgb_image_msg(rgb: np.ndarray, stamp: Time, frame_id: str = CAMERA_FRAME) -> Image:
+    """Build an ``rgb8`` ``sensor_msgs/Image`` from an RGB array.
+
+    Parameters
+    ----------
+    rgb : (H, W, 3) uint8 ndarray
+        Colour image, channels in R, G, B order.
+    stamp : Time
+        Capture time.
+    frame_id : str
+        Frame of the image, by default the colour optical frame.
+
+    Returns
+    -------
+    Image
+        ``encoding="rgb8"``, ``step = 3 * W``, row-major data.
+
+    Raises
+    ------
+    ValueError
+        If the array is not (H, W, 3) uint8 with H, W > 0.
+    """
+    rgb = np.asarray(rgb)
+    if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.dtype != np.uint8 or rgb.size == 0:
+        raise ValueError(
+            f"rgb image must be a non-empty (H, W, 3) uint8 array, got shape {rgb.shape} "
+            f"dtype {rgb.dtype}"
+        )
+    return _image_msg(rgb, "rgb8", stamp, frame_id)
+
+
+def depth_image_msg(depth: np.ndarray, stamp: Time, frame_id: str = CAMERA_FRAME) -> Image:
+    """Build a ``32FC1`` ``sensor_msgs/Image`` from a depth array.
+
+    Parameters
+    ----------
+    depth : (H, W) float ndarray
+        Depth along the optical axis (z of the optical frame), metres; NaN where there is no
+        return.
+    stamp : Time
+        Capture time.
+    frame_id : str
+        Frame of the image, by default the colour optical frame (depth is aligned to colour).
+
+    Returns
+    -------
+    Image
+        ``encoding="32FC1"``, little-endian float32, ``step = 4 * W``.
+
+    Raises
+    ------
+    ValueError
+        If the array is not 2-D and non-empty.
+    """
+    depth = np.asarray(depth)
+    if depth.ndim != 2 or depth.size == 0 or not np.issubdtype(depth.dtype, np.floating):
+        raise ValueError(
+            f"depth image must be a non-empty (H, W) float array, got shape {depth.shape} "
+            f"dtype {depth.dtype}"
+        )
+    return _image_msg(depth.astype("<f4", copy=False), "32FC1", stamp, frame_id)
+
+
+def _image_msg(pixels: np.ndarray, encoding: str, stamp: Time, frame_id: str) -> Image:
+    """Fill an Image with tightly packed rows of ``pixels`` (already in the wire dtype)."""
+    height, width = pixels.shape[:2]
+    pixels = np.ascontiguousarray(pixels)
+    msg = Image()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    msg.height = int(height)
+    msg.width = int(width)
+    msg.encoding = encoding
+    order = pixels.dtype.byteorder
+    msg.is_bigendian = int(order == ">" or (order == "=" and sys.byteorder == "big"))
+    msg.step = int(pixels.strides[0])
+    # array('B', bytes) is the setter's fast path (no per-element type checks).
+    msg.data = array("B", pixels.tobytes())
+    return msg
+
+
+def image_to_array(msg: Image) -> np.ndarray:
+    """Decode a ``sensor_msgs/Image`` into a numpy array, validating its layout first.
+
+    Parameters
+    ----------
+    msg : Image
+        Encoding ``rgb8``, ``bgr8``, ``mono8``, ``32FC1``, ``16UC1`` or ``mono16``; rows may be
+        padded (``step >= width * bytes_per_pixel``).
+
+    Returns
+    -------
+    ndarray
+        (H, W, 3) uint8 for ``rgb8``/``bgr8`` (channel order as encoded), (H, W) uint8 for
+        ``mono8``, (H, W) float32 / uint16 (native byte order) for ``32FC1`` / ``16UC1`` and
+        ``mono16``. A copy, independent of the message.
+
+    Raises
+    ------
+    ValueError
+        For unsupported encodings, ``step`` smaller than a row, or
+        ``len(data) != height * step``.
+    """
+    if msg.encoding not in _ENCODINGS:
+        raise ValueError(
+            f"unsupported image encoding {msg.encoding!r}; expected one of {sorted(_ENCODINGS)}"
+        )
+    dtype, channels = _ENCODINGS[msg.encoding]
+    row_bytes = msg.width * channels * dtype.itemsize
+    if msg.step < row_bytes:
+        raise ValueError(
+            f"image step {msg.step} is smaller than one row ({msg.width} px * {channels} ch * "
+            f"{dtype.itemsize} B = {row_bytes} B)"
+        )
+    if len(msg.data) != msg.height * msg.step:
+        raise ValueError(
+            f"image data has {len(msg.data)} bytes, expected height * step = "
+            f"{msg.height} * {msg.step} = {msg.height * msg.step}"
+        )
+    wire = dtype.newbyteorder(">" if msg.is_bigendian else "<")
+    rows = np.frombuffer(msg.data, dtype=np.uint8).reshape(msg.height, msg.step)[:, :row_bytes]
+    pixels = np.ascontiguousarray(rows).view(wire).astype(dtype.newbyteorder("="), copy=True)
+    shape = (msg.height, msg.width, channels) if channels > 1 else (msg.height, msg.width)
+    return pixels.reshape(shape)
+
+
+def camera_info_msg(
+    camera_matrix: np.ndarray, width: int, height: int, stamp: Time, frame_id: str = CAMERA_FRAME
+) -> CameraInfo:
+    """Build a ``sensor_msgs/CameraInfo`` for an ideal pinhole camera.
+
+    Parameters
+    ----------
+    camera_matrix : (3, 3) ndarray
+        Intrinsics ``K = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]``, pixels.
+    width, height : int
+        Image size, pixels.
+    stamp : Time
+        Stamp of the image this info belongs to.
+    frame_id : str
+        Optical frame, by default the colour optical frame.
+
+    Returns
+    -------
+    CameraInfo
+        ``plumb_bob`` with zero distortion ``d = [0] * 5``, ``k = K``, ``r = I``,
+        ``p = [K | 0]`` (monocular), no binning or ROI.
+
+    Raises
+    ------
+    ValueError
+        If K is not a finite (3, 3) matrix with positive focal lengths and last row
+        (0, 0, 1), or the size is not positive.
+    """
+    k = _check_camera_matrix(camera_matrix)
+    if int(width) <= 0 or int(height) <= 0:
+        raise ValueError(f"image size must be positive, got {width} x {height}")
+    msg = CameraInfo()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    msg.width = int(width)
+    msg.height = int(height)
+    msg.distortion_model = "plumb_bob"
+    msg.d = [0.0] * 5
+    msg.k = k.ravel().tolist()
+    msg.r = np.eye(3).ravel().tolist()
+    msg.p = np.hstack([k, np.zeros((3, 1))]).ravel().tolist()
+    return msg
+
+
+def camera_matrix_from_info(msg: CameraInfo) -> np.ndarray:
+    """Return the (3, 3) intrinsics ``K`` of a ``CameraInfo``, validated.
+
+    Parameters
+    ----------
+    msg : CameraInfo
+
+    Returns
+    -------
+    (3, 3) float ndarray
+        ``K``, pixels.
+
+    Raises
+    ------
+    ValueError
+        If K is not a valid pinhole matrix (see :func:`camera_info_msg`).
+    """
+    return _check_camera_matrix(np.asarray(msg.k, dtype=float).reshape(3, 3))
+
+
+def _check_camera_matrix(camera_matrix: np.ndarray) -> np.ndarray:
+    k = np.asarray(camera_matrix, dtype=float)
+    if k.shape != (3, 3) or not np.all(np.isfinite(k)):
+        raise ValueError(f"camera matrix must be a finite (3, 3) array, got shape {k.shape}")
+    if k[0, 0] <= 0 or k[1, 1] <= 0 or not np.allclose(k[2], [0.0, 0.0, 1.0]):
+        raise ValueError(f"camera matrix must have fx, fy > 0 and last row (0, 0, 1), got {k}")
+    return k
+
+
+def mask_image_msg(mask: np.ndarray, stamp: Time, frame_id: str = CAMERA_FRAME) -> Image:
+    """A ``mono8`` image of a boolean mask (255 = object, 0 = not), ``step = W``.
+
+    Raises
+    ------
+    ValueError
+        If the mask is not a non-empty 2-D array.
+    """
+    m = np.asarray(mask)
+    if m.ndim != 2 or m.size == 0:
+        raise ValueError(f"mask must be a non-empty 2-D array, got shape {m.shape}")
+    msg = Image()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    msg.height, msg.width = (int(s) for s in m.shape)
+    msg.encoding = "mono8"
+    msg.is_bigendian = 0
+    msg.step = msg.width
+    msg.data = array("B", (m.astype(bool).astype(np.uint8) * 255).tobytes())
+    return msg
+
+
+def depth_to_metres(msg: Image) -> np.ndarray:
+    """Depth image as float32 metres (H, W), NaN where there is no return.
+
+    Parameters
+    ----------
+    msg : Image
+        ``32FC1`` in metres (NaN, inf or <= 0 = no return), or ``16UC1`` / ``mono16`` in
+        millimetres (0 = no return).
+
+    Raises
+    ------
+    ValueError
+        Other encodings, or a layout that does not match (``step``, ``len(data)``).
+    """
+    if msg.encoding in ("16UC1", "mono16"):
+        mm = image_to_array(msg)
+        depth = mm.astype(np.float32) * np.float32(1e-3)
+        depth[mm == 0] = np.nan
+        return depth
+    if msg.encoding != "32FC1":
+        raise ValueError(f"unsupported depth encoding {msg.encoding!r}; expected 32FC1 "
+                         "(metres) or 16UC1 (millimetres)")
+    depth = image_to_array(msg)
+    depth[~np.isfinite(depth) | (depth <= 0)] = np.nan
+    return depth

@@ -1,0 +1,229 @@
+"""Node helpers: the parameter table, the one ``main()`` runner and throttled logging.
+
+Parameters. A node declares its parameters once, as a tuple of :class:`ParamSpec` (name,
+default, description, bounds, read-only flag, constraints). :func:`declare_config` declares
+them with :class:`~rcl_interfaces.msg.ParameterDescriptor` s (description, integer / floating
+point range, read-only), reads them into the node's typed frozen config with its ``build``
+function (which raises ``ValueError`` naming the parameter) and installs an on-set callback
+that runs the same ``build`` over the current values with the new ones applied: a set that
+would make the configuration invalid is rejected with the reason
+(``SetParametersResult.reason``) and changes nothing. When a valid new value takes effect is
+the node's business (the episode parameters on ``~/reset``).
+
+Running. :func:`run_node` is the Jazzy ``main()`` shape, once for every node: ``rclpy.init``,
+construct, spin; an invalid configuration (``ValueError`` or ``ParameterException`` from the
+constructor) logs a fatal ``invalid configuration: ...`` and exits with status 2;
+``KeyboardInterrupt`` and ``ExternalShutdownException`` end the spin quietly; the node is
+destroyed and rclpy shut down in every case.
+
+Logging. :class:`ThrottledLog` lets at most one line per kind through every ``period`` seconds
+(steady time, any thread) and appends how many lines of that kind it suppressed since the last
+one (the nodes also count every event on ``/diagnostics``).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any, TypeVar
+
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    ParameterType,
+    SetParametersResult,
+)
+
+__all__ = ["ParamSpec", "ThrottledLog", "declare_config", "descriptor", "parameter_values",
+           "run_node"]
+
+T = TypeVar("T")
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One declared parameter.
+
+    Attributes
+    ----------
+    name : str
+        Dotted ROS name.
+    default : Any
+        Default value; its Python type is the parameter's type. None: no default, the type is
+        ``type`` (e.g. an optional double array).
+    description : str
+        Purpose and unit.
+    bounds : (low, high) or None
+        Inclusive range (integer range for int defaults, floating point otherwise).
+    read_only : bool
+        Structural: set only at start-up.
+    constraints : str
+        ``additional_constraints`` text.
+    type : int or None
+        ``rcl_interfaces.msg.ParameterType`` when ``default`` is None (default: double array).
+    """
+
+    name: str
+    default: Any
+    description: str
+    bounds: tuple[float, float] | None = None
+    read_only: bool = False
+    constraints: str = ""
+    type: int | None = None
+
+
+def descriptor(spec: ParamSpec) -> ParameterDescriptor:
+    """The ``ParameterDescriptor`` of a :class:`ParamSpec`."""
+    desc = ParameterDescriptor(description=spec.description, read_only=spec.read_only,
+                               additional_constraints=spec.constraints)
+    if spec.default is None:
+        desc.type = spec.type if spec.type is not None else ParameterType.PARAMETER_DOUBLE_ARRAY
+    if spec.bounds is not None:
+        low, high = spec.bounds
+        if isinstance(spec.default, int) and not isinstance(spec.default, bool):
+            desc.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=1)]
+        else:
+            desc.floating_point_range = [FloatingPointRange(from_value=float(low),
+                                                            to_value=float(high), step=0.0)]
+    return desc
+
+
+def parameter_values(node: Any, specs: Sequence[ParamSpec]) -> dict[str, Any]:
+    """``{name: current value}`` of the table; a typed parameter without a value is None."""
+    from rclpy.exceptions import ParameterUninitializedException
+
+    values: dict[str, Any] = {}
+    for spec in specs:
+        try:
+            values[spec.name] = node.get_parameter(spec.name).value
+        except ParameterUninitializedException:
+            values[spec.name] = None
+    return values
+
+
+def declare_config(node: Any, specs: Sequence[ParamSpec], build: Callable[[dict[str, Any]], T]
+                   ) -> T:
+    """Declare the table on ``node``, build its config, and validate every later set.
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+    specs : sequence of ParamSpec
+    build : callable
+        ``{name: value} -> config``; raises ``ValueError`` naming the bad parameter.
+
+    Returns
+    -------
+    The config built from the start-up values.
+
+    Raises
+    ------
+    ValueError, rclpy.exceptions.ParameterException
+        An invalid start-up value (the runner turns it into exit status 2).
+    """
+    from rclpy.parameter import Parameter
+
+    for spec in specs:
+        default = (Parameter.Type(spec.type if spec.type is not None
+                                  else ParameterType.PARAMETER_DOUBLE_ARRAY)
+                   if spec.default is None else spec.default)
+        node.declare_parameter(spec.name, default, descriptor(spec))
+    config = build(parameter_values(node, specs))
+    names = {spec.name for spec in specs}
+
+    def on_set(parameters: Iterable[Any]) -> SetParametersResult:
+        changed = {p.name: p.value for p in parameters if p.name in names}
+        if not changed:
+            return SetParametersResult(successful=True)
+        try:
+            build({**parameter_values(node, specs), **changed})
+        except (ValueError, TypeError) as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
+    node.add_on_set_parameters_callback(on_set)
+    return config
+
+
+class ThrottledLog:
+    """At most one line per kind every ``period`` s (steady time, thread-safe); counts the rest.
+
+    Parameters
+    ----------
+    logger : rclpy logger
+        ``node.get_logger()``.
+    period : float
+        Seconds between two lines of one kind.
+    """
+
+    def __init__(self, logger: Any, period: float) -> None:
+        self.logger = logger
+        self.period = float(period)
+        self._state: dict[str, tuple[float, int]] = {}
+        self._lock = threading.Lock()
+
+    def allow(self, kind: str) -> tuple[bool, int]:
+        """(log now?, lines of this kind suppressed since the last one logged)."""
+        now = time.monotonic()
+        with self._lock:
+            last, suppressed = self._state.get(kind, (-math.inf, 0))
+            if now - last < self.period:
+                self._state[kind] = (last, suppressed + 1)
+                return False, 0
+            self._state[kind] = (now, 0)
+        return True, suppressed
+
+    def warning(self, kind: str, message: str) -> bool:
+        """Log ``message`` as a warning unless throttled; True if it was logged."""
+        text = self._text(kind, message)
+        if text is not None:
+            self.logger.warning(text)
+        return text is not None
+
+    def error(self, kind: str, message: str) -> bool:
+        """Log ``message`` as an error unless throttled; True if it was logged."""
+        text = self._text(kind, message)
+        if text is not None:
+            self.logger.error(text)
+        return text is not None
+
+    def _text(self, kind: str, message: str) -> str | None:
+        log, suppressed = self.allow(kind)
+        if not log:
+            return None
+        if suppressed:
+            message += f" ({suppressed} similar message(s) suppressed)"
+        return message
+
+
+def run_node(factory: Callable[[], Any], name: str, args: list[str] | None = None) -> None:
+    """The Jazzy ``main()``: init, construct with ``factory()``, spin, clean up.
+
+    Raises
+    ------
+    SystemExit
+        Status 2 after a fatal ``invalid configuration`` log when ``factory`` raises
+        ``ValueError`` or ``rclpy.exceptions.ParameterException``.
+    """
+    import rclpy
+    from rclpy.exceptions import ParameterException
+    from rclpy.executors import ExternalShutdownException
+
+    rclpy.init(args=args)
+    try:
+        node = factory()
+    except (ValueError, ParameterException) as exc:
+        rclpy.logging.get_logger(name).fatal(f"invalid configuration: {exc}")
+        rclpy.try_shutdown()
+        raise SystemExit(2) from None
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()

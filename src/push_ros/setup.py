@@ -1,0 +1,21 @@
+from setuptools import find_packages, setup
+
+package_name = 'push_ros'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+    ],
+    # Runtime dependencies come from requirements.txt (pip) or package.xml (rosdep);
+    # ament_python packages list only setuptools here.
+    install_requires=['setuptools'],
+    zip_safe=True,
+    maintainer='pushbot developers',
+    maintainer_email='pushbot@example.com',
+    description='ROS-side library of the pushbot nodes: message codecs, QoS, node helpers.',
+    license='Apache-2.0',
+)
