@@ -105,6 +105,81 @@ def _ros_imports(path: Path) -> list[str]:
     return found
 
 
+#: Third-party top-level modules -> the rosdep keys that provide them (any one suffices). Keys
+#: checked against ros/rosdistro rosdep/{base,python}.yaml: torch has the system key
+#: python3-torch and the pip key python3-pytorch-pip; pybullet and filterpy only pip keys.
+ROSDEP_KEYS = {
+    'numpy': {'python3-numpy'},
+    'scipy': {'python3-scipy'},
+    'yaml': {'python3-yaml'},
+    'matplotlib': {'python3-matplotlib'},
+    'torch': {'python3-torch', 'python3-pytorch-pip'},
+    'cv2': {'python3-opencv'},
+    'PIL': {'python3-pil'},
+    'tqdm': {'python3-tqdm'},
+    'pybullet': {'python3-pybullet-pip'},
+    'pybullet_utils': {'python3-pybullet-pip'},
+    'filterpy': {'python3-filterpy-pip'},
+}
+
+
+def _required_imports(path: Path) -> set[str]:
+    """Top-level modules ``path`` imports unconditionally: not inside ``try`` blocks that catch
+    ImportError (optional features) nor under ``if TYPE_CHECKING``."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    optional: set[int] = set()
+    for node in ast.walk(tree):
+        guarded = []
+        if isinstance(node, ast.Try) and any(
+                isinstance(h.type, ast.Name) and h.type.id in ('ImportError', 'ModuleNotFoundError')
+                or isinstance(h.type, ast.Tuple) and any(
+                    getattr(e, 'id', None) in ('ImportError', 'ModuleNotFoundError')
+                    for e in h.type.elts)
+                for h in node.handlers):
+            guarded = node.body
+        elif isinstance(node, ast.If) and 'TYPE_CHECKING' in ast.unparse(node.test):
+            guarded = node.body
+        optional |= {id(n) for stmt in guarded for n in ast.walk(stmt)}
+    found = set()
+    for node in ast.walk(tree):
+        if id(node) in optional:
+            continue
+        if isinstance(node, ast.Import):
+            found |= {alias.name.split('.')[0] for alias in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            found.add(node.module.split('.')[0])
+    return found
+
+
+def _declared_dependencies(package: str) -> set[str]:
+    root = ET.parse(SRC / package / 'package.xml').getroot()
+    return {(e.text or '').strip() for tag in ('depend', 'exec_depend') for e in root.iter(tag)}
+
+
+@pytest.mark.parametrize('package', PACKAGES)
+def test_package_xml_covers_every_third_party_import(package: str) -> None:
+    # The package's modules (and a bringup's launch files); workspace packages (first party)
+    # and the standard library are not rosdep's business here.
+    sources = sorted((SRC / package / package).rglob('*.py'))
+    sources += sorted((SRC / package / 'launch').glob('*.py'))
+    imports = set().union(*(_required_imports(path) for path in sources))
+    third_party = imports - set(sys.stdlib_module_names) - set(PACKAGES) - {'__future__'}
+    declared = _declared_dependencies(package)
+    missing, unknown = [], []
+    for module in sorted(third_party):
+        if ROS_MODULE.match(module):  # a ROS package: its rosdep key is its name
+            keys = {module}
+        elif module in ROSDEP_KEYS:
+            keys = ROSDEP_KEYS[module]
+        else:
+            unknown.append(module)
+            continue
+        if not keys & declared:
+            missing.append(f'{module} (one of {sorted(keys)})')
+    assert not unknown, f'{package}: no rosdep key known for {unknown}; add it to ROSDEP_KEYS'
+    assert not missing, f'{package}/package.xml: no exec_depend for {missing}'
+
+
 def test_push_core_sources_never_import_ros() -> None:
     sources = sorted((SRC / CORE).rglob('*.py'))
     assert sources
