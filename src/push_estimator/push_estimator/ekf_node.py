@@ -1,8 +1,11 @@
 """``ekf_node``: EKF over the object pose, centre of mass, limit surface and friction.
 
 A thin ROS wrapper around :class:`push_core.estimator.PushEKF` (the filter, its state, noise
-model, Jacobian and gating are documented there). Message <-> array conversion lives in
-:mod:`push_estimator.conversions`.
+model, Jacobian and gating are documented there). Every message is converted by the codecs of
+:mod:`push_ros` (outline: :mod:`push_ros.outline`; poses, COM, transform:
+:mod:`push_ros.poses`; executed push: :mod:`push_ros.paths`; state: :mod:`push_ros.state`);
+QoS, parameters, logging and ``main()`` are :mod:`push_ros`'s too. It never imports the
+simulator.
 
 State ``x = (x, y, theta, c_x, c_y, l, m)``: object frame pose in ``world`` (m, rad; ``theta``
 continuous, not wrapped, so a symmetric object's orientation stays continuous), COM in the
@@ -20,7 +23,8 @@ Subscriptions (relative names, remappable; QoS as in the README topic table):
   is true and it is symmetric positive definite; otherwise ``observation.*_sigma``.
 - ``pusher/executed`` (nav_msgs/Path, ``world``; reliable): the executed push, two poses
   (start, end) each with its stamp; drives the prediction.
-- ``/clock`` (``use_sim_time`` is true by default: the pipeline runs on simulated time).
+- ``/clock`` only with ``use_sim_time`` true. The default is false (wall time, a real
+  robot); the simulation (``pushbot demo``, the graph runner, the bringup YAML) sets it.
 
 Inputs are applied in stamp order (an observation at its stamp, a push from its start to its
 end stamp). DDS does not order messages across topics (a reliable sample repaired after a lost
@@ -39,14 +43,18 @@ outline (``dropped_before_outline``), a bad outline (``rejected_outlines``). An 
 that fails the Mahalanobis gate re-initialises the pose (``gated``, status WARN; re-filtering
 updates the count).
 
-Publications (after every applied observation, stamped with the observation's stamp):
+Publications (after every applied observation, stamped with the observation's stamp). The
+three estimate topics are **latched** (reliable, transient local, depth 1): a subscriber that
+starts later (the planner started by hand after the estimator) still gets the last estimate;
+subscribers must be transient local too (``push_ros.qos.LATCHED_QOS`` or
+``latched_reader_qos``) to get it, volatile ones only get what follows:
 
-- ``estimator/object_pose`` (geometry_msgs/PoseWithCovarianceStamped, ``world``; reliable):
+- ``estimator/object_pose`` (geometry_msgs/PoseWithCovarianceStamped, ``world``; latched):
   x, y, yaw and their covariance (z, roll, pitch variance 0).
-- ``estimator/center_of_mass`` (geometry_msgs/PointStamped, ``object``; reliable).
-- ``estimator/state`` (std_msgs/Float64MultiArray; reliable): dim 0 label ``state`` size 7
+- ``estimator/center_of_mass`` (geometry_msgs/PointStamped, ``object``; latched).
+- ``estimator/state`` (std_msgs/Float64MultiArray; latched): dim 0 label ``state`` size 7
   (``x,y,theta,c_x,c_y,l,m``), dim 1 label ``covariance_row_major`` size 49; data = the 7
-  values then the 7 x 7 covariance (:func:`push_estimator.conversions.state_array_msg`).
+  values then the 7 x 7 covariance (:func:`push_ros.state.state_array_msg`).
 - ``/tf`` world -> object (tf2_msgs/TFMessage; reliable): only where ``tf2_msgs`` is
   importable (full ROS install; see the tf note in ARCHITECTURE.md) and ``publish_tf``.
 - ``/diagnostics`` (diagnostic_msgs/DiagnosticArray; reliable): one status, every
@@ -61,8 +69,10 @@ episode (found driving the graph, issue 7).
 Parameters: declared below with descriptions and ranges, read once at start-up into
 :class:`EkfNodeParams` (frozen) and validated by building the filter's
 :class:`~push_core.estimator.EKFConfig`; defaults, units and meaning in
-``ros_ws/config/push_estimator.yaml``. A bad value fails start-up with a clear message (exit
-status 2). Frames: ``world`` and ``object`` (parameters ``world_frame``, ``object_frame``).
+``pushbot_bringup/config/push_estimator.yaml``. A bad value fails start-up with a clear message
+(exit status 2) and is refused when set at run time (with the reason); a valid value set later
+has no effect until the node restarts. Frames: ``world`` and ``object`` (parameters
+``world_frame``, ``object_frame``).
 """
 
 from __future__ import annotations

@@ -2,8 +2,10 @@
 
 A thin ROS wrapper: the CNN is :class:`push_perception.model.Segmenter`, the geometry
 (position, relative orientation, outline, covariance) :class:`push_perception.core.EpisodeTracker`;
-message conversion lives in :mod:`push_perception.conversions` (which reuses
-:mod:`sim_bridge.conversions`).
+every message is converted by the codecs of :mod:`push_ros` (images and camera info:
+:mod:`push_ros.images`; pose: :mod:`push_ros.poses`; outline: :mod:`push_ros.outline`), QoS,
+parameters, logging and ``main()`` are :mod:`push_ros`'s too. It never imports the simulator
+(``sim_bridge``, pybullet): it runs on a robot with a RealSense driver.
 
 Subscriptions (names relative and remappable; "sensor" = ``qos_profile_sensor_data``,
 "latched" = reliable + transient local, depth 1):
@@ -13,9 +15,14 @@ Subscriptions (names relative and remappable; "sensor" = ``qos_profile_sensor_da
   ``16UC1`` millimetres, aligned to colour; sensor)
 - ``camera/color/camera_info`` (sensor_msgs/CameraInfo; sensor). Colour, depth and camera
   info are matched by identical header stamps (the last ``sync_queue`` stamps are kept).
-- ``camera/color/extrinsics`` (geometry_msgs/TransformStamped, ``world`` ->
-  ``camera_color_optical_frame``; latched). The latest one is used.
-- ``/clock`` (``use_sim_time`` is true by default: with the simulator, stamps are sim time).
+- Camera extrinsics ``T_world_camera`` (:class:`push_ros.extrinsics.CameraExtrinsics`): from
+  tf2 where ``tf2_ros`` is importable (a full ROS install: ``/tf_static``, lookup ``world`` ->
+  the image's frame, e.g. a static transform publisher for the camera mount), otherwise, and
+  whenever tf2 has no such transform, from the latched ``camera/color/extrinsics``
+  (geometry_msgs/TransformStamped, ``world`` -> ``camera_color_optical_frame``; latched; the
+  pip install's fallback, published by ``sim_bridge_node``). The latest one is used.
+- ``/clock`` only with ``use_sim_time`` true. The default is false (a real camera stamps with
+  wall time); the simulation (``pushbot demo``, the graph runner, the bringup YAML) sets it.
 
 Publications:
 
@@ -55,24 +62,21 @@ same stamp), ``no_extrinsics``, ``empty_mask``, ``out_of_view`` (mask on the ima
 top-down view falls apart, e.g. a sliver narrower than a few millimetres).
 
 Parameters (declared below with descriptions and ranges; defaults and units commented in
-``ros_ws/config/push_perception.yaml``): ``weights``, ``torch_threads``, ``sync_queue`` (read
-only), ``threshold``, ``min_coarse_cells``, ``publish_mask`` and the geometry of
-:class:`push_perception.core.PerceptionConfig` (``resolution``, ``min_height``,
+``pushbot_bringup/config/push_perception.yaml``): ``weights``, ``torch_threads``,
+``sync_queue`` (read only), ``threshold``, ``min_coarse_cells``, ``publish_mask`` and the
+geometry of :class:`push_perception.core.PerceptionConfig` (``resolution``, ``min_height``,
 ``closing_radius``, ``outline_spacing``, ``outline_smoothing``, ``outline_offset``,
 ``symmetry_tolerance``, ``min_pixels``, ``min_valid_fraction``, ``max_border_pixels``,
 ``sigma_position``, ``sigma_theta``, ``match_cost_floor``). A bad value fails start-up with
-a clear message.
+a clear message (exit status 2) and is refused when set at run time (with the reason); valid
+geometry values take effect on the next ``~/reset``.
 
 Frames: ``camera_color_optical_frame`` (REP 103 optical), ``world`` (table, z up), ``object``.
-The heavy work (13-21 ms median per 640 x 480 frame, docs/RESULTS.md) runs in the subscription
-callback of the default single-threaded executor; frames that arrive meanwhile wait in the
-sensor queues (depth 5) and the oldest are dropped, which is what a camera stream wants.
-
-Transport note: a 640 x 480 frame is 0.9 MB (colour) + 1.2 MB (depth). Between processes,
-Fast DDS with the project's current profile (``pushbot.dds``) delivered few or none of these
-best-effort samples from ``sim_bridge_node`` in a two-process test (212 KB UDP socket
-buffers, default shared-memory segments); a profile with 16 MB shared-memory segments and
-4 MB UDP buffers delivered every frame at the bridge's 2 Hz. In-process tests re-send.
+The heavy work runs in the subscription callback of the default single-threaded executor
+(latency per frame: docs/RESULTS.md, ``bench_perception``); frames that arrive meanwhile wait
+in the sensor queues (depth 5) and the oldest are dropped, which is what a camera stream wants.
+Camera images between processes need the bundled DDS profile (docs/ARCHITECTURE.md, "DDS
+profile"; delivery measured in docs/RESULTS.md, ``graph``).
 """
 
 from __future__ import annotations

@@ -2,21 +2,29 @@
 
 A thin wrapper around :class:`push_core.planner.Planner` (SPEC section 2 steps 4-5; units,
 scores and the algorithm are documented there): it pairs the estimator's outputs into
-estimates, decides when to plan, and converts messages (:mod:`push_planner.conversions`).
+estimates and decides when to plan. Messages are converted by the codecs of :mod:`push_ros`
+(state: :mod:`push_ros.state`; poses and goals: :mod:`push_ros.poses`; ``planner/push``:
+:mod:`push_ros.paths`; outline: :mod:`push_ros.outline`; status: :mod:`push_ros.diagnostics`),
+except its own ``planner/affordances`` markers (:mod:`push_planner.conversions`). QoS,
+parameters and ``main()`` are :mod:`push_ros`'s too; it never imports the simulator.
 
 Subscriptions (names relative and remappable; QoS as in ``docs/ARCHITECTURE.md``):
 
-- ``estimator/state`` (std_msgs/Float64MultiArray; reliable): ``x, y, theta, c_x, c_y, l, m``
-  then the 7 x 7 covariance (layout dims ``state`` 7, ``covariance_row_major`` 49).
-- ``estimator/object_pose`` (geometry_msgs/PoseWithCovarianceStamped, ``world``; reliable):
-  the same estimate's pose with its **stamp**; the state message has none.
+- ``estimator/state`` (std_msgs/Float64MultiArray; latched, reader queue 10):
+  ``x, y, theta, c_x, c_y, l, m`` then the 7 x 7 covariance (layout dims ``state`` 7,
+  ``covariance_row_major`` 49).
+- ``estimator/object_pose`` (geometry_msgs/PoseWithCovarianceStamped, ``world``; latched,
+  reader queue 10): the same estimate's pose with its **stamp**; the state message has none.
+  Both are transient local, so a planner started after the estimator published still gets
+  the last estimate (``push_ros.qos.latched_reader_qos``).
 - ``perception/outline`` (sensor_msgs/PointCloud2, ``object``; latched): x, y, z, normal_x,
   normal_y, normal_z float32, counter-clockwise, outward normals.
 - ``goal_pose`` (geometry_msgs/PoseStamped, ``world``; reliable): RViz's "2D Goal Pose". A new
   goal starts a new episode (step 0).
 - ``pusher/executed`` (nav_msgs/Path, ``world``; reliable): the executed push; its header stamp
   (= the stamp of its last pose) is the time the push ended.
-- ``/clock`` (``use_sim_time: true`` in the pipeline).
+- ``/clock`` only with ``use_sim_time`` true (default false: wall time; the simulation sets
+  it).
 
 Publications:
 
@@ -70,14 +78,16 @@ the outline points of the lost pushes (``Planner.plan(avoid=...)``, within ``AVO
 until a push is executed or a new outline arrives.
 
 Bad input is refused with a warning log, a WARN status and the ``refused`` counter; the node
-keeps running: goals with NaN/inf, non-unit or non-planar quaternions, another frame, or off
+keeps running: goals with NaN/inf, quaternions that break the one planarity rule (unit norm and
+``|q_x|, |q_y|`` within 1e-3, :mod:`push_core.geometry`), another frame, or off
 the workspace; outlines that are empty, malformed, in another frame or not a valid polygon;
 states with NaN or a bad layout; estimates a plan cannot use (l <= 0).
 
 Parameters (declared once below with descriptors; documented with defaults and units in
-``ros_ws/config/push_planner.yaml``; read at start-up and validated by building the
+``pushbot_bringup/config/push_planner.yaml``; read at start-up and validated by building the
 :class:`~push_core.planner.PlannerConfig`, so a bad value fails start-up with a message naming
-the parameter). Episode parameters, settable and applied on the next ``~/reset``: ``method``,
+the parameter; a set that would make it invalid is refused with the reason). Episode
+parameters, settable and applied on the next ``~/reset``: ``method``,
 ``direct``, ``k``, ``lambda``, ``temperature``, ``goal_tolerance.xy``,
 ``goal_tolerance.theta``, ``goal_tolerance.confidence``, ``max_steps``, ``seed``. Read-only:
 ``push_speed``, ``approach_clearance``, ``pusher_radius``,

@@ -2,6 +2,8 @@
 
 A thin ROS wrapper around :class:`sim_bridge.world.PushWorld` (pybullet, DIRECT mode): a table,
 one flat object, a vertical cylindrical pusher and a D415-like camera. The node owns ``/clock``.
+Messages are converted by the codecs of :mod:`push_ros` (the same ones the pipeline nodes read
+them with); QoS profiles, parameters, logging and ``main()`` are :mod:`push_ros`'s too.
 
 Publications (QoS as in ``docs/ARCHITECTURE.md``; "sensor" = ``qos_profile_sensor_data``,
 "reliable" = reliable/volatile/depth 10, "latched" = reliable/transient local/depth 1):
@@ -50,12 +52,14 @@ Services:
   refused while busy. ``message`` says what was built or why not.
 
 Parameters (declared once below with descriptions and ranges; documented with defaults and
-units in ``ros_ws/config/sim_bridge.yaml``): ``object``, ``initial_pose.{x,y,theta}``,
+units in ``pushbot_bringup/config/sim_bridge.yaml``): ``object``, ``initial_pose.{x,y,theta}``,
 ``com_offset``, ``mass``, ``friction_table``, ``friction_pusher``, ``seed``, ``randomize``,
 ``image_width``, ``image_height``, ``depth_noise``, ``randomize_appearance``,
 ``randomize_camera``, ``push_speed``, ``pusher_radius`` (all read on start-up and on
 ``~/reset``), and the read-only ``idle_frame_rate`` and ``clock_rate`` (timer rates, Hz of
-wall time). A bad value fails start-up with a clear message and a non-zero exit.
+wall time). A bad value fails start-up with a clear message (exit status 2); a set that the
+node can check (e.g. an unknown object) is refused with the reason, what only the world can
+check (e.g. a COM outside the outline) makes the next ``~/reset`` fail and keep the scene.
 
 Frames: ``world`` (table frame, z up, origin on the table at the workspace centre),
 ``camera_color_optical_frame`` (REP 103 optical frame), ``pusher``.
