@@ -23,7 +23,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from push_core.planner import NoFeasiblePush, Outline, Planner, prepare_outline
+from push_core.episode import EpisodeEngine
+from push_core.planner import Outline, Planner, prepare_outline
 
 __all__ = ["EpisodeResult", "ground_truth_state", "run_episode", "translation_goal"]
 
@@ -109,33 +110,34 @@ def run_episode(world: Any, planner: Planner, goal: ArrayLike, max_steps: int = 
         outline = prepare_outline(*spec.outline(outline_spacing),
                                   simplify_tolerance=planner.config.simplify_tolerance)
     base = ground_truth_state(world)
-    refused_at: list[np.ndarray] = []  # outline points of refused pushes since the last push
+    engine = EpisodeEngine(planner, max_steps)
+    engine.new_goal(goal)
+    engine.set_outline(outline)
     result = EpisodeResult(success=False, steps=0, final_error_xy=math.inf,
                            final_error_theta=math.inf)
-    for step in range(max_steps + 1):
+    while True:
         pose = world.object_pose()
         result.poses.append(pose)
         err = goal - pose
         result.final_error_xy = float(math.hypot(err[0], err[1]))
         result.final_error_theta = abs(float(np.angle(np.exp(1j * err[2]))))
-        if planner.reached(pose, goal):
-            result.success = True
-            break
-        if step == max_steps:
-            break
         state = base.copy()
         state[:3] = pose
+        engine.estimate(world.sim_time, state)
         t0 = time.perf_counter()
-        try:
-            plan = planner.plan(outline, state, goal, avoid=refused_at)
-        except NoFeasiblePush:
+        step = engine.step()
+        if step.action == "reached":
+            result.success = True
             break
+        if step.action != "push":  # max steps or no feasible push
+            break
+        plan = step.plan
         result.planning_ms.append(1e3 * (time.perf_counter() - t0))
-        result.steps += 1
+        result.steps = engine.steps
         try:
             world.execute_push(plan.approach, plan.contact, plan.end)
-            refused_at = []
-        except ValueError:  # nothing moved: do not plan the same push again
+            engine.push_executed(world.sim_time)
+        except ValueError:  # nothing moved: its contact region is avoided (the engine)
             result.refused += 1
-            refused_at.append(outline.points[plan.index])
+            engine.push_lost()
     return result
