@@ -22,6 +22,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import PointCloud2
 
+from push_core.objects import load_object
 from push_estimator.ekf_node import EkfNode
 from push_planner.planner_node import PlannerNode
 from push_ros.outline import outline_cloud_msg
@@ -31,12 +32,6 @@ from push_ros.stamps import stamp_from_seconds
 
 pytestmark = pytest.mark.ros
 
-HALF = 0.03
-_CORNERS = np.array([[HALF, -HALF], [HALF, HALF], [-HALF, HALF], [-HALF, -HALF]])
-#: A 6 cm square, 10 points per side, counter-clockwise, with outward normals.
-SQUARE = np.concatenate([a + np.arange(10)[:, None] / 10 * (b - a)
-                         for a, b in zip(_CORNERS, np.roll(_CORNERS, -1, 0), strict=True)])
-SQUARE_NORMALS = np.repeat([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]], 10, axis=0)
 TIMEOUT = 20.0
 
 
@@ -59,7 +54,8 @@ def test_a_planner_started_after_the_estimate_still_gets_it(
                         and observation.get_subscription_count() > 0
                         and client.count_publishers("estimator/object_pose") > 0,
                         timeout=TIMEOUT, executor=executor)
-        outline.publish(outline_cloud_msg(SQUARE, SQUARE_NORMALS, stamp_from_seconds(0.0)))
+        points, normals = load_object("rect1").outline(0.004)
+        outline.publish(outline_cloud_msg(points, normals, stamp_from_seconds(0.0)))
         assert wait_for(lambda: ekf.filter is not None, timeout=TIMEOUT, executor=executor)
         observation.publish(pose_with_covariance_msg((0.01, -0.02, 0.1), np.diag(
             [1e-6, 1e-6, 1e-4]), stamp_from_seconds(1.0)))

@@ -83,7 +83,7 @@ from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PointStamped, PoseWithCovarianceStamped
 from nav_msgs.msg import Path
 from rclpy.clock import Clock, ClockType
@@ -94,7 +94,7 @@ from std_srvs.srv import Trigger
 
 from push_core.estimator import STATE_LABELS, EKFConfig, PushEKF
 from push_core.geometry import NonFiniteError
-from push_ros.diagnostics import diagnostic_array, status_msg
+from push_ros.diagnostics import DiagnosticsPublisher
 from push_ros.frames import OBJECT_FRAME, WORLD_FRAME
 from push_ros.node import ParamSpec, ThrottledLog, declare_config, run_node
 from push_ros.outline import outline_from_cloud
@@ -321,7 +321,7 @@ class EkfNode(Node):
                                               LATCHED_QOS)
         self._pub_state = self.create_publisher(Float64MultiArray, "estimator/state",
                                                 LATCHED_QOS)
-        self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", RELIABLE_QOS)
+        self._diagnostics = DiagnosticsPublisher(self, "estimator", "push_estimator")
         self._pub_tf = None
         if TFMessage is not None and self.params.publish_tf:
             self._pub_tf = self.create_publisher(TFMessage, "/tf", RELIABLE_QOS)
@@ -544,10 +544,7 @@ class EkfNode(Node):
             if self._ekf.initialized:
                 values.update({label: f"{v:.6g}"
                                for label, v in zip(STATE_LABELS, self._ekf.state, strict=True)})
-        status = status_msg(f"{self.get_fully_qualified_name()}: estimator", level, message,
-                            values, hardware_id="push_estimator")
-        array = diagnostic_array(status, self.get_clock().now().to_msg())
-        self._pub_diag.publish(array)
+        self._diagnostics.publish(level, message, values)
 
 
 def main(args: list[str] | None = None) -> None:

@@ -91,7 +91,7 @@ from typing import Any
 
 import cv2
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
@@ -99,7 +99,7 @@ from sensor_msgs.msg import CameraInfo, Image, PointCloud2
 from std_srvs.srv import Trigger
 
 from push_perception.core import EpisodeTracker, PerceptionConfig, PerceptionError
-from push_ros.diagnostics import diagnostic_array, status_msg
+from push_ros.diagnostics import DiagnosticsPublisher
 from push_ros.extrinsics import CameraExtrinsics
 from push_ros.images import (
     camera_matrix_from_info,
@@ -259,7 +259,7 @@ class SegmentationNode(Node):
                                                "perception/object_pose", RELIABLE_QOS)
         self._pub_outline = self.create_publisher(PointCloud2, "perception/outline",
                                                   LATCHED_QOS)
-        self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", RELIABLE_QOS)
+        self._diagnostics = DiagnosticsPublisher(self, "perception", "rgbd_camera")
         sensor = SENSOR_QOS
         self.create_subscription(Image, "camera/color/image_raw",
                                  lambda m: self._on_stream("rgb", m), sensor)
@@ -422,10 +422,7 @@ class SegmentationNode(Node):
         values = {**self._counts, "last_error": self._last_error, "latency_ms_median": latency,
                   "has_reference": str(self._tracker.outline is not None).lower(),
                   "last_stamp": f"{self._last_stamp:.6f}"}
-        status = status_msg(f"{self.get_fully_qualified_name()}: perception", level, message,
-                            values, hardware_id="rgbd_camera")
-        array = diagnostic_array(status, self.get_clock().now().to_msg())
-        self._pub_diag.publish(array)
+        self._diagnostics.publish(level, message, values)
 
 
 def main(args: list[str] | None = None) -> None:

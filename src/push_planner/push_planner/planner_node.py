@@ -106,7 +106,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from nav_msgs.msg import Path
 from rclpy.clock import Clock, ClockType
@@ -125,7 +125,7 @@ from push_core.planner import (
     prepare_outline,
 )
 from push_planner.conversions import affordance_markers
-from push_ros.diagnostics import diagnostic_array, status_msg
+from push_ros.diagnostics import DiagnosticsPublisher
 from push_ros.frames import WORLD_FRAME
 from push_ros.node import ParamSpec, declare_config, parameter_values, run_node
 from push_ros.outline import outline_from_cloud
@@ -317,7 +317,7 @@ class PlannerNode(Node):
         self._pub_markers = self.create_publisher(MarkerArray, "planner/affordances",
                                                   RELIABLE_QOS)
         self._pub_status = self.create_publisher(DiagnosticStatus, "planner/status", LATCHED_QOS)
-        self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", RELIABLE_QOS)
+        self._diagnostics = DiagnosticsPublisher(self)
         estimates = latched_reader_qos(PAIR_BUFFER)  # late subscriber: the last estimate
         self.create_subscription(Float64MultiArray, "estimator/state", self._on_state,
                                  estimates)
@@ -572,7 +572,7 @@ class PlannerNode(Node):
                   "goal": goal, "orientation": "used" if self._orientation_matters() else
                   "ignored", **self._counts, "last_refusal": self._last_refusal,
                   "last_push_end": f"{self._last_push_end:.6f}"}
-        return status_msg(self.get_fully_qualified_name(), self._level, message, values)
+        return self._diagnostics.status(self._level, message, values)
 
     def _orientation_matters(self) -> bool:
         return self._outline is None or self._outline.orientation_matters
@@ -583,8 +583,7 @@ class PlannerNode(Node):
         self._publish_diagnostics(status)
 
     def _publish_diagnostics(self, status: DiagnosticStatus | None = None) -> None:
-        self._pub_diag.publish(diagnostic_array(status or self._status(),
-                                                self.get_clock().now().to_msg()))
+        self._diagnostics.publisher.publish(self._diagnostics.array(status or self._status()))
 
 
 def main(args: list[str] | None = None) -> None:

@@ -8,11 +8,14 @@ key-values; ``planner/status`` is the planner's status on its own latched topic.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import Any
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
-__all__ = ["diagnostic_array", "status_msg"]
+from push_ros.qos import RELIABLE_QOS
+
+__all__ = ["DiagnosticsPublisher", "diagnostic_array", "status_msg"]
 
 
 def status_msg(name: str, level: bytes, message: str,
@@ -32,3 +35,42 @@ def diagnostic_array(statuses: Sequence[DiagnosticStatus] | DiagnosticStatus, st
     array = DiagnosticArray(status=list(statuses))
     array.header.stamp = stamp
     return array
+
+
+class DiagnosticsPublisher:
+    """A node's ``/diagnostics`` (reliable): one status, ``<node fqn>: <what>``.
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+    what : str
+        What the status is about (``perception``, ``estimator``, ``simulation``); empty: the
+        status is named after the node alone.
+    hardware_id : str
+    """
+
+    def __init__(self, node: Any, what: str = "", hardware_id: str = "") -> None:
+        self._node = node
+        fqn = node.get_fully_qualified_name()
+        self.name = f"{fqn}: {what}" if what else fqn
+        self.hardware_id = hardware_id
+        self.publisher = node.create_publisher(DiagnosticArray, "/diagnostics", RELIABLE_QOS)
+
+    def status(self, level: bytes, message: str,
+               values: Mapping[str, object] | Sequence[tuple[str, object]] = ()
+               ) -> DiagnosticStatus:
+        """This node's status message (see :func:`status_msg`)."""
+        return status_msg(self.name, level, message, values, self.hardware_id)
+
+    def array(self, status: DiagnosticStatus, stamp: Time | None = None) -> DiagnosticArray:
+        """The ``/diagnostics`` message of ``status``, stamped ``stamp`` (default: now)."""
+        return diagnostic_array(status, stamp if stamp is not None
+                                else self._node.get_clock().now().to_msg())
+
+    def publish(self, level: bytes, message: str,
+                values: Mapping[str, object] | Sequence[tuple[str, object]] = (),
+                stamp: Time | None = None) -> DiagnosticStatus:
+        """Build and publish the status; return it."""
+        status = self.status(level, message, values)
+        self.publisher.publish(self.array(status, stamp))
+        return status

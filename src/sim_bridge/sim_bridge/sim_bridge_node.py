@@ -92,7 +92,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, TransformStamped
 from nav_msgs.msg import Path
 from rclpy.clock import Clock, ClockType
@@ -102,7 +102,7 @@ from sensor_msgs.msg import CameraInfo, Image
 from std_srvs.srv import Trigger
 
 from push_core.objects import load_object
-from push_ros.diagnostics import diagnostic_array, status_msg
+from push_ros.diagnostics import DiagnosticsPublisher
 from push_ros.frames import CAMERA_FRAME, PUSHER_FRAME, WORLD_FRAME
 from push_ros.images import camera_info_msg, depth_image_msg, rgb_image_msg
 from push_ros.node import ParamSpec, ThrottledLog, declare_config, parameter_values, run_node
@@ -366,7 +366,7 @@ class SimBridgeNode(Node):
         self._pub_clock = self.create_publisher(ClockMsg, "/clock", CLOCK_QOS)
         self._pub_pose = self.create_publisher(PoseStamped, "sim/object_pose", RELIABLE_QOS)
         self._pub_executed = self.create_publisher(Path, "pusher/executed", RELIABLE_QOS)
-        self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", RELIABLE_QOS)
+        self._diagnostics = DiagnosticsPublisher(self, "simulation", "pybullet")
         self._pub_tf = self._pub_tf_static = None
         if TFMessage is not None:
             self._pub_tf = self.create_publisher(TFMessage, "/tf", RELIABLE_QOS)
@@ -558,10 +558,9 @@ class SimBridgeNode(Node):
                   **counts, "last_error": last_error,
                   "sim_time": f"{max(self._last_clock, 0.0):.6f}"}
         level = DiagnosticStatus.WARN if error_active else DiagnosticStatus.OK
-        status = status_msg(f"{self.get_fully_qualified_name()}: simulation", level, message,
-                            values, hardware_id="pybullet")
-        array = diagnostic_array(status, stamp_from_seconds(max(self._last_clock, 0.0)))
-        self._publish_safely(self._pub_diag, array)
+        status = self._diagnostics.status(level, message, values)
+        array = self._diagnostics.array(status, stamp_from_seconds(max(self._last_clock, 0.0)))
+        self._publish_safely(self._diagnostics.publisher, array)
 
     # ---- executor callbacks ------------------------------------------------------------------
     def _on_clock_timer(self) -> None:
