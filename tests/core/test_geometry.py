@@ -210,3 +210,31 @@ def test_validators_name_the_argument_and_shape():
         object_to_world(np.zeros(2), np.zeros(2))
     # Valid inputs pass through.
     np.testing.assert_array_equal(check_polyline(SQUARE), SQUARE)
+
+
+def test_the_one_quaternion_rule():
+    # push_core.geometry.QUATERNION_TOLERANCE: finite, unit norm within 1e-3; a planar pose also
+    # |q_x|, |q_y| <= 1e-3 (every message reader of push_ros applies it).
+    from push_core.geometry import (
+        QUATERNION_TOLERANCE,
+        NonFiniteError,
+        check_quaternion,
+        quaternion_from_yaw,
+        yaw_from_quaternion,
+    )
+
+    assert QUATERNION_TOLERANCE == 1e-3
+    for theta in (0.0, 0.3, -2.0, np.pi):
+        assert yaw_from_quaternion(quaternion_from_yaw(theta)) == pytest.approx(
+            np.arctan2(np.sin(theta), np.cos(theta)))
+    slightly_off = quaternion_from_yaw(0.5) * (1 + 0.9e-3) + [0.9e-3, -0.9e-3, 0.0, 0.0]
+    assert yaw_from_quaternion(slightly_off) == pytest.approx(0.5, abs=1e-2)
+    np.testing.assert_allclose(np.linalg.norm(check_quaternion([0, 0, 0, 1.0005])), 1.0)
+    with pytest.raises(ValueError, match="unit length"):
+        check_quaternion([0.0, 0.0, 0.0, 1.01])
+    with pytest.raises(ValueError, match="about z"):
+        yaw_from_quaternion([0.01, 0.0, 0.0, 1.0])
+    with pytest.raises(NonFiniteError, match="not finite"):
+        yaw_from_quaternion([0.0, 0.0, np.nan, 1.0])
+    with pytest.raises(ValueError, match="zero norm"):
+        check_quaternion(np.zeros(4))

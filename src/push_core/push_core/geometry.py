@@ -5,6 +5,11 @@ A planar pose is an array ``(..., 3)`` = ``(x, y, theta)``: the position of the 
 origin in the world frame and the rotation of the object frame about z. Points are arrays
 ``(..., 2)``. Leading dimensions broadcast in the numpy way.
 
+Quaternions are (x, y, z, w), the order of ROS and pybullet; the one quaternion rule of the
+pipeline (:data:`QUATERNION_TOLERANCE`: finite, unit norm within 1e-3, and for a planar pose
+``|q_x|, |q_y| <= 1e-3``) is :func:`check_quaternion` / :func:`yaw_from_quaternion`, used by
+every message reader (``push_ros``).
+
 ``rot2``, ``wrap_angle``, ``object_to_world`` and ``world_to_object`` are generic over numpy and
 torch: given a ``torch.Tensor`` they compute in torch (differentiable), otherwise in numpy
 float64 (see :func:`array_namespace`). ``closest_point_on_polyline`` and the ``check_*``

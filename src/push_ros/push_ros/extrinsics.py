@@ -92,7 +92,6 @@ class CameraExtrinsics:
             try:
                 tf = self._buffer.lookup_transform(self.world_frame, camera_frame, Time())
                 return matrix_from_transform(tf), camera_frame
-            except (tf2_ros.LookupException, tf2_ros.ConnectivityException,
-                    tf2_ros.ExtrapolationException, ValueError):
+            except (tf2_ros.TransformException, ValueError):  # not (yet) in tf: the topic
                 pass
         return self._matrix, self._child_frame
