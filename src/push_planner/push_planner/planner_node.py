@@ -39,8 +39,8 @@ Publications:
   ``failed: no feasible push``), followed by `` - <reason>`` after a refused input; level OK,
   WARN (input refused, push lost) or ERROR (failed). ``values``: ``state`` (waiting | pushing |
   reached | failed), ``step``, ``max_steps``, ``goal``, counters (``estimates``,
-  ``planned``, ``ignored_stale``, ``ignored_duplicate``, ``ignored_busy``, ``refused``),
-  ``last_refusal``, ``last_push_end``.
+  ``planned``, ``ignored_stale``, ``ignored_duplicate``, ``ignored_busy``, ``refused`` inputs,
+  ``lost`` pushes), ``last_refusal``, ``last_push_end``.
 - ``/diagnostics`` (diagnostic_msgs/DiagnosticArray; reliable): the same status, 1 Hz and on
   every change.
 
@@ -51,8 +51,10 @@ keeps the previous ones. The goal is forgotten because an episode is one goal: w
 kept, the first estimate of the next scene would be planned against the previous episode's
 goal before the new one arrives (found driving the graph, issue 7).
 
-When it plans (the stale-estimate rule). An *estimate* is an ``estimator/object_pose``
-message together with the ``estimator/state`` message of the same pose (x, y equal to 1 um,
+When it plans: the rules are those of the one episode engine,
+:class:`push_core.episode.EpisodeEngine` (the in-process loops drive the same one); this node
+feeds it its messages and acts on its decisions. The stale-estimate rule: an *estimate* is an
+``estimator/object_pose`` message together with the ``estimator/state`` message of the same pose (x, y equal to 1 um,
 theta to 1 urad modulo 2 pi; either may arrive first; the last 10 of each are kept for
 pairing); its time is the pose message's stamp. The node plans **exactly once per estimate**
 that is
@@ -116,14 +118,9 @@ from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
+from push_core.episode import EpisodeEngine
 from push_core.geometry import wrap_angle
-from push_core.planner import (
-    NoFeasiblePush,
-    Outline,
-    Planner,
-    PlannerConfig,
-    prepare_outline,
-)
+from push_core.planner import Planner, PlannerConfig, PushPlan, prepare_outline
 from push_planner.conversions import affordance_markers
 from push_ros.diagnostics import DiagnosticsPublisher
 from push_ros.frames import WORLD_FRAME
@@ -301,16 +298,12 @@ class PlannerNode(Node):
         self._model = (_load_learned_model(self.params.lrn_weights)
                        if self.params.planner.method == "lrn" else None)
         self._planner = Planner(self.params.planner, affordance_model=self._model)
-
-        self._outline: Outline | None = None
-        self._goal: np.ndarray | None = None
-        self._goal_seq = 0
+        #: The closed-loop rules (push_core.episode): goal, outline, estimates, pushes.
+        self._engine = EpisodeEngine(self._planner, self.params.max_steps)
         self._poses: deque[tuple[float, np.ndarray]] = deque(maxlen=PAIR_BUFFER)
         self._states: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=PAIR_BUFFER)
-        self._counts = {"estimates": 0, "planned": 0, "ignored_stale": 0,
-                        "ignored_duplicate": 0, "ignored_busy": 0, "refused": 0}
+        self._refused = 0
         self._last_refusal = ""
-        self._last_push_end = -math.inf
         self._new_episode()
 
         self._pub_push = self.create_publisher(Path, "planner/push", RELIABLE_QOS)
@@ -341,19 +334,8 @@ class PlannerNode(Node):
 
     # ---- episode -----------------------------------------------------------------------------
     def _new_episode(self) -> None:
-        self._state = "waiting"
         self._failure = ""
-        self._step = 0
-        self._in_flight = False
         self._in_flight_since = 0.0
-        #: Outline point of the push in flight; outline points of pushes lost since the object
-        #: last moved (not planned again: Planner.plan(avoid=...)).
-        self._in_flight_point: np.ndarray | None = None
-        self._avoid: list[np.ndarray] = []
-        #: (stamp, state (7,), covariance (7, 7)) of the newest estimate.
-        self._latest: tuple[float, np.ndarray, np.ndarray] | None = None
-        self._used_stamp = -math.inf
-        self._used_goal_seq = -1
         self._note = ""
         self._level = DiagnosticStatus.OK
         self._poses.clear()
@@ -375,8 +357,11 @@ class PlannerNode(Node):
             self.get_logger().error(response.message)
             return response
         self.params, self._model, self._planner = params, model, planner
+        outline = self._engine.outline
+        self._engine = EpisodeEngine(planner, params.max_steps, counts=self._engine.counts)
+        if outline is not None:
+            self._engine.set_outline(outline)
         self._new_episode()
-        self._goal = None
         cfg = params.planner
         response.success = True
         response.message = (f"new episode: step 0, estimates and goal forgotten, outline kept; "
@@ -388,7 +373,7 @@ class PlannerNode(Node):
 
     # ---- inputs ------------------------------------------------------------------------------
     def _refuse(self, what: str, reason: str) -> None:
-        self._counts["refused"] += 1
+        self._refused += 1
         self._last_refusal = f"{what}: {reason}"
         self._note = f"refused {what}: {reason}"
         self._level = DiagnosticStatus.WARN
@@ -401,9 +386,8 @@ class PlannerNode(Node):
         except ValueError as exc:
             self._refuse("goal_pose", str(exc))
             return
-        self._goal = goal
-        self._goal_seq += 1
-        self._state, self._step, self._failure = "waiting", 0, ""
+        self._engine.new_goal(goal)
+        self._failure = ""
         self._note, self._level = "", DiagnosticStatus.OK
         self.get_logger().info(f"new goal (x {goal[0]:.4f} m, y {goal[1]:.4f} m, theta "
                                f"{goal[2]:.4f} rad): new episode")
@@ -418,8 +402,7 @@ class PlannerNode(Node):
         except ValueError as exc:
             self._refuse("perception/outline", str(exc))
             return
-        self._outline = outline
-        self._avoid.clear()  # points of another outline
+        self._engine.set_outline(outline)  # also forgets the avoided points of another outline
         self.get_logger().info(f"outline with {len(outline.points)} points "
                                f"({len(outline.polyline)}-vertex contact polyline)")
         self._try_plan()
@@ -456,17 +439,12 @@ class PlannerNode(Node):
                     return
 
     def _on_estimate(self, stamp: float, state: np.ndarray, covariance: np.ndarray) -> None:
-        self._counts["estimates"] += 1
-        if self._latest is None or stamp >= self._latest[0]:
-            self._latest = (stamp, state.copy(), covariance.copy())
-        if stamp < self._last_push_end:
-            self._counts["ignored_stale"] += 1
-        elif stamp <= self._used_stamp and self._used_goal_seq == self._goal_seq:
-            self._counts["ignored_duplicate"] += 1
-        elif self._in_flight:
-            self._counts["ignored_busy"] += 1
-        else:
-            self._try_plan()
+        try:
+            self._engine.estimate(stamp, state, covariance)
+        except ValueError as exc:
+            self._refuse("estimate", str(exc))
+            return
+        self._try_plan()
         self._publish_status()
 
     def _on_executed(self, msg: Path) -> None:
@@ -476,22 +454,18 @@ class PlannerNode(Node):
             return
         end = max([seconds_from_stamp(msg.header.stamp)]
                   + [seconds_from_stamp(p.header.stamp) for p in msg.poses])
-        self._last_push_end = max(self._last_push_end, end)
-        self._in_flight = False
-        self._avoid.clear()  # the push was executed: the object may have moved
+        self._engine.push_executed(end)  # the object may have moved: nothing avoided
         self._try_plan()
         self._publish_status()
 
     def _on_timer(self) -> None:
-        if self._in_flight and (self._steady_now() - self._in_flight_since
-                                > self.params.push_timeout):
-            self._in_flight = False
-            self._used_stamp = -math.inf  # nothing moved: the newest estimate is still fresh
-            if self._in_flight_point is not None:  # e.g. refused: do not plan it again
-                self._avoid.append(self._in_flight_point)
-            self._note = (f"push of step {self._step} not reported on pusher/executed within "
-                          f"{self.params.push_timeout} s; counted as a step; its contact "
-                          f"region is avoided until a push is executed")
+        if self._engine.in_flight and (self._steady_now() - self._in_flight_since
+                                       > self.params.push_timeout):
+            # nothing moved: the newest estimate is fresh again, the contact region avoided
+            self._engine.push_lost()
+            self._note = (f"push of step {self._engine.steps} not reported on pusher/executed "
+                          f"within {self.params.push_timeout} s; counted as a step; its "
+                          f"contact region is avoided until a push is executed")
             self._level = DiagnosticStatus.WARN
             self.get_logger().warning(self._note)
             self._try_plan()
@@ -503,47 +477,32 @@ class PlannerNode(Node):
 
     # ---- planning ----------------------------------------------------------------------------
     def _try_plan(self) -> None:
-        """Plan from the newest estimate if the stale-estimate rule allows it."""
-        if self._latest is None or self._goal is None or self._outline is None:
-            return
-        if self._state in ("reached", "failed") or self._in_flight:
-            return
-        stamp, state, covariance = self._latest
-        if stamp < self._last_push_end:
-            return
-        if stamp <= self._used_stamp and self._used_goal_seq == self._goal_seq:
-            return
-        self._used_stamp, self._used_goal_seq = stamp, self._goal_seq
-        if self._planner.reached(state[:3], self._goal, covariance, self._outline):
-            self._state, self._note, self._level = "reached", "", DiagnosticStatus.OK
-            self.get_logger().info(f"goal reached after {self._step} pushes")
-            return
-        if self._step >= self.params.max_steps:
-            self._state, self._failure = "failed", "failed after max steps"
+        """Ask the episode engine (stale-estimate rule, stop rule, max steps) and act on it."""
+        step = self._engine.step()
+        if step.action == "reached":
+            self._note, self._level = "", DiagnosticStatus.OK
+            self.get_logger().info(f"goal reached after {self._engine.steps} pushes")
+        elif step.action == "failed":
+            self._failure = ("failed after max steps" if self._engine.failure == "max steps"
+                             else "failed: no feasible push")
             self._level = DiagnosticStatus.ERROR
-            self.get_logger().error(f"goal not reached after {self._step} pushes")
-            return
-        try:
-            plan = self._planner.plan(self._outline, state, self._goal, avoid=self._avoid)
-        except ValueError as exc:
-            self._refuse("estimate", str(exc))
-            return
-        except NoFeasiblePush as exc:
-            self._state, self._failure = "failed", "failed: no feasible push"
-            self._level = DiagnosticStatus.ERROR
-            self.get_logger().error(f"no feasible push: {exc}")
-            return
-        self._step += 1
-        self._state, self._note, self._level = "pushing", "", DiagnosticStatus.OK
-        self._counts["planned"] += 1
+            self.get_logger().error(f"{self._failure} ({self._engine.steps} pushes): "
+                                    f"{step.reason}")
+        elif step.action == "refused":
+            self._refuse("estimate", step.reason)
+        elif step.action == "push":
+            self._publish_push(step.plan, step.state)
+
+    def _publish_push(self, plan: PushPlan, state: np.ndarray) -> None:
+        self._note, self._level = "", DiagnosticStatus.OK
         now = self.get_clock().now()
+        outline = self._engine.outline
         self._pub_push.publish(push_path(plan.approach, plan.contact, plan.end,
                                          now.nanoseconds * 1e-9, self.params.push_speed))
-        self._pub_markers.publish(affordance_markers(self._outline, state[:3], plan, now.to_msg()))
-        self._in_flight, self._in_flight_since = True, self._steady_now()
-        self._in_flight_point = self._outline.points[plan.index].copy()
+        self._pub_markers.publish(affordance_markers(outline, state[:3], plan, now.to_msg()))
+        self._in_flight_since = self._steady_now()
         self.get_logger().info(
-            f"step {self._step}: push at outline point {plan.index}, "
+            f"step {self._engine.steps}: push at outline point {plan.index}, "
             f"{math.degrees(plan.angle):+.0f} deg, {1e3 * plan.length:.1f} mm, predicted score "
             f"{plan.score:.1f} mm (now {plan.current_score:.1f}); approach "
             f"{np.round(plan.approach, 4)}, contact {np.round(plan.contact, 4)}, end "
@@ -551,31 +510,36 @@ class PlannerNode(Node):
 
     # ---- status ------------------------------------------------------------------------------
     def _status(self) -> DiagnosticStatus:
-        if self._state == "pushing":
-            message = f"pushing step {self._step}"
-        elif self._state == "reached":
+        engine = self._engine
+        phase = engine.phase
+        if phase == "pushing":
+            message = f"pushing step {engine.steps}"
+        elif phase == "reached":
             message = "goal reached"
             if not self._orientation_matters():
                 message += f" ({ORIENTATION_IGNORED})"
-        elif self._state == "failed":
+        elif phase == "failed":
             message = self._failure
         else:
-            missing = [name for name, have in (("goal", self._goal is not None),
-                                               ("outline", self._outline is not None),
-                                               ("estimate", self._latest is not None))
+            missing = [name for name, have in (("goal", engine.goal is not None),
+                                               ("outline", engine.outline is not None),
+                                               ("estimate", engine.latest is not None))
                        if not have]
             message = "waiting" + (f" for {', '.join(missing)}" if missing else "")
         if self._note:
             message += f" - {self._note}"
-        goal = "" if self._goal is None else " ".join(f"{v:.4f}" for v in self._goal)
-        values = {"state": self._state, "step": self._step, "max_steps": self.params.max_steps,
+        goal = "" if engine.goal is None else " ".join(f"{v:.4f}" for v in engine.goal)
+        counts = {k: v for k, v in engine.counts.items() if k != "lost"}
+        values = {"state": phase, "step": engine.steps, "max_steps": self.params.max_steps,
                   "goal": goal, "orientation": "used" if self._orientation_matters() else
-                  "ignored", **self._counts, "last_refusal": self._last_refusal,
-                  "last_push_end": f"{self._last_push_end:.6f}"}
+                  "ignored", **counts, "refused": self._refused, "lost": engine.counts["lost"],
+                  "last_refusal": self._last_refusal,
+                  "last_push_end": f"{engine.last_push_end:.6f}"}
         return self._diagnostics.status(self._level, message, values)
 
     def _orientation_matters(self) -> bool:
-        return self._outline is None or self._outline.orientation_matters
+        outline = self._engine.outline
+        return outline is None or outline.orientation_matters
 
     def _publish_status(self) -> None:
         status = self._status()
