@@ -56,8 +56,8 @@ When it plans: the rules are those of the one episode engine,
 feeds it its messages and acts on its decisions. The stale-estimate rule: an *estimate* is an
 ``estimator/object_pose`` message together with the ``estimator/state`` message of the same
 pose (x, y equal to 1 um, theta to 1 urad modulo 2 pi; either may arrive first; the last 10 of
-each are kept for pairing); its time is the pose message's stamp. The node plans **exactly once per estimate**
-that is
+each are kept for pairing); its time is the pose message's stamp. The node plans **exactly
+once per estimate** that is
 
 1. newer than every estimate it already used (a re-sent or older estimate is ignored,
    ``ignored_duplicate``),
