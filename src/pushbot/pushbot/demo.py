@@ -102,7 +102,7 @@ def run_demo(args: argparse.Namespace) -> int:
             print('pushbot demo: doctor failed (see above); fix the install first.')
             return status
         print()
-    from pushbot.graph_episode import GraphError, GraphRunner, _sigterm_as_keyboard_interrupt
+    from pushbot.graph_episode import GraphError, GraphRunner, sigterm_as_keyboard_interrupt
 
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
@@ -111,7 +111,7 @@ def run_demo(args: argparse.Namespace) -> int:
           f'sim_bridge_node, segmentation_node, ekf_node and planner_node (logs in '
           f'{out / "graph_logs"})', flush=True)
     try:
-        with _sigterm_as_keyboard_interrupt(), GraphRunner(log_dir=out / 'graph_logs',
+        with sigterm_as_keyboard_interrupt(), GraphRunner(log_dir=out / 'graph_logs',
                                                            record_frames=True) as graph:
             t_ready = time.monotonic()
             if args.pause > 0.0:

@@ -42,186 +42,37 @@ state source, no COM pinning and no Push-Net node.
 
 from __future__ import annotations
 
-import ctypes
 import math
-import os
 import re
-import signal
-import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
-from dataclasses import dataclass, field
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from pushbot.dds import apply_default_profile
+from pushbot.graph_client import GraphClient, Recorded
+from pushbot.graph_nodes import (
+    NODES,
+    GraphError,
+    GraphNodes,
+    sigterm_as_keyboard_interrupt,
+)
 from pushbot.protocol import Trial
 
-__all__ = ["GraphError", "GraphNodes", "GraphRunner", "run_graph_trials"]
+__all__ = ["NODES", "GraphError", "GraphNodes", "GraphRunner", "Recorded", "check_trial",
+           "run_graph_trials", "sigterm_as_keyboard_interrupt"]
 
-NODES = ("sim_bridge_node", "segmentation_node", "ekf_node", "planner_node")
-#: Seconds for the four processes to start and discover each other (torch, pybullet, DDS).
-STARTUP_TIMEOUT = 180.0
-#: Seconds for a service call (the bridge's reset rebuilds the pybullet scene).
-SERVICE_TIMEOUT = 60.0
 #: Seconds from the scene reset to the first estimate (segmentation of the first frame), and
 #: how often the episode set-up is repeated when none arrives.
 FIRST_ESTIMATE_TIMEOUT, FIRST_ESTIMATE_ATTEMPTS = 30.0, 3
 #: Seconds without any progress (push, executed push, status change) before an episode fails.
 STEP_TIMEOUT = 90.0
-#: planner_node's wait for a push the bridge never reports (it refused it, e.g. an approach
-#: point inside the object), wall seconds; the push then counts as a step and nothing moved, as
-#: in-process. A push takes well under a second of wall time (the physics runs ~100x real time).
-PUSH_TIMEOUT = 5.0
 #: Scenes and seconds per scene to wait for the first estimate at the planner at start-up.
 WARM_UP_ATTEMPTS, WARM_UP_TIMEOUT = 24, 5.0
-#: Grace periods of the shutdown: SIGINT, then SIGTERM, then SIGKILL.
-STOP_GRACE = (10.0, 5.0)
-
 _COM_RE = re.compile(r"COM \((-?[0-9.]+), (-?[0-9.]+)\) m")
-
-
-class GraphError(RuntimeError):
-    """The graph did not do what an episode needs (a timeout, a refused call, a dead node)."""
-
-
-# --------------------------------------------------------------------------------------------
-# Processes
-# --------------------------------------------------------------------------------------------
-def _parent_death_signal() -> None:  # pragma: no cover - runs in the child before exec
-    """Ask Linux to SIGTERM the child when this process dies (even by SIGKILL)."""
-    try:
-        libc = ctypes.CDLL("libc.so.6", use_errno=True)
-        libc.prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
-    except OSError:
-        pass
-
-
-class GraphNodes:
-    """The four node processes, started with ``pushbot run`` in their own process groups.
-
-    Parameters
-    ----------
-    log_dir : Path
-        One ``<node>.log`` per node (stdout and stderr).
-    node_args : dict, optional
-        Extra ``-p name:=value`` strings per node name.
-    """
-
-    def __init__(self, log_dir: Path, node_args: dict[str, Sequence[str]] | None = None) -> None:
-        self.log_dir = Path(log_dir)
-        self.node_args = {n: list((node_args or {}).get(n, ())) for n in NODES}
-        self.procs: dict[str, subprocess.Popen] = {}
-
-    def start(self) -> None:
-        self.log_dir.mkdir(parents=True, exist_ok=True)
-        env = dict(os.environ, PYTHONUNBUFFERED="1")
-        apply_default_profile(env)
-        exe = Path(sys.executable).parent / "pushbot"
-        base = [str(exe)] if exe.exists() else [sys.executable, "-m", "pushbot.cli"]
-        for name in NODES:
-            params = ["-p", "use_sim_time:=true"] if name != "sim_bridge_node" else []
-            if name == "planner_node":
-                params += ["-p", f"push_timeout:={PUSH_TIMEOUT}"]
-            for value in self.node_args[name]:
-                params += ["-p", value]
-            with open(self.log_dir / f"{name}.log", "ab") as log:  # a restart appends
-                log.write(f"=== pushbot run {name}, started {time.ctime()} ===\n".encode())
-                log.flush()
-                self.procs[name] = subprocess.Popen(
-                    [*base, "run", name, "--ros-args", *params], stdout=log,
-                    stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env,
-                    start_new_session=True, preexec_fn=_parent_death_signal)
-
-    def log_tail(self, name: str, chars: int = 1500) -> str:
-        try:
-            return (self.log_dir / f"{name}.log").read_text(errors="replace")[-chars:]
-        except OSError:
-            return ""
-
-    def check_alive(self) -> None:
-        """Raise :class:`GraphError` naming a node process that exited."""
-        for name, proc in self.procs.items():
-            if proc.poll() is not None:
-                raise GraphError(f"{name} exited with status {proc.returncode}; the end of "
-                                 f"{self.log_dir / (name + '.log')}:\n{self.log_tail(name)}")
-
-    def stop(self) -> None:
-        """SIGINT each process group, then SIGTERM, then SIGKILL (newest node first). A second
-        Ctrl-C meanwhile does not interrupt the shutdown."""
-        try:
-            previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-        except ValueError:  # not the main thread
-            previous = None
-        try:
-            self._stop()
-        finally:
-            if previous is not None:
-                signal.signal(signal.SIGINT, previous)
-
-    def _stop(self) -> None:
-        procs = [p for p in reversed(list(self.procs.values())) if p.poll() is None]
-        for sig, grace in ((signal.SIGINT, STOP_GRACE[0]), (signal.SIGTERM, STOP_GRACE[1]),
-                           (signal.SIGKILL, 5.0)):
-            for proc in procs:
-                if proc.poll() is None:
-                    try:
-                        os.killpg(proc.pid, sig)
-                    except ProcessLookupError:
-                        pass
-            deadline = time.monotonic() + grace
-            for proc in procs:
-                try:
-                    proc.wait(timeout=max(0.0, deadline - time.monotonic()))
-                except subprocess.TimeoutExpired:
-                    pass
-            procs = [p for p in procs if p.poll() is None]
-            if not procs:
-                break
-        self.procs.clear()
-
-    @property
-    def pids(self) -> list[int]:
-        return [p.pid for p in self.procs.values()]
-
-
-@contextmanager
-def _sigterm_as_keyboard_interrupt() -> Iterator[None]:
-    """Treat SIGTERM like Ctrl-C while the graph runs (main thread only)."""
-    try:
-        previous = signal.signal(signal.SIGTERM, signal.default_int_handler)
-    except ValueError:  # not the main thread
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-
-
-# --------------------------------------------------------------------------------------------
-# The client
-# --------------------------------------------------------------------------------------------
-@dataclass
-class Recorded:
-    """What the client received, in arrival order (wall time of arrival in ``*_t``)."""
-
-    true: list[tuple[float, np.ndarray]] = field(default_factory=list)  # (stamp, x y theta)
-    est: list[tuple[float, np.ndarray]] = field(default_factory=list)
-    com: list[tuple[float, np.ndarray]] = field(default_factory=list)
-    pushes: list[tuple[float, np.ndarray]] = field(default_factory=list)  # (wall, 3x2)
-    executed: list[tuple[float, float, float]] = field(default_factory=list)  # (wall, t0, t1)
-    status: list[dict[str, str]] = field(default_factory=list)
-    frames: dict[float, np.ndarray] = field(default_factory=dict)  # stamp -> rgb
-    masks: dict[float, np.ndarray] = field(default_factory=dict)  # stamp -> bool mask
-    outline: np.ndarray | None = None
-    camera_matrix: np.ndarray | None = None
-    t_world_camera: np.ndarray | None = None
 
 
 class GraphRunner:
@@ -247,9 +98,7 @@ class GraphRunner:
         self.record_frames = record_frames
         self.nodes = GraphNodes(self.log_dir, node_args)
         self.rec = Recorded()
-        self._context: Any = None
-        self._node: Any = None
-        self._executor: Any = None
+        self.client: GraphClient | None = None
         self._com_true: np.ndarray | None = None
         self._c_true_episode: np.ndarray | None = None
 
@@ -269,23 +118,19 @@ class GraphRunner:
         """Start the processes and the client; wait until every endpoint is discovered and an
         estimate has gone all the way from the bridge's camera to the planner."""
         self.nodes.start()
-        self._start_client()
-        self._wait_ready()
+        self.client = GraphClient(self.rec, self.nodes.check_alive, self.log_dir,
+                                  self.record_frames)
+        self.client.start()
+        self.client.wait_ready()
         self._warm_up()
 
     def close(self) -> None:
         """Stop the client and every node process (idempotent)."""
         try:
-            if self._executor is not None:
-                self._executor.shutdown(timeout_sec=1.0)
-            if self._node is not None:
-                self._node.destroy_node()
-            if self._context is not None:
-                import rclpy
-
-                rclpy.try_shutdown(context=self._context)
+            if self.client is not None:
+                self.client.close()
         finally:
-            self._executor = self._node = self._context = None
+            self.client = None
             self.nodes.stop()
             if self._tmp is not None:
                 self._tmp.cleanup()
@@ -298,178 +143,27 @@ class GraphRunner:
         self.nodes = GraphNodes(self.log_dir, self.nodes.node_args)
         self.start()
 
-    def _start_client(self) -> None:
-        import rclpy
-        from diagnostic_msgs.msg import DiagnosticStatus
-        from geometry_msgs.msg import (
-            PointStamped,
-            PoseStamped,
-            PoseWithCovarianceStamped,
-            TransformStamped,
-        )
-        from nav_msgs.msg import Path as PathMsg
-        from rclpy.context import Context
-        from rclpy.executors import SingleThreadedExecutor
-        from rclpy.node import Node
-        from rclpy.qos import (
-            DurabilityPolicy,
-            QoSProfile,
-            ReliabilityPolicy,
-            qos_profile_sensor_data,
-        )
-        from sensor_msgs.msg import CameraInfo, Image, PointCloud2
-
-        from push_ros.qos import latched_reader_qos
-
-        apply_default_profile()
-        self._context = Context()
-        rclpy.init(args=[], context=self._context)
-        node = Node(f"_pushbot_graph_{os.getpid()}", context=self._context,
-                    enable_rosout=False, start_parameter_services=False)
-        self._node = node
-        self._executor = SingleThreadedExecutor(context=self._context)
-        self._executor.add_node(node)
-        reliable = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        sub = node.create_subscription
-        sub(PoseStamped, "sim/object_pose", self._on_true, reliable)
-        estimates = latched_reader_qos(100)  # the estimator's outputs are latched
-        sub(PoseWithCovarianceStamped, "estimator/object_pose", self._on_est, estimates)
-        sub(PointStamped, "estimator/center_of_mass", self._on_com, estimates)
-        sub(PathMsg, "planner/push", self._on_push, reliable)
-        sub(PathMsg, "pusher/executed", self._on_executed, reliable)
-        sub(DiagnosticStatus, "planner/status", self._on_status, latched)
-        if self.record_frames:
-            sub(Image, "camera/color/image_raw", self._on_rgb, qos_profile_sensor_data)
-            sub(Image, "perception/mask", self._on_mask, qos_profile_sensor_data)
-            sub(CameraInfo, "camera/color/camera_info", self._on_info, qos_profile_sensor_data)
-            sub(TransformStamped, "camera/color/extrinsics", self._on_extrinsics, latched)
-            sub(PointCloud2, "perception/outline", self._on_outline, latched)
-        self._pub_goal = node.create_publisher(PoseStamped, "goal_pose", reliable)
-        from rcl_interfaces.srv import SetParameters
-        from std_srvs.srv import Trigger
-
-        self._reset = {n: node.create_client(Trigger, f"/{n}/reset") for n in NODES}
-        self._set_params = {n: node.create_client(SetParameters, f"/{n}/set_parameters")
-                            for n in ("sim_bridge_node", "planner_node")}
-
-    # ---- callbacks ---------------------------------------------------------------------------
-    def _on_true(self, msg: Any) -> None:
-        from push_ros.poses import xytheta_from_pose
-        from push_ros.stamps import seconds_from_stamp
-
-        self.rec.true.append((seconds_from_stamp(msg.header.stamp), xytheta_from_pose(msg)))
-
-    def _on_est(self, msg: Any) -> None:
-        from push_ros.poses import xytheta_from_pose
-        from push_ros.stamps import seconds_from_stamp
-
-        self.rec.est.append((seconds_from_stamp(msg.header.stamp),
-                             xytheta_from_pose(msg.pose.pose)))
-
-    def _on_com(self, msg: Any) -> None:
-        from push_ros.stamps import seconds_from_stamp
-
-        self.rec.com.append((seconds_from_stamp(msg.header.stamp),
-                             np.array([msg.point.x, msg.point.y])))
-
-    def _on_push(self, msg: Any) -> None:
-        from push_ros.paths import points_from_path
-
-        self.rec.pushes.append((time.monotonic(), np.asarray(points_from_path(msg))[:, :2]))
-
-    def _on_executed(self, msg: Any) -> None:
-        from push_ros.stamps import seconds_from_stamp
-
-        stamps = [seconds_from_stamp(p.header.stamp) for p in msg.poses]
-        if stamps:
-            self.rec.executed.append((time.monotonic(), stamps[0], stamps[-1]))
-
-    def _on_status(self, msg: Any) -> None:
-        values = {kv.key: kv.value for kv in msg.values}
-        values["_message"] = msg.message
-        self.rec.status.append(values)
-
-    def _on_rgb(self, msg: Any) -> None:
-        from push_ros.images import image_to_array
-        from push_ros.stamps import seconds_from_stamp
-
-        stamp = seconds_from_stamp(msg.header.stamp)
-        if stamp not in self.rec.frames:
-            self.rec.frames[stamp] = image_to_array(msg).copy()
-
-    def _on_mask(self, msg: Any) -> None:
-        from push_ros.images import image_to_array
-        from push_ros.stamps import seconds_from_stamp
-
-        stamp = seconds_from_stamp(msg.header.stamp)
-        if stamp not in self.rec.masks:
-            self.rec.masks[stamp] = image_to_array(msg) > 0
-
-    def _on_info(self, msg: Any) -> None:
-        from push_ros.images import camera_matrix_from_info
-
-        self.rec.camera_matrix = camera_matrix_from_info(msg)
-
-    def _on_extrinsics(self, msg: Any) -> None:
-        from push_ros.poses import matrix_from_transform
-
-        self.rec.t_world_camera = matrix_from_transform(msg)
-
-    def _on_outline(self, msg: Any) -> None:
-        from push_ros.outline import outline_from_cloud
-
-        self.rec.outline = outline_from_cloud(msg)[0]
-
-    # ---- waiting -----------------------------------------------------------------------------
+    # ---- the client's waits and calls -----------------------------------------------------------
     def wait(self, predicate: Callable[[], Any], timeout: float, what: str) -> Any:
-        """Spin until ``predicate()`` returns something other than None or False;
-        :class:`GraphError` after ``timeout`` s or as soon as a node process exits."""
-        deadline = time.monotonic() + timeout
-        while True:
-            value = predicate()
-            if value is not None and value is not False:
-                return value
-            self.nodes.check_alive()
-            if time.monotonic() > deadline:
-                raise GraphError(f"timed out after {timeout:.0f} s waiting for {what}; node "
-                                 f"logs in {self.log_dir}")
-            self._executor.spin_once(timeout_sec=0.05)
+        """:meth:`GraphClient.wait` (spin until ``predicate()`` is not None/False)."""
+        return self._client().wait(predicate, timeout, what)
 
-    def _wait_ready(self) -> None:
-        node = self._node
-        links = {  # topic -> node names that must subscribe to it
-            "camera/color/image_raw": ["segmentation_node"],
-            "perception/object_pose": ["ekf_node"],
-            "perception/outline": ["ekf_node", "planner_node"],
-            "pusher/executed": ["ekf_node", "planner_node"],
-            "estimator/object_pose": ["planner_node"],
-            "estimator/state": ["planner_node"],
-            "planner/push": ["sim_bridge_node"],
-            "goal_pose": ["planner_node"],
-        }
+    def reset(self, node_name: str) -> str:
+        """Call ``/<node_name>/reset``; its message (:class:`GraphError` if refused)."""
+        return self._client().reset(node_name)
 
-        def missing() -> list[str]:
-            out = [f"/{n}/reset" for n, c in self._reset.items() if not c.service_is_ready()]
-            out += [f"/{n}/set_parameters" for n, c in self._set_params.items()
-                    if not c.service_is_ready()]
-            for topic, subscribers in links.items():
-                have = {i.node_name for i in node.get_subscriptions_info_by_topic(topic)}
-                out += [f"{s} on {topic}" for s in subscribers if s not in have]
-            if self._pub_goal.get_subscription_count() == 0:
-                out.append("goal_pose matched")
-            for topic in ("sim/object_pose", "estimator/object_pose", "planner/status"):
-                if node.count_publishers(topic) == 0:
-                    out.append(f"publisher of {topic}")
-            return out
+    def set_parameters(self, node_name: str, values: dict[str, Any]) -> None:
+        """Set parameters of ``node_name`` (:class:`GraphError` if one is refused)."""
+        self._client().set_parameters(node_name, values)
 
-        self.wait(lambda: not missing(), STARTUP_TIMEOUT,
-                  "the four nodes to start and discover each other (still missing: "
-                  f"{', '.join(missing()) or 'nothing'})")
+    def _client(self) -> GraphClient:
+        if self.client is None:
+            raise GraphError("the graph is not running (start() it, or use it as a context "
+                             "manager)")
+        return self.client
 
     def _planner_estimates(self) -> int:
-        return max((int(s.get("estimates", 0)) for s in self.rec.status), default=0)
+        return self._client().planner_estimates()
 
     def _warm_up(self) -> None:
         """Wait until planner_node counts an estimate and this client received one: the whole
@@ -495,41 +189,6 @@ class GraphRunner:
         raise GraphError(f"planner_node received no estimate in {WARM_UP_ATTEMPTS} scenes of "
                          f"{WARM_UP_TIMEOUT:.0f} s; node logs in {self.log_dir}")
 
-    # ---- service calls -----------------------------------------------------------------------
-    def _call(self, client: Any, request: Any, what: str) -> Any:
-        future = client.call_async(request)
-        self.wait(future.done, SERVICE_TIMEOUT, f"the response of {what}")
-        if future.exception() is not None:
-            raise GraphError(f"{what} failed: {future.exception()}")
-        return future.result()
-
-    def reset(self, node_name: str) -> str:
-        from std_srvs.srv import Trigger
-
-        response = self._call(self._reset[node_name], Trigger.Request(), f"/{node_name}/reset")
-        if not response.success:
-            raise GraphError(f"/{node_name}/reset refused: {response.message}")
-        return response.message
-
-    def set_parameters(self, node_name: str, values: dict[str, Any]) -> None:
-        from rcl_interfaces.srv import SetParameters
-        from rclpy.parameter import Parameter
-
-        params = []
-        for name, value in values.items():
-            if isinstance(value, list | tuple):
-                param = Parameter(name, Parameter.Type.DOUBLE_ARRAY, [float(v) for v in value])
-            else:
-                param = Parameter(name, value=value)
-            params.append(param.to_parameter_msg())
-        response = self._call(self._set_params[node_name],
-                              SetParameters.Request(parameters=params),
-                              f"/{node_name}/set_parameters")
-        for name, result in zip(values, response.results, strict=True):
-            if not result.successful:
-                raise GraphError(f"{node_name} refused parameter {name!r} = {values[name]!r}: "
-                                 f"{result.reason}")
-
     # ---- one episode -------------------------------------------------------------------------
     def run(self, trial: Trial) -> dict[str, Any]:
         """Run ``trial`` through the graph; returns its episode record (module docstring)."""
@@ -546,7 +205,7 @@ class GraphRunner:
         goal = trial.goal(first_est)
         n_push, n_exec, n_status = (len(self.rec.pushes), len(self.rec.executed),
                                     len(self.rec.status))
-        goal_text = self._publish_goal(goal)
+        goal_text = self._client().publish_goal(goal)
         status = self._wait_end(goal_text, n_status, trial)
         self._wait_recorded(status, n_push, n_exec)
         pushes = self.rec.pushes[n_push:]
@@ -649,20 +308,6 @@ class GraphRunner:
             return default
         first = later[0][0]
         return [p for s, p in later if s == first][-1]
-
-    def _publish_goal(self, goal: np.ndarray) -> str:
-        from geometry_msgs.msg import PoseStamped
-
-        msg = PoseStamped()
-        msg.header.frame_id = "world"
-        msg.pose.position.x, msg.pose.position.y = float(goal[0]), float(goal[1])
-        msg.pose.orientation.z = math.sin(goal[2] / 2.0)
-        msg.pose.orientation.w = math.cos(goal[2] / 2.0)
-        self._pub_goal.publish(msg)
-        from push_core.geometry import wrap_angle
-
-        # planner_node reports the goal it works on in its status, 4 decimals (theta wrapped).
-        return " ".join(f"{v:.4f}" for v in (goal[0], goal[1], float(wrap_angle(goal[2]))))
 
     def _wait_end(self, goal_text: str, n_status: int, trial: Trial) -> dict[str, str]:
         """Wait for ``goal reached`` / ``failed`` for this goal; fail after STEP_TIMEOUT s
@@ -795,7 +440,7 @@ def run_graph_trials(trials: list[Trial], *, out_dir: Path | str | None = None,
         check_trial(trial)
     log_dir = Path(out_dir) / "graph_logs" if out_dir is not None else None
     records: list[dict[str, Any]] = []
-    with _sigterm_as_keyboard_interrupt(), GraphRunner(log_dir=log_dir) as graph:
+    with sigterm_as_keyboard_interrupt(), GraphRunner(log_dir=log_dir) as graph:
         for i, trial in enumerate(trials):
             try:
                 record = graph.run(trial)

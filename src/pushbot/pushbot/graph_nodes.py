@@ -1,0 +1,148 @@
+"""The graph's node processes: started, watched and stopped (the supervisor of
+:mod:`pushbot.graph_episode`).
+
+:class:`GraphNodes` starts ``sim_bridge_node``, ``segmentation_node``, ``ekf_node`` and
+``planner_node`` as ``pushbot run <node>`` processes, each in its own process group with a
+parent-death signal (SIGTERM) and its log in ``<log_dir>/<node>.log``; :meth:`GraphNodes.stop`
+sends SIGINT (what rclpy shuts down cleanly on), then SIGTERM, then SIGKILL to each group, so
+Ctrl-C leaves no process behind.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from pathlib import Path
+
+from pushbot.dds import apply_default_profile
+
+__all__ = ["NODES", "PUSH_TIMEOUT", "GraphError", "GraphNodes", "sigterm_as_keyboard_interrupt"]
+
+NODES = ("sim_bridge_node", "segmentation_node", "ekf_node", "planner_node")
+#: planner_node's wait for a push the bridge never reports (it refused it, e.g. an approach
+#: point inside the object), wall seconds; the push then counts as a step and nothing moved, as
+#: in-process. A push takes well under a second of wall time (the physics runs ~100x real time).
+PUSH_TIMEOUT = 5.0
+#: Grace periods of the shutdown: SIGINT, then SIGTERM, then SIGKILL.
+STOP_GRACE = (10.0, 5.0)
+
+
+class GraphError(RuntimeError):
+    """The graph did not do what an episode needs (a timeout, a refused call, a dead node)."""
+
+
+def _parent_death_signal() -> None:  # pragma: no cover - runs in the child before exec
+    """Ask Linux to SIGTERM the child when this process dies (even by SIGKILL)."""
+    try:
+        libc = ctypes.CDLL("libc.so.6", use_errno=True)
+        libc.prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    except OSError:
+        pass
+
+
+class GraphNodes:
+    """The four node processes, started with ``pushbot run`` in their own process groups.
+
+    Parameters
+    ----------
+    log_dir : Path
+        One ``<node>.log`` per node (stdout and stderr).
+    node_args : dict, optional
+        Extra ``-p name:=value`` strings per node name.
+    """
+
+    def __init__(self, log_dir: Path, node_args: dict[str, Sequence[str]] | None = None) -> None:
+        self.log_dir = Path(log_dir)
+        self.node_args = {n: list((node_args or {}).get(n, ())) for n in NODES}
+        self.procs: dict[str, subprocess.Popen] = {}
+
+    def start(self) -> None:
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        env = dict(os.environ, PYTHONUNBUFFERED="1")
+        apply_default_profile(env)
+        exe = Path(sys.executable).parent / "pushbot"
+        base = [str(exe)] if exe.exists() else [sys.executable, "-m", "pushbot.cli"]
+        for name in NODES:
+            params = ["-p", "use_sim_time:=true"] if name != "sim_bridge_node" else []
+            if name == "planner_node":
+                params += ["-p", f"push_timeout:={PUSH_TIMEOUT}"]
+            for value in self.node_args[name]:
+                params += ["-p", value]
+            with open(self.log_dir / f"{name}.log", "ab") as log:  # a restart appends
+                log.write(f"=== pushbot run {name}, started {time.ctime()} ===\n".encode())
+                log.flush()
+                self.procs[name] = subprocess.Popen(
+                    [*base, "run", name, "--ros-args", *params], stdout=log,
+                    stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env,
+                    start_new_session=True, preexec_fn=_parent_death_signal)
+
+    def log_tail(self, name: str, chars: int = 1500) -> str:
+        try:
+            return (self.log_dir / f"{name}.log").read_text(errors="replace")[-chars:]
+        except OSError:
+            return ""
+
+    def check_alive(self) -> None:
+        """Raise :class:`GraphError` naming a node process that exited."""
+        for name, proc in self.procs.items():
+            if proc.poll() is not None:
+                raise GraphError(f"{name} exited with status {proc.returncode}; the end of "
+                                 f"{self.log_dir / (name + '.log')}:\n{self.log_tail(name)}")
+
+    def stop(self) -> None:
+        """SIGINT each process group, then SIGTERM, then SIGKILL (newest node first). A second
+        Ctrl-C meanwhile does not interrupt the shutdown."""
+        try:
+            previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        except ValueError:  # not the main thread
+            previous = None
+        try:
+            self._stop()
+        finally:
+            if previous is not None:
+                signal.signal(signal.SIGINT, previous)
+
+    def _stop(self) -> None:
+        procs = [p for p in reversed(list(self.procs.values())) if p.poll() is None]
+        for sig, grace in ((signal.SIGINT, STOP_GRACE[0]), (signal.SIGTERM, STOP_GRACE[1]),
+                           (signal.SIGKILL, 5.0)):
+            for proc in procs:
+                if proc.poll() is None:
+                    try:
+                        os.killpg(proc.pid, sig)
+                    except ProcessLookupError:
+                        pass
+            deadline = time.monotonic() + grace
+            for proc in procs:
+                try:
+                    proc.wait(timeout=max(0.0, deadline - time.monotonic()))
+                except subprocess.TimeoutExpired:
+                    pass
+            procs = [p for p in procs if p.poll() is None]
+            if not procs:
+                break
+        self.procs.clear()
+
+    @property
+    def pids(self) -> list[int]:
+        return [p.pid for p in self.procs.values()]
+
+
+@contextmanager
+def sigterm_as_keyboard_interrupt() -> Iterator[None]:
+    """Treat SIGTERM like Ctrl-C while the graph runs (main thread only)."""
+    try:
+        previous = signal.signal(signal.SIGTERM, signal.default_int_handler)
+    except ValueError:  # not the main thread
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
