@@ -60,6 +60,7 @@ __all__ = [
     "EpisodeEngine",
     "Step",
     "end_score",
+    "new_record",
     "true_errors",
 ]
 
@@ -258,6 +259,17 @@ def true_errors(pose: ArrayLike, goal: ArrayLike, order: int) -> tuple[float, fl
     d = float(wrap_angle(g[2] - p[2]))
     d -= period * round(d / period)
     return dxy, abs(d)
+
+
+def new_record(trial: dict[str, Any], **extra: Any) -> dict[str, Any]:
+    """An empty episode record (docs/ARCHITECTURE.md, "Episode record") for ``trial`` (the
+    trial as a dict), with ``extra`` keys of the engine that fills it."""
+    rec: dict[str, Any] = {"trial": trial, "success": False, "steps": 0, "end_error_xy": None,
+                           "end_error_theta": None, "com_error": None, "planning_ms": [],
+                           "poses_true": [], "poses_est": [], "pushes": [], "refused": 0,
+                           "wall_s": 0.0, "reason": ""}
+    rec.update(extra)
+    return rec
 
 
 def end_score(polyline: ArrayLike, end_true: ArrayLike, goal_true: ArrayLike,

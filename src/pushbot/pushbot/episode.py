@@ -51,7 +51,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from push_core.episode import EpisodeEngine, end_score, true_errors
+from push_core.episode import EpisodeEngine, end_score, new_record, true_errors
 from push_core.estimator import EKFConfig, PushEKF
 from push_core.geometry import rot2, wrap_angle
 from push_core.planner import Planner, PlannerConfig, prepare_outline
@@ -145,11 +145,7 @@ class EpisodeRunner:
         order = symmetry_order_of_polygon(spec.polyline())
         pose0_true = world.object_pose()
         goal_true = pose0_true + trial.goal_offset()
-        rec: dict[str, Any] = {"trial": trial.as_dict(), "success": False, "steps": 0,
-                               "end_error_xy": None, "end_error_theta": None,
-                               "com_error": None, "planning_ms": [], "poses_true": [],
-                               "poses_est": [], "pushes": [], "refused": 0,
-                               "perception_failures": 0, "wall_s": 0.0, "reason": ""}
+        rec = new_record(trial.as_dict(), perception_failures=0)
         source = _GroundTruth(world) if trial.state == "gt" else _Filter(
             world, self.segmenter(), self._ekf_config(trial))
         try:

@@ -193,11 +193,11 @@ def _safe_run(trial: Trial) -> dict[str, Any]:
     try:
         return run_trial(trial)
     except Exception as exc:  # noqa: BLE001 - one broken trial must not end the evaluation
-        return {"trial": trial.as_dict(), "success": False, "steps": 0, "end_error_xy": None,
-                "end_error_theta": None, "com_error": None, "planning_ms": [],
-                "poses_true": [], "poses_est": [], "pushes": [], "refused": 0,
-                "perception_failures": 0, "wall_s": time.perf_counter() - t0,
-                "reason": f"error: {type(exc).__name__}: {exc}"}
+        from push_core.episode import new_record
+
+        return new_record(trial.as_dict(), perception_failures=0,
+                          wall_s=time.perf_counter() - t0,
+                          reason=f"error: {type(exc).__name__}: {exc}")
 
 
 def _run_local(trials: list[Trial], workers: int,

@@ -53,6 +53,7 @@ from typing import Any
 
 import numpy as np
 
+from push_core.episode import new_record
 from pushbot.graph_client import GraphClient, Recorded
 from pushbot.graph_nodes import (
     NODES,
@@ -194,12 +195,7 @@ class GraphRunner:
         """Run ``trial`` through the graph; returns its episode record (module docstring)."""
         check_trial(trial)
         t_start = time.perf_counter()
-        rec: dict[str, Any] = {"trial": trial.as_dict(), "success": False, "steps": 0,
-                               "end_error_xy": None, "end_error_theta": None,
-                               "com_error": None, "planning_ms": [], "poses_true": [],
-                               "poses_est": [], "pushes": [], "refused": 0,
-                               "step_latency_ms": [], "wall_s": 0.0, "reason": "",
-                               "engine": "graph"}
+        rec = new_record(trial.as_dict(), step_latency_ms=[], engine="graph")
         first_stamp, first_est = self._first_estimate(trial)
         pose0_true = self._true_at(first_stamp)
         goal = trial.goal(first_est)
@@ -445,10 +441,8 @@ def run_graph_trials(trials: list[Trial], *, out_dir: Path | str | None = None,
             try:
                 record = graph.run(trial)
             except GraphError as exc:
-                record = {"trial": trial.as_dict(), "success": False, "steps": 0,
-                          "end_error_xy": None, "end_error_theta": None, "com_error": None,
-                          "planning_ms": [], "poses_true": [], "poses_est": [], "pushes": [],
-                          "wall_s": 0.0, "reason": f"graph error: {exc}", "engine": "graph"}
+                record = new_record(trial.as_dict(), reason=f"graph error: {exc}",
+                                    engine="graph")
                 graph.restart()
             records.append(record)
             if progress:
