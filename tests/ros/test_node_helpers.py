@@ -14,7 +14,14 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 
 from push_ros.frames import CAMERA_FRAME, OBJECT_FRAME, WORLD_FRAME
-from push_ros.node import ParamSpec, ThrottledLog, declare_config, descriptor, parameter_values
+from push_ros.node import (
+    ParamSpec,
+    ThrottledLog,
+    declare_config,
+    descriptor,
+    guarded,
+    parameter_values,
+)
 from push_ros.qos import LATCHED_QOS, RELIABLE_QOS, SENSOR_QOS, latched_reader_qos
 
 pytestmark = pytest.mark.ros
@@ -115,6 +122,29 @@ def test_throttled_log_counts_what_it_suppressed() -> None:
     log.period = 0.0  # the next line of kind a is due: it says how many it stood for
     assert log.warning("a", "fourth a")
     assert logger.lines[-1] == ("warning", "fourth a (2 similar message(s) suppressed)")
+
+
+def test_guarded_callbacks_never_raise_and_report_the_error() -> None:
+    from std_srvs.srv import Trigger
+
+    logger, errors = _Logger(), []
+    log = ThrottledLog(logger, period=0.0)
+
+    def on_msg(msg: int) -> int:
+        return 10 // msg
+
+    def on_reset(request: Any, response: Any) -> Any:
+        raise ValueError("boom")
+
+    cb = guarded(on_msg, log, lambda name, text: errors.append((name, text)))
+    assert cb(2) == 5 and errors == []  # passes results through
+    assert cb(0) is None  # ZeroDivisionError: swallowed
+    assert errors == [("on_msg", "ZeroDivisionError: integer division or modulo by zero")]
+    assert logger.lines[-1][0] == "error" and "on_msg failed (ZeroDivisionError" in \
+        logger.lines[-1][1] and "node keeps running" in logger.lines[-1][1]
+    service = guarded(on_reset, log, lambda name, text: 1 / 0)  # a failing hook too
+    response = service(Trigger.Request(), Trigger.Response())
+    assert response.success is False and response.message == "on_reset failed: ValueError: boom"
 
 
 def test_frames_and_qos_profiles() -> None:

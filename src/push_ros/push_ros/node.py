@@ -16,6 +16,12 @@ constructor) logs a fatal ``invalid configuration: ...`` and exits with status 2
 ``KeyboardInterrupt`` and ``ExternalShutdownException`` end the spin quietly; the node is
 destroyed and rclpy shut down in every case.
 
+Callbacks. :func:`guarded` wraps a subscription, timer or service callback so that no exception
+ever leaves it (rclpy would end the spin and the node with it): the error is logged (throttled,
+with the traceback's last frame), reported to the node's ``on_error`` hook (a counter and a
+diagnostics entry) and the callback returns its default (a service its response with
+``success = False`` and the reason).
+
 Logging. :class:`ThrottledLog` lets at most one line per kind through every ``period`` seconds
 (steady time, any thread) and appends how many lines of that kind it suppressed since the last
 one (the nodes also count every event on ``/diagnostics``).
@@ -38,8 +44,8 @@ from rcl_interfaces.msg import (
     SetParametersResult,
 )
 
-__all__ = ["ParamSpec", "ThrottledLog", "declare_config", "descriptor", "parameter_values",
-           "run_node"]
+__all__ = ["ParamSpec", "ThrottledLog", "declare_config", "descriptor", "guarded",
+           "parameter_values", "run_node"]
 
 T = TypeVar("T")
 
@@ -198,6 +204,61 @@ class ThrottledLog:
         if suppressed:
             message += f" ({suppressed} similar message(s) suppressed)"
         return message
+
+
+def guarded(callback: Callable[..., Any], log: ThrottledLog,
+            on_error: Callable[[str, str], None] | None = None,
+            name: str | None = None) -> Callable[..., Any]:
+    """``callback`` that never raises (module docstring).
+
+    Parameters
+    ----------
+    callback : callable
+        A subscription callback ``f(msg)``, timer callback ``f()`` or service callback
+        ``f(request, response)``.
+    log : ThrottledLog
+        Where the error is logged (kind ``callback:<name>``).
+    on_error : callable, optional
+        ``on_error(name, message)`` after the error is logged (count it, report it); its own
+        exceptions are swallowed too.
+    name : str, optional
+        Names the callback in the log (default: its ``__name__``).
+
+    Returns
+    -------
+    callable
+        Same signature; returns ``callback``'s result, or on an exception None (a service: the
+        ``response`` argument with ``success = False`` and ``message`` set when it has them).
+    """
+    label = name or getattr(callback, "__name__", "callback")
+
+    def wrapper(*args: Any) -> Any:
+        try:
+            return callback(*args)
+        except Exception as exc:  # noqa: BLE001 - the point: nothing escapes a callback
+            tb = exc.__traceback__
+            while tb is not None and tb.tb_next is not None:
+                tb = tb.tb_next
+            where = f" at {tb.tb_frame.f_code.co_filename}:{tb.tb_lineno}" if tb else ""
+            message = f"{type(exc).__name__}: {exc}"[:500]
+            log.error(f"callback:{label}", f"{label} failed ({message}){where}; input "
+                      "dropped, node keeps running")
+            if on_error is not None:
+                try:
+                    on_error(label, message)
+                except Exception:  # noqa: BLE001, S110 - reporting must not raise either
+                    pass
+            if len(args) == 2 and hasattr(args[1], "success"):  # a service response
+                response = args[1]
+                response.success = False
+                if hasattr(response, "message"):
+                    response.message = f"{label} failed: {message}"
+                return response
+            return None
+
+    wrapper.__name__ = label
+    wrapper.__doc__ = callback.__doc__
+    return wrapper
 
 
 def run_node(factory: Callable[[], Any], name: str, args: list[str] | None = None) -> None:
