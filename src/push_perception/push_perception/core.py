@@ -57,6 +57,18 @@ leaves (the raster and depth noise: 0.3 mm on clean frames, 0.6 mm with depth no
 angle of about d / r). The base values
 ``sigma_position`` and ``sigma_theta`` are the measured median errors on the held-out objects
 (docs/RESULTS.md). x and y are uncorrelated and share one variance.
+
+Bounded work per frame
+----------------------
+Whatever the input, one frame costs bounded time and memory (the caps lie far outside what a
+table-top scene gives, so they never act on one): the top-down raster is at most
+``MAX_RASTER_SIDE`` (2048) cells per side, checked before it is allocated (a larger extent,
+e.g. from absurd intrinsics, extrinsics or depth, is a :class:`PerceptionError` of kind
+``"too_large"``); an outline has at most ``MAX_OUTLINE_POINTS`` (1000) points (a longer
+boundary is resampled with the spacing widened to fit: 2 m of perimeter at the default 2 mm);
+the dense curve it is smoothed on has at most ``MAX_DENSE_POINTS``; the rotation search
+refines at most ``MAX_REFINED_MINIMA`` (64) coarse minima (the lowest; a 3 degree grid has at
+most 60) and reads the signed distance fields in remap calls of bounded size.
 """
 
 from __future__ import annotations
@@ -73,6 +85,10 @@ from scipy.ndimage import gaussian_filter1d
 from push_core.symmetry import UNOBSERVED_VARIANCE, has_continuous_symmetry
 
 __all__ = [
+    "CLOSING_RANGE",
+    "MAX_OUTLINE_POINTS",
+    "MAX_RASTER_SIDE",
+    "MAX_REFINED_MINIMA",
     "NOMINAL_PIXELS",
     "EpisodeTracker",
     "Measurement",
@@ -93,6 +109,16 @@ NOMINAL_PIXELS = 5000
 #: Smallest share of the object points the footprint (largest component) must hold; less
 #: means the top-down view broke apart and its centroid would not be the object's.
 MIN_FOOTPRINT_SHARE = 0.9
+#: Range of the closing radius in metres (``closing_radius * resolution``), PerceptionConfig.
+CLOSING_RANGE = (0.001, 0.01)
+#: Largest side of the top-down raster, cells (2.048 m at the default 1 mm resolution).
+MAX_RASTER_SIDE = 2048
+#: Most outline points of one frame; a longer boundary is resampled with a wider spacing.
+MAX_OUTLINE_POINTS = 1000
+#: Most samples of the dense curve an outline is smoothed on.
+MAX_DENSE_POINTS = 65536
+#: Most coarse minima of the rotation search that are refined (the lowest ones).
+MAX_REFINED_MINIMA = 64
 #: Points per row and per call of the remap in :meth:`TopDownView.sample_sdf` (OpenCV's maps
 #: must have fewer than 32767 rows and columns).
 _REMAP_WIDTH = 1024
@@ -103,8 +129,8 @@ class PerceptionError(ValueError):
     """A frame from which no pose can be measured; ``kind`` names the class of problem.
 
     Kinds: ``"empty_mask"``, ``"few_pixels"``, ``"no_depth"``, ``"out_of_view"``,
-    ``"fragmented"`` (the top-down view falls apart into pieces),
-    ``"bad_input"`` (malformed arrays).
+    ``"fragmented"`` (the top-down view falls apart into pieces), ``"too_large"`` (the object
+    points span more than ``MAX_RASTER_SIDE`` cells), ``"bad_input"`` (malformed arrays).
     """
 
     def __init__(self, kind: str, message: str) -> None:
@@ -119,13 +145,18 @@ class PerceptionConfig:
     Attributes
     ----------
     resolution : float
-        Cell size of the top-down view, m (0.2-5 mm).
+        Cell size of the top-down view, m, [0.5, 3] mm (finer leaves the gaps between the
+        camera pixels' footprints open: the view falls apart; 5 mm costs 2 deg of yaw).
     min_height : float
-        Points lower than this above the table are not the object, m.
+        Points lower than this above the table are not the object, m, [0, 10] mm (it must stay
+        below the object's thickness, 13 mm for the library objects).
     closing_radius : int
-        Radius of the morphological closing of the top-down view, cells.
+        Radius of the morphological closing of the top-down view, cells, [2, 10], and
+        ``closing_radius * resolution`` in [1, 10] mm: a smaller closing leaves the view
+        fragmented (no pose), a larger one fills concavities (15 mm: 4.6 mm and 5 deg off).
     outline_spacing : float
-        Distance between outline points, m.
+        Distance between outline points, m, [0.5, 10] mm (at most ``MAX_OUTLINE_POINTS``
+        points: a longer outline is resampled more coarsely).
     outline_smoothing : float
         Standard deviation of the Gaussian smoothing along the outline, m.
     outline_offset : float
@@ -174,8 +205,8 @@ class PerceptionConfig:
 
     def __post_init__(self) -> None:
         checks = (
-            ("resolution", 2e-4, 5e-3), ("min_height", 0.0, 0.05),
-            ("outline_spacing", 2e-4, 0.02), ("outline_smoothing", 0.0, 0.01),
+            ("resolution", 5e-4, 3e-3), ("min_height", 0.0, 0.01),
+            ("outline_spacing", 5e-4, 0.01), ("outline_smoothing", 0.0, 0.01),
             ("outline_offset", -0.005, 0.005), ("coarse_step_deg", 0.1, 10.0),
             ("angle_tolerance_deg", 1e-4, 1.0), ("symmetry_tolerance", 0.0, 0.01),
             ("chamfer_truncation", 1e-4, 0.05), ("min_valid_fraction", 0.0, 1.0),
@@ -193,6 +224,11 @@ class PerceptionConfig:
             if isinstance(value, bool) or int(value) != value or not low <= value <= high:
                 raise ValueError(f"{name}: must be an integer in [{low}, {high}], got {value!r}")
             object.__setattr__(self, name, int(value))
+        closing = self.closing_radius * self.resolution
+        if not CLOSING_RANGE[0] - 1e-12 <= closing <= CLOSING_RANGE[1] + 1e-12:
+            raise ValueError(f"closing_radius: closing_radius * resolution must be in "
+                             f"[{1e3 * CLOSING_RANGE[0]:g}, {1e3 * CLOSING_RANGE[1]:g}] mm, got "
+                             f"{self.closing_radius} * {1e3 * self.resolution:g} mm")
 
 
 # --------------------------------------------------------------------------------------------
@@ -354,7 +390,14 @@ def top_down_view(points: NDArray[np.float64], cfg: PerceptionConfig,
     res = cfg.resolution
     pad = max(pad, cfg.chamfer_truncation + 2 * res)
     lo = np.floor((xy.min(axis=0) - pad) / res) * res
-    cols, rows = (np.ceil((xy.max(axis=0) + pad - lo) / res).astype(int) + 1)
+    extent = np.ceil((xy.max(axis=0) + pad - lo) / res) + 1  # float: checked before the cast
+    if not np.all(extent <= MAX_RASTER_SIDE):
+        span = xy.max(axis=0) - xy.min(axis=0)
+        raise PerceptionError("too_large", f"the object points span {span[0]:.3g} x "
+                              f"{span[1]:.3g} m: a top-down view of more than "
+                              f"{MAX_RASTER_SIDE} cells per side at {1e3 * res:g} mm (bad "
+                              "depth, intrinsics or extrinsics?)")
+    cols, rows = extent.astype(int)
     img = np.zeros((rows, cols), dtype=np.uint8)
     ij = ((xy - lo) / res).astype(np.intp)
     img[ij[:, 1], ij[:, 0]] = 1
@@ -413,7 +456,8 @@ def smooth_outline(boundary: NDArray[np.float64], spacing: float, smoothing: flo
     -------
     points, normals : (K, 2) float64
         Points counter-clockwise at the centres of ``round(length / spacing)`` equal arcs
-        (like ``push_core.shapes.Polygon.outline``) and their outward unit normals.
+        (like ``push_core.shapes.Polygon.outline``) and their outward unit normals; at most
+        ``MAX_OUTLINE_POINTS`` (the spacing widened to fit).
     """
     pts = np.asarray(boundary, dtype=np.float64)
     closed = np.vstack([pts, pts[:1]])
@@ -421,7 +465,7 @@ def smooth_outline(boundary: NDArray[np.float64], spacing: float, smoothing: flo
     s = np.concatenate([[0.0], np.cumsum(seg)])
     length = float(s[-1])
     step = min(spacing / 4.0, max(smoothing / 2.0, 1e-5)) if smoothing > 0 else spacing / 4.0
-    n_dense = max(16, int(math.ceil(length / step)))
+    n_dense = max(16, min(int(math.ceil(length / step)), MAX_DENSE_POINTS))
     sd = np.arange(n_dense) * (length / n_dense)
     x = np.interp(sd, s, closed[:, 0])
     y = np.interp(sd, s, closed[:, 1])
@@ -439,7 +483,7 @@ def smooth_outline(boundary: NDArray[np.float64], spacing: float, smoothing: flo
     closed = np.stack([np.append(x, x[0]), np.append(y, y[0])], axis=1)
     seg = np.linalg.norm(np.diff(closed, axis=0), axis=1)
     s = np.concatenate([[0.0], np.cumsum(seg)])
-    n_out = max(3, int(round(s[-1] / spacing)))
+    n_out = max(3, min(int(round(s[-1] / spacing)), MAX_OUTLINE_POINTS))
     so = (np.arange(n_out) + 0.5) * (s[-1] / n_out)
     px = np.interp(so, s, closed[:, 0])
     py = np.interp(so, s, closed[:, 1])
@@ -532,7 +576,10 @@ def rotation_search(ref: TopDownView, ref_points: NDArray[np.float64], cur: TopD
     # Refine the promising minima (within a generous margin of the coarse best) together.
     best_coarse = coarse[minima].min()
     margin = cfg.symmetry_tolerance + 0.5 * best_coarse
-    thetas = grid[minima[coarse[minima] <= best_coarse + margin]]
+    promising = minima[coarse[minima] <= best_coarse + margin]
+    if len(promising) > MAX_REFINED_MINIMA:  # bounded work (only with a very fine grid)
+        promising = promising[np.argsort(coarse[promising], kind="stable")[:MAX_REFINED_MINIMA]]
+    thetas = grid[promising]
     thetas, costs = _refine(thetas, 2 * math.pi / n, math.radians(cfg.angle_tolerance_deg),
                             ref, ref_points, cur, cur_points, trunc)
     best = costs.min()

@@ -103,11 +103,19 @@ from push_ros.diagnostics import DiagnosticsPublisher
 from push_ros.extrinsics import CameraExtrinsics
 from push_ros.images import (
     camera_matrix_from_info,
+    check_image_layout,
     depth_to_metres,
     image_to_array,
     mask_image_msg,
 )
-from push_ros.node import ParamSpec, ThrottledLog, declare_config, parameter_values, run_node
+from push_ros.node import (
+    ParamSpec,
+    ThrottledLog,
+    declare_config,
+    guarded,
+    parameter_values,
+    run_node,
+)
 from push_ros.outline import outline_cloud_msg
 from push_ros.poses import pose_with_covariance_msg
 from push_ros.qos import LATCHED_QOS, RELIABLE_QOS, SENSOR_QOS
@@ -126,8 +134,12 @@ MIN_VALID_DEPTH = 0.05
 LATENCY_WINDOW = 100
 #: Outcome counters reported on /diagnostics, in this order.
 FAILURE_KINDS = ("bad_color", "bad_depth", "size_mismatch", "bad_camera_info",
-                 "frame_mismatch", "missing_camera_info", "no_extrinsics", "empty_mask",
-                 "out_of_view", "few_pixels", "no_depth", "fragmented", "bad_input")
+                 "bad_extrinsics", "bad_stamp", "frame_mismatch", "missing_camera_info",
+                 "no_extrinsics", "empty_mask", "out_of_view", "few_pixels", "no_depth",
+                 "fragmented", "too_large", "bad_input", "callback_error")
+#: Encodings of the colour and the depth stream.
+COLOR_ENCODINGS = ("rgb8", "bgr8")
+DEPTH_ENCODINGS = ("32FC1", "16UC1", "mono16")
 
 
 # --------------------------------------------------------------------------------------------
@@ -147,13 +159,14 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               "cells of 8 x 8 px at 640 x 480.", (1, 10000), read_only=True),
     ParamSpec("publish_mask", True, "Publish perception/mask."),
     ParamSpec("resolution", _GEOMETRY["resolution"], "Cell size of the top-down view, m.",
-              (2e-4, 5e-3)),
+              (5e-4, 3e-3)),
     ParamSpec("min_height", _GEOMETRY["min_height"], "Mask points lower than this above the "
-              "table are dropped (table pixels), m.", (0.0, 0.05)),
+              "table are dropped (table pixels), m.", (0.0, 0.01)),
     ParamSpec("closing_radius", _GEOMETRY["closing_radius"], "Morphological closing of the "
-              "top-down view, cells.", (0, 10)),
+              "top-down view, cells; closing_radius * resolution in [1, 10] mm.", (2, 10)),
     ParamSpec("outline_spacing", _GEOMETRY["outline_spacing"], "Distance between outline "
-              "points, m.", (2e-4, 0.02)),
+              "points, m (at most 1000 points: a longer outline is spaced wider).",
+              (5e-4, 0.01)),
     ParamSpec("outline_smoothing", _GEOMETRY["outline_smoothing"], "Gaussian smoothing "
               "along the outline (standard deviation), m.", (0.0, 0.01)),
     ParamSpec("outline_offset", _GEOMETRY["outline_offset"], "Extra outward offset of the "
@@ -261,17 +274,26 @@ class SegmentationNode(Node):
                                                   LATCHED_QOS)
         self._diagnostics = DiagnosticsPublisher(self, "perception", "rgbd_camera")
         sensor = SENSOR_QOS
-        self.create_subscription(Image, "camera/color/image_raw",
-                                 lambda m: self._on_stream("rgb", m), sensor)
+        # Every callback is guarded: no exception leaves it (it is logged, counted as
+        # callback_error and reported on /diagnostics). The guarded callables are attributes
+        # so tests can call them directly with real messages.
+        self.on_color = self._guard(self._on_color)
+        self.on_depth = self._guard(self._on_depth)
+        self.on_camera_info = self._guard(self._on_camera_info)
+        self.on_reset = self._guard(self._on_reset)
+        self.create_subscription(Image, "camera/color/image_raw", self.on_color, sensor)
         self.create_subscription(Image, "camera/aligned_depth_to_color/image_raw",
-                                 lambda m: self._on_stream("depth", m), sensor)
-        self.create_subscription(CameraInfo, "camera/color/camera_info",
-                                 lambda m: self._on_stream("info", m), sensor)
+                                 self.on_depth, sensor)
+        self.create_subscription(CameraInfo, "camera/color/camera_info", self.on_camera_info,
+                                 sensor)
         self._extrinsics = CameraExtrinsics(
-            self, lambda exc: self._fail("bad_input", f"rejected camera extrinsics: {exc}"))
-        self.create_service(Trigger, "~/reset", self._on_reset)
+            self, lambda exc: self._fail("bad_extrinsics", f"rejected camera extrinsics: {exc}"),
+            wrap=self._guard)
+        self.on_extrinsics = self._extrinsics.on_message
+        self.create_service(Trigger, "~/reset", self.on_reset)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_diagnostics, clock=steady)
+        self.create_timer(DIAGNOSTICS_PERIOD_S, self._guard(self._publish_diagnostics),
+                          clock=steady)
         self.get_logger().info(
             f"segmentation node ready (use_sim_time="
             f"{self.get_parameter('use_sim_time').value}, torch threads "
@@ -282,10 +304,47 @@ class SegmentationNode(Node):
         return SegmentationParams.from_values(parameter_values(self, PARAMETERS))
 
     # ---- inputs ------------------------------------------------------------------------------
+    def _guard(self, callback: Any) -> Any:
+        return guarded(callback, self._log, self._on_callback_error)
+
+    def _on_callback_error(self, name: str, message: str) -> None:
+        """An exception inside a callback (already logged by ``guarded``): count, report."""
+        self._counts["callback_error"] += 1
+        self._last_error = f"callback_error: {name}: {message}"
+        self._ok = False
+        self._publish_diagnostics()
+
+    def _on_color(self, msg: Image) -> None:
+        self._accept("rgb", msg, "bad_color", lambda m: check_image_layout(m, COLOR_ENCODINGS))
+
+    def _on_depth(self, msg: Image) -> None:
+        self._accept("depth", msg, "bad_depth", lambda m: check_image_layout(m, DEPTH_ENCODINGS))
+
+    def _on_camera_info(self, msg: CameraInfo) -> None:
+        self._accept("info", msg, "bad_camera_info", camera_matrix_from_info)
+
+    def _accept(self, stream: str, msg: Any, kind: str, check: Any) -> None:
+        """Check one message with its codec's rules; a rejected one is counted as ``kind``,
+        logged and reported, and never reaches the pending triples."""
+        try:
+            check(msg)
+        except ValueError as exc:
+            self._fail(kind, f"{stream} message rejected: {exc}")
+            return
+        self._on_stream(stream, msg)
 
     def _on_stream(self, stream: str, msg: Any) -> None:
-        """Collect colour, depth and camera_info by stamp; process a complete triple."""
-        key = (msg.header.stamp.sec, msg.header.stamp.nanosec)
+        """Collect colour, depth and camera_info by stamp; process a complete triple.
+
+        Only messages that passed their stream's checks get here, so a rejected message
+        never evicts a pending one. A stamp outside [0, 2^31) s is rejected too.
+        """
+        stamp = msg.header.stamp
+        if not (0 <= stamp.sec and 0 <= stamp.nanosec < 1_000_000_000):
+            self._fail("bad_stamp", f"{stream} message rejected: header.stamp ({stamp.sec} s, "
+                       f"{stamp.nanosec} ns) is not a time in [0, 2^31) s")
+            return
+        key = (stamp.sec, stamp.nanosec)
         entry = self._pending.setdefault(key, {})
         entry[stream] = msg
         if len(entry) == 3:

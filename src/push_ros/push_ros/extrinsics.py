@@ -53,10 +53,18 @@ class CameraExtrinsics:
         The frame the extrinsics map into.
     use_tf : bool
         Use tf2 when it is importable.
+    wrap : callable, optional
+        Applied to the subscription callback before it is subscribed (a node passes
+        ``push_ros.node.guarded`` here); the subscribed callable is :attr:`on_message`.
+
+    A rejected message (:func:`push_ros.poses.matrix_from_transform` raises) leaves the last
+    good transform in place.
     """
 
     def __init__(self, node: Any, on_error: Callable[[ValueError], None],
-                 world_frame: str = WORLD_FRAME, use_tf: bool = True) -> None:
+                 world_frame: str = WORLD_FRAME, use_tf: bool = True,
+                 wrap: Callable[[Callable[[TransformStamped], None]],
+                                Callable[[TransformStamped], None]] | None = None) -> None:
         self.world_frame = world_frame
         self._on_error = on_error
         self._matrix: np.ndarray | None = None
@@ -65,7 +73,9 @@ class CameraExtrinsics:
         if use_tf and tf2_ros is not None:
             self._buffer = tf2_ros.Buffer()
             self._listener = tf2_ros.TransformListener(self._buffer, node)
-        node.create_subscription(TransformStamped, EXTRINSICS_TOPIC, self._on_msg, LATCHED_QOS)
+        self.on_message = self._on_msg if wrap is None else wrap(self._on_msg)
+        node.create_subscription(TransformStamped, EXTRINSICS_TOPIC, self.on_message,
+                                 LATCHED_QOS)
 
     @property
     def source(self) -> str:

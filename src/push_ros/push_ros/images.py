@@ -8,6 +8,18 @@ bytes_per_pixel``); ``is_bigendian`` selects the byte order; ``len(data) != heig
 refused before any reshape (the cv_bridge pitfall). CameraInfo: an ideal pinhole (``plumb_bob``
 with zero distortion) is written; a valid K (finite, fx, fy > 0, last row (0, 0, 1)) is
 required when reading.
+
+Reader rules (one per field; a message outside them raises ``ValueError`` naming the field,
+before anything proportional to the claimed size is allocated):
+
+- ``Image.width``, ``Image.height``: in ``[1, MAX_IMAGE_SIDE]`` (8192 px; a D415 gives 1280 x
+  720, the simulator 640 x 480).
+- ``Image.step`` / ``data``: ``step >= width * bytes_per_pixel``, ``len(data) == height *
+  step``.
+- ``CameraInfo.width``, ``height``: in ``[1, MAX_IMAGE_SIDE]``.
+- ``CameraInfo.k``: finite, ``fx``, ``fy`` in ``[MIN_FOCAL_PX, MAX_FOCAL_PX]`` (1 px to 1e5
+  px), last row (0, 0, 1), principal point within the image extended by
+  ``PRINCIPAL_POINT_MARGIN`` (half the image size) on every side.
 """
 
 from __future__ import annotations
@@ -22,7 +34,13 @@ from sensor_msgs.msg import CameraInfo, Image
 from push_ros.frames import CAMERA_FRAME
 
 __all__ = [
+    "MAX_FOCAL_PX",
+    "MAX_IMAGE_SIDE",
+    "MIN_FOCAL_PX",
+    "PRINCIPAL_POINT_MARGIN",
     "camera_info_msg",
+    "check_image_layout",
+    "check_image_size",
     "camera_matrix_from_info",
     "depth_image_msg",
     "depth_to_metres",
@@ -30,6 +48,14 @@ __all__ = [
     "mask_image_msg",
     "rgb_image_msg",
 ]
+
+#: Largest image side accepted when reading (Image and CameraInfo width and height), px.
+MAX_IMAGE_SIDE = 8192
+#: Range of the focal lengths fx, fy accepted when reading a CameraInfo, px.
+MIN_FOCAL_PX = 1.0
+MAX_FOCAL_PX = 1e5
+#: The principal point may lie this fraction of the image size outside the image.
+PRINCIPAL_POINT_MARGIN = 0.5
 
 #: Numpy dtype and channels of the encodings :func:`image_to_array` decodes.
 _ENCODINGS: dict[str, tuple[np.dtype, int]] = {
@@ -142,13 +168,52 @@ def image_to_array(msg: Image) -> np.ndarray:
     Raises
     ------
     ValueError
-        For unsupported encodings, ``step`` smaller than a row, or
-        ``len(data) != height * step``.
+        For unsupported encodings, a size outside ``[1, MAX_IMAGE_SIDE]``, ``step`` smaller
+        than a row, or ``len(data) != height * step``.
     """
-    if msg.encoding not in _ENCODINGS:
+    dtype, channels, row_bytes = check_image_layout(msg)
+    wire = dtype.newbyteorder(">" if msg.is_bigendian else "<")
+    rows = np.frombuffer(msg.data, dtype=np.uint8).reshape(msg.height, msg.step)[:, :row_bytes]
+    pixels = np.ascontiguousarray(rows).view(wire).astype(dtype.newbyteorder("="), copy=True)
+    shape = (msg.height, msg.width, channels) if channels > 1 else (msg.height, msg.width)
+    return pixels.reshape(shape)
+
+
+def check_image_size(width: int, height: int, what: str = "image") -> None:
+    """Raise ``ValueError`` unless ``1 <= width, height <= MAX_IMAGE_SIDE`` (px)."""
+    for name, value in (("width", width), ("height", height)):
+        if not 1 <= int(value) <= MAX_IMAGE_SIDE:
+            raise ValueError(f"{what} {name} must be in [1, {MAX_IMAGE_SIDE}] px, got {value}")
+
+
+def check_image_layout(msg: Image, encodings: tuple[str, ...] | None = None
+                       ) -> tuple[np.dtype, int, int]:
+    """Check an Image's encoding, size, ``step`` and ``len(data)`` without decoding it.
+
+    Parameters
+    ----------
+    msg : Image
+    encodings : tuple of str, optional
+        The encodings the caller accepts (default: every one :func:`image_to_array` decodes).
+
+    Returns
+    -------
+    (dtype, channels, row_bytes)
+        Pixel dtype of the encoding, channels and bytes of one unpadded row.
+
+    Raises
+    ------
+    ValueError
+        Naming the field: ``encoding``, ``width``/``height`` (``[1, MAX_IMAGE_SIDE]``),
+        ``step`` (smaller than a row) or ``data`` (``len(data) != height * step``).
+    """
+    allowed = tuple(_ENCODINGS) if encodings is None else encodings
+    if msg.encoding not in allowed or msg.encoding not in _ENCODINGS:
         raise ValueError(
-            f"unsupported image encoding {msg.encoding!r}; expected one of {sorted(_ENCODINGS)}"
+            f"unsupported image encoding {msg.encoding[:32]!r}; expected one of "
+            f"{sorted(allowed)}"
         )
+    check_image_size(msg.width, msg.height, "image")
     dtype, channels = _ENCODINGS[msg.encoding]
     row_bytes = msg.width * channels * dtype.itemsize
     if msg.step < row_bytes:
@@ -161,11 +226,7 @@ def image_to_array(msg: Image) -> np.ndarray:
             f"image data has {len(msg.data)} bytes, expected height * step = "
             f"{msg.height} * {msg.step} = {msg.height * msg.step}"
         )
-    wire = dtype.newbyteorder(">" if msg.is_bigendian else "<")
-    rows = np.frombuffer(msg.data, dtype=np.uint8).reshape(msg.height, msg.step)[:, :row_bytes]
-    pixels = np.ascontiguousarray(rows).view(wire).astype(dtype.newbyteorder("="), copy=True)
-    shape = (msg.height, msg.width, channels) if channels > 1 else (msg.height, msg.width)
-    return pixels.reshape(shape)
+    return dtype, channels, row_bytes
 
 
 def camera_info_msg(
@@ -227,9 +288,21 @@ def camera_matrix_from_info(msg: CameraInfo) -> np.ndarray:
     Raises
     ------
     ValueError
-        If K is not a valid pinhole matrix (see :func:`camera_info_msg`).
+        If K is not a valid pinhole matrix (see :func:`camera_info_msg`), or breaks a reader
+        rule of the module docstring (image size, focal length range, principal point).
     """
-    return _check_camera_matrix(np.asarray(msg.k, dtype=float).reshape(3, 3))
+    check_image_size(msg.width, msg.height, "camera_info")
+    k = _check_camera_matrix(np.asarray(msg.k, dtype=float).reshape(3, 3))
+    for name, value in (("fx", k[0, 0]), ("fy", k[1, 1])):
+        if not MIN_FOCAL_PX <= value <= MAX_FOCAL_PX:
+            raise ValueError(f"camera_info {name} must be in [{MIN_FOCAL_PX:g}, "
+                             f"{MAX_FOCAL_PX:g}] px, got {value:g}")
+    for name, value, size in (("cx", k[0, 2], msg.width), ("cy", k[1, 2], msg.height)):
+        margin = PRINCIPAL_POINT_MARGIN * size
+        if not -margin <= value <= size + margin:
+            raise ValueError(f"camera_info principal point {name} = {value:g} px lies outside "
+                             f"the {msg.width} x {msg.height} image (margin {margin:g} px)")
+    return k
 
 
 def _check_camera_matrix(camera_matrix: np.ndarray) -> np.ndarray:

@@ -4,7 +4,9 @@ Planar poses are ``(x, y, theta)``: metres on the table (z = 0 unless given) and
 the world z axis, radians. Quaternions are (x, y, z, w), the order of ``geometry_msgs`` and of
 pybullet. The quaternion rule is :mod:`push_core.geometry`'s, for every consumer: finite, unit
 norm within ``QUATERNION_TOLERANCE`` (1e-3); a planar pose (every reader here that returns a
-yaw) also needs ``|q_x|, |q_y| <= 1e-3``. Transforms are not planar: any unit quaternion.
+yaw) also needs ``|q_x|, |q_y| <= 1e-3``. Transforms are not planar: any unit quaternion, and
+a finite translation of at most ``MAX_TRANSLATION`` (100 m) in norm (the table scene spans a
+few metres; the bound keeps every product with it finite).
 
 A pose covariance message is 6 x 6 over (x, y, z, rot x, rot y, rot z), row-major; the planar
 block is rows/columns (0, 1, 5).
@@ -39,6 +41,7 @@ from push_ros.frames import OBJECT_FRAME, WORLD_FRAME
 from push_ros.stamps import seconds_from_stamp
 
 __all__ = [
+    "MAX_TRANSLATION",
     "PLANAR_INDICES",
     "UNMEASURED_VARIANCE",
     "PoseWithCovariance",
@@ -56,6 +59,8 @@ __all__ = [
     "yaw_from_quaternion",
 ]
 
+#: Largest translation norm a TransformStamped reader accepts, metres.
+MAX_TRANSLATION = 100.0
 #: Rows/columns of x, y and yaw in a 6 x 6 pose covariance.
 PLANAR_INDICES = (0, 1, 5)
 #: Variance of a pose component that is not measured (z, roll, pitch of the perception):
@@ -293,18 +298,25 @@ def transform_msg(matrix: ArrayLike, stamp: Time, parent_frame: str, child_frame
     return msg
 
 
-def matrix_from_transform(msg: TransformStamped) -> NDArray[np.float64]:
+def matrix_from_transform(msg: TransformStamped,
+                          max_translation: float = MAX_TRANSLATION) -> NDArray[np.float64]:
     """The (4, 4) matrix ``T_parent_child`` of a ``TransformStamped`` (see :func:`transform_msg`).
 
     Raises
     ------
+    NonFiniteError
+        A NaN or infinite translation or rotation component.
     ValueError
-        If the translation is not finite or the quaternion is invalid (not unit length).
+        A translation longer than ``max_translation`` (m), or a quaternion that is not unit
+        length.
     """
     tr = msg.transform.translation
     translation = np.array([tr.x, tr.y, tr.z])
     if not np.all(np.isfinite(translation)):
-        raise ValueError(f"transform translation must be finite, got {translation}")
+        raise NonFiniteError(f"transform translation must be finite, got {translation}")
+    if float(np.linalg.norm(translation)) > max_translation:
+        raise ValueError(f"transform translation is {np.linalg.norm(translation):.3g} m long; "
+                         f"at most {max_translation:g} m is accepted")
     t = np.eye(4)
     t[:3, :3] = matrix_from_quaternion(_components(msg.transform.rotation))
     t[:3, 3] = translation
