@@ -461,3 +461,70 @@ def test_disc_outline_plans_and_stops_on_position_alone() -> None:
     # scored without the rotation: the current score is the distance in mm
     assert plan.current_score == pytest.approx(50.0)
     assert plan.score < plan.current_score
+
+
+# ------------------------------------------------------------------------------ bounded work
+def test_outlines_above_the_cap_are_decimated_and_normal_ones_kept(square):
+    from push_core.planner import MAX_OUTLINE_POINTS
+
+    points, normals = square_outline(1e-4)  # 3996 points
+    big = prepare_outline(points, normals)
+    assert len(big.points) == MAX_OUTLINE_POINTS and big.source_points == len(points)
+    keep = np.linspace(0, len(points), MAX_OUTLINE_POINTS, endpoint=False).astype(np.intp)
+    np.testing.assert_array_equal(big.points, points[keep])
+    assert square.source_points == len(square.points)  # below the cap: as given
+    small = prepare_outline(points, normals, max_points=50)
+    assert len(small.points) == 50
+    with pytest.raises(ValueError, match="max_points"):
+        prepare_outline(points, normals, max_points=2)
+
+
+def test_chunked_closest_point_queries_give_the_same_bits(monkeypatch):
+    import push_core.geometry as geometry
+
+    poly = load_object("butter").polyline()
+    q = np.random.default_rng(4).normal(scale=0.06, size=(41, 29, 2))
+    whole = closest_point_on_polyline(poly, q)
+    monkeypatch.setattr(geometry, "CLOSEST_POINT_BUDGET", 5 * len(poly) + 1)  # 5 rows a chunk
+    chunked = closest_point_on_polyline(poly, q)
+    for a, b in zip(whole, chunked, strict=True):
+        assert a.shape == b.shape and np.array_equal(a, b)
+
+
+def test_the_fallback_tries_at_most_the_cap(square, monkeypatch):
+    import push_core.planner as planner_module
+
+    evaluated: list[int] = []
+    original = Planner._evaluate
+
+    def counting(self, *args):
+        evaluated.append(len(args[-1]))
+        return original(self, *args)
+
+    monkeypatch.setattr(Planner, "_evaluate", counting)
+    monkeypatch.setattr(planner_module, "MAX_FALLBACK_POINTS", 7)
+    far = state_at([1.0, 0.0, 0.0])  # the object off the table: nothing is feasible
+    with pytest.raises(NoFeasiblePush):
+        Planner(PlannerConfig(k=2)).plan(square, far, [1.05, 0.0, 0.0])
+    assert evaluated == [2, 7]
+
+
+def test_implausible_states_and_objects_larger_than_the_workspace_are_refused(square):
+    from push_core.planner import check_state
+
+    planner = Planner(PlannerConfig(k=1))
+    goal = [0.03, 0.0, 0.0]
+    r = square.radius
+    for bad, match in ((state_at([0, 0, 0], l=0.0), "l must be"),
+                       (state_at([0, 0, 0], m=11.0), "m in"),
+                       (state_at([0, 0, 0], l=4.01 * r), "outline's radius"),
+                       (state_at([0, 0, 0], com=(2.01 * r, 0.0)), "COM")):
+        with pytest.raises(ValueError, match="^state: .*" + match):
+            planner.plan(square, bad, goal)
+        with pytest.raises(ValueError, match="^state"):
+            check_state(bad, square)
+    check_state(state_at([0, 0, 0], l=4.0 * r, com=(0.0, 1.99 * r)), square)
+    assert planner.check_outline(square) is square
+    huge = prepare_outline(*(a * f for a, f in zip(square_outline(), (1e4, 1.0), strict=True)))
+    with pytest.raises(ValueError, match="^outline: .*workspace diagonal"):
+        planner.check_outline(huge)

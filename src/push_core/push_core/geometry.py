@@ -31,6 +31,9 @@ Array = Any
 
 #: Below this distance (m) a query is "on" the outline and gets the segment's normal.
 ON_OUTLINE_TOL = 1e-9
+#: :func:`closest_point_on_polyline` works on at most this many query x segment pairs at a
+#: time (about 20 temporaries of 8 bytes each: ~40 MB), whatever the number of queries.
+CLOSEST_POINT_BUDGET = 1 << 18
 
 
 def array_namespace(*arrays: Any) -> tuple[ModuleType, Callable[[Any], Array]]:
@@ -249,7 +252,9 @@ def closest_point_on_polyline(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.intp]]:
     """Exact closest point on a closed counter-clockwise polyline, with signed distance.
 
-    Vectorised over all queries x all segments (memory O(Q P)).
+    Vectorised over all queries x all segments; the queries are processed in chunks of at
+    most ``CLOSEST_POINT_BUDGET / P`` (each row is independent, so the result is the same
+    bits), which bounds the memory of one call to O(``CLOSEST_POINT_BUDGET``) whatever Q.
 
     Parameters
     ----------
@@ -284,8 +289,23 @@ def closest_point_on_polyline(
     v = check_polyline(vertices, "vertices")
     q = np.asarray(check_points(queries, "queries"), dtype=np.float64)
     lead = q.shape[:-1]
-    qx = q[..., 0].reshape(-1, 1)  # (K, 1)
-    qy = q[..., 1].reshape(-1, 1)
+    flat = q.reshape(-1, 2)
+    rows = max(1, CLOSEST_POINT_BUDGET // len(v))
+    if len(flat) <= rows:
+        closest, normal, sd, seg = _closest_point_flat(v, flat)
+    else:  # bounded memory: the queries are independent, so chunks give the same bits
+        parts = [_closest_point_flat(v, flat[i:i + rows]) for i in range(0, len(flat), rows)]
+        closest, normal, sd, seg = (np.concatenate(a) for a in zip(*parts, strict=True))
+    return (closest.reshape(*lead, 2), normal.reshape(*lead, 2), sd.reshape(lead),
+            seg.reshape(lead))
+
+
+def _closest_point_flat(
+    v: NDArray[np.float64], q: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.intp]]:
+    """:func:`closest_point_on_polyline` of checked vertices (P, 2) and queries (K, 2)."""
+    qx = q[:, 0].reshape(-1, 1)  # (K, 1)
+    qy = q[:, 1].reshape(-1, 1)
     ax, ay = v[:, 0], v[:, 1]  # (P,)
     bx, by = np.roll(ax, -1), np.roll(ay, -1)
     dx, dy = bx - ax, by - ay
@@ -317,9 +337,7 @@ def closest_point_on_polyline(
     nx = np.where(on_outline, dy[seg] * seg_inv_len, (qx - cx) * inv_dist)
     ny = np.where(on_outline, -dx[seg] * seg_inv_len, (qy - cy) * inv_dist)
 
-    closest = np.stack([cx, cy], -1).reshape(*lead, 2)
-    normal = np.stack([nx, ny], -1).reshape(*lead, 2)
-    return closest, normal, (sign * dist).reshape(lead), seg.reshape(lead)
+    return np.stack([cx, cy], -1), np.stack([nx, ny], -1), sign * dist, seg
 
 
 # --------------------------------------------------------------------------------------------

@@ -49,8 +49,18 @@ ROS-free, numpy, seeded. One planning step (:meth:`Planner.plan`):
    ``pusher_radius + APPROACH_MARGIN + simplify_tolerance`` to the contact polyline (the pusher
    could not be lowered there; the simplified polyline is within ``simplify_tolerance`` of the
    outline).
-   If no sampled candidate has a feasible push, every other eligible point is tried once
-   (``PushPlan.fallback``); if none has one, :class:`NoFeasiblePush` is raised.
+   If no sampled candidate has a feasible push, every other eligible point is tried once, the
+   best-scoring first and at most ``MAX_FALLBACK_POINTS`` (256) of them (``PushPlan.fallback``);
+   if none has one, :class:`NoFeasiblePush` is raised.
+
+Bounded work and memory (issue 15; no bound binds on a normal input, so normal results are
+unchanged): outlines above ``MAX_OUTLINE_POINTS`` (1000) points are decimated
+(:func:`prepare_outline`), an implausible state is refused (:func:`check_state`: ``l``, ``m``
+and the COM against the outline's radius; ``planner_node`` also refuses an object larger than
+the workspace, :meth:`Planner.check_outline`), and the closest-point queries of the rollouts and
+approach checks run in chunks of bounded size (``push_core.geometry.CLOSEST_POINT_BUDGET``).
+Per call: affordances N x 10 x 3, rollouts B x S with B = 13 x (k or up to 256 fallback
+points) and S = (approach_clearance + max_push_length) / substep.
 
 Frames and units: SI (metres, radians) except inside scores (see above). Outline points and
 normals, the COM and affordances are in the object frame (origin = area centroid); poses, goals
@@ -85,6 +95,11 @@ __all__ = [
     "APPROACH_MARGIN",
     "AVOID_RADIUS",
     "BASE_ANGLES_DEG",
+    "MAX_COM_RADII",
+    "MAX_FALLBACK_POINTS",
+    "MAX_FRICTION",
+    "MAX_L_RADII",
+    "MAX_OUTLINE_POINTS",
     "METHODS",
     "STOP_CONFIDENCE",
     "NoFeasiblePush",
@@ -92,6 +107,7 @@ __all__ = [
     "Planner",
     "PlannerConfig",
     "PushPlan",
+    "check_state",
     "desired_motion",
     "geo_mask",
     "goal_reached",
@@ -130,6 +146,26 @@ DIRECT_LENGTH_STEP = 1e-3
 
 #: Interpolated directions between two neighbouring base directions (every 10 degrees).
 INTERPOLATION_STEPS = 2
+
+# Bounded work and memory (issue 15). None of these binds on a normal input (the library's
+# outlines have at most ~260 points at the perception's 2 mm spacing), so normal results are
+# unchanged to the bit.
+#: :func:`prepare_outline` decimates an outline of more points to this many (every
+#: ``N / MAX_OUTLINE_POINTS``-th point, normals with them): its simple-polygon check is
+#: O(N^2) in memory (~80 MB at this size), every later step O(N) or O(N P).
+MAX_OUTLINE_POINTS = 1000
+#: The fallback of :meth:`Planner.plan` (no sampled candidate feasible) tries at most this many
+#: further points, the best-scoring first (each costs 13 rollouts).
+MAX_FALLBACK_POINTS = 256
+#: Plausible state (:func:`check_state`): ``0 < l <= MAX_L_RADII * r`` and
+#: ``|c| <= MAX_COM_RADII * r`` with ``r`` the outline's radius (its largest distance from the
+#: object frame origin; the estimator keeps ``l <= r`` and ``c`` in the convex hull), and
+#: ``0 <= m <= MAX_FRICTION``.
+MAX_L_RADII = 4.0
+MAX_COM_RADII = 2.0
+MAX_FRICTION = 10.0
+#: :func:`_allowed_points` compares the outline with at most this many avoided points at a time.
+_AVOID_CHUNK = 256
 
 # Column of each base direction (ascending) in the representative-push order (0, 30, -30, ...).
 _BASE_TO_REPR = tuple(REPRESENTATIVE_ANGLES_DEG.index(a) for a in BASE_ANGLES_DEG)
@@ -397,16 +433,26 @@ class Outline:
         False for a continuously symmetric outline (a disc,
         :func:`push_core.symmetry.has_continuous_symmetry`): its orientation cannot be
         observed, so the planner scores and stops on the goal position alone.
+    source_points : int
+        Points of the outline as given (more than ``len(points)`` when it was decimated to
+        :data:`MAX_OUTLINE_POINTS`); 0 = not recorded.
     """
 
     points: NDArray[np.float64]
     normals: NDArray[np.float64]
     polyline: NDArray[np.float64]
     orientation_matters: bool = True
+    source_points: int = 0
+
+    @property
+    def radius(self) -> float:
+        """Largest distance of an outline point from the object frame origin, metres."""
+        return float(np.max(np.hypot(self.points[:, 0], self.points[:, 1])))
 
 
 def prepare_outline(points: ArrayLike, normals_out: ArrayLike,
-                    simplify_tolerance: float = 5e-4) -> Outline:
+                    simplify_tolerance: float = 5e-4,
+                    max_points: int = MAX_OUTLINE_POINTS) -> Outline:
     """Validate an outline and build the simplified polyline used for contact search.
 
     Parameters
@@ -419,6 +465,10 @@ def prepare_outline(points: ArrayLike, normals_out: ArrayLike,
     simplify_tolerance : float
         Douglas-Peucker tolerance of the contact polyline, metres (>= 0; 0 keeps ``points``).
         Measured outlines that do not form a simple polygon are used unsimplified.
+    max_points : int
+        An outline of more points is decimated to this many (every ``N / max_points``-th
+        point from point 0, with its normal; bounded work and memory, see
+        :data:`MAX_OUTLINE_POINTS`); ``Outline.source_points`` keeps ``N``.
 
     Returns
     -------
@@ -432,10 +482,16 @@ def prepare_outline(points: ArrayLike, normals_out: ArrayLike,
     p = np.array(points, dtype=np.float64)
     if p.ndim != 2 or p.shape[1] != 2 or p.shape[0] < 3:
         raise ValueError(f"points must have shape (N, 2) with N >= 3, got shape {p.shape}")
-    check_polyline(p, "points")
     n = np.array(normals_out, dtype=np.float64)
     if n.shape != p.shape:
         raise ValueError(f"normals_out must have the shape of points {p.shape}, got {n.shape}")
+    source_points = len(p)
+    if isinstance(max_points, bool) or int(max_points) != max_points or max_points < 3:
+        raise ValueError(f"max_points must be an integer >= 3, got {max_points!r}")
+    if len(p) > max_points:
+        keep = np.linspace(0, len(p), int(max_points), endpoint=False).astype(np.intp)
+        p, n = p[keep], n[keep]
+    check_polyline(p, "points")
     norm = np.hypot(n[:, 0], n[:, 1])
     if not np.all(np.isfinite(norm)) or np.any(norm <= 1e-12):
         raise ValueError("normals_out must be finite and non-zero")
@@ -452,7 +508,33 @@ def prepare_outline(points: ArrayLike, normals_out: ArrayLike,
     n = n / norm[:, None]
     n.setflags(write=False)
     return Outline(points=p, normals=n, polyline=polyline,
-                   orientation_matters=not has_continuous_symmetry(p))
+                   orientation_matters=not has_continuous_symmetry(p),
+                   source_points=source_points)
+
+
+def check_state(state: ArrayLike, outline: Outline | None = None) -> NDArray[np.float64]:
+    """A plausible planner state ``(x, y, theta, c_x, c_y, l, m)``, (7,), or ``ValueError``.
+
+    Finite; ``l > 0`` and ``m`` in ``[0, MAX_FRICTION]``; with ``outline``, also
+    ``l <= MAX_L_RADII * r`` and ``|c| <= MAX_COM_RADII * r`` (``r = outline.radius``: the COM
+    of a rigid object lies inside its outline, and the estimator keeps ``l <= r``). The message
+    starts with ``state``.
+    """
+    s = _vector(state, 7, "state")
+    com, l, m = s[3:5], float(s[5]), float(s[6])  # noqa: E741
+    if not l > 0.0 or not 0.0 <= m <= MAX_FRICTION:
+        raise ValueError(f"state: l must be > 0 and m in [0, {MAX_FRICTION}], got l = {l}, "
+                         f"m = {m}")
+    if outline is not None:
+        r = outline.radius
+        if l > MAX_L_RADII * r:
+            raise ValueError(f"state: l = {l:.6g} m is more than {MAX_L_RADII:g} times the "
+                             f"outline's radius {r:.6g} m")
+        if math.hypot(com[0], com[1]) > MAX_COM_RADII * r:
+            raise ValueError(f"state: the COM ({com[0]:.6g}, {com[1]:.6g}) m is more than "
+                             f"{MAX_COM_RADII:g} outline radii ({r:.6g} m) from the object "
+                             f"frame origin")
+    return s
 
 
 # ------------------------------------------------------------------------------ planner
@@ -630,8 +712,10 @@ def _allowed_points(points: NDArray[np.float64], avoid: ArrayLike | None) -> NDA
         return allowed
     if a.ndim != 2 or a.shape[1] != 2 or not np.all(np.isfinite(a)):
         raise ValueError(f"avoid: expected finite points of shape (M, 2), got shape {a.shape}")
-    near = np.linalg.norm(points[:, None, :] - a[None, :, :], axis=-1) <= AVOID_RADIUS
-    allowed = ~near.any(axis=1)
+    for i in range(0, len(a), _AVOID_CHUNK):  # memory N x chunk, whatever M
+        chunk = a[i:i + _AVOID_CHUNK]
+        near = np.linalg.norm(points[:, None, :] - chunk[None, :, :], axis=-1) <= AVOID_RADIUS
+        allowed &= ~near.any(axis=1)
     return allowed if allowed.any() else np.ones(len(points), dtype=bool)
 
 
@@ -676,6 +760,25 @@ class Planner:
         return goal_reached(pose, goal, cfg.tolerance_xy, cfg.tolerance_theta, covariance,
                             cfg.stop_confidence, orientation)
 
+    def check_outline(self, outline: Outline) -> Outline:
+        """``outline`` if the object fits the workspace, else ``ValueError`` (``outline: ...``).
+
+        Refused: an outline whose radius (:attr:`Outline.radius`) exceeds the diagonal of the
+        workspace rectangle (no pose puts such an object on the table; planning for it would
+        only search every point for a feasible push). Not called by :meth:`plan` (which
+        raises :class:`NoFeasiblePush` for such an object); ``planner_node`` refuses the
+        outline with it.
+        """
+        if not isinstance(outline, Outline):
+            raise ValueError(f"outline: expected an Outline (prepare_outline), got "
+                             f"{type(outline).__name__}")
+        (x0, x1), (y0, y1) = self.config.workspace
+        diagonal = math.hypot(x1 - x0, y1 - y0)
+        if not outline.radius <= diagonal:
+            raise ValueError(f"outline: the object's radius {outline.radius:.6g} m exceeds the "
+                             f"workspace diagonal {diagonal:.6g} m")
+        return outline
+
     def _lam(self, outline: Outline) -> float:
         """The rotation weight of eq. (5.1): 0 when the orientation does not matter."""
         return self.config.lam if outline.orientation_matters else 0.0
@@ -708,7 +811,8 @@ class Planner:
         Raises
         ------
         ValueError
-            Bad ``outline``, ``state`` or ``goal`` (the message names it).
+            Bad ``outline``, ``state`` (:func:`check_state`) or ``goal`` (the message names
+            it).
         NoFeasiblePush
             No outline point admits a feasible push (see the module docstring).
         """
@@ -716,10 +820,7 @@ class Planner:
         if not isinstance(outline, Outline):
             raise ValueError(f"outline: expected an Outline (prepare_outline), got "
                              f"{type(outline).__name__}")
-        state = _vector(state, 7, "state")
-        if not state[5] > 0.0 or not state[6] >= 0.0:
-            raise ValueError(f"state: l must be > 0 and m >= 0, got l = {state[5]}, "
-                             f"m = {state[6]}")
+        state = check_state(state, outline)
         goal = _vector(goal, 3, "goal")
         pose, com, l, m = state[:3], state[3:5], float(state[5]), float(state[6])  # noqa: E741
         desired = desired_motion(pose, goal)
@@ -749,7 +850,7 @@ class Planner:
         fallback = not np.isfinite(options.score).any()
         if fallback:
             rest = np.flatnonzero(eligible & ~np.isin(np.arange(n), candidates))
-            rest = rest[np.argsort(scores[rest], kind="stable")]
+            rest = rest[np.argsort(scores[rest], kind="stable")][:MAX_FALLBACK_POINTS]
             if rest.size:
                 options = self._evaluate(outline, pose, com, l, m, goal, desired, aff, rest)
             if not np.isfinite(options.score).any():
