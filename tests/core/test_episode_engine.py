@@ -103,3 +103,52 @@ def test_end_score_counts_orientation_modulo_symmetry_and_not_for_a_disc() -> No
     s = end_score(disc, [0.1, 0.0, math.radians(80.0)], goal, (0.0075, math.radians(5.0)))
     assert s["success"] and s["orientation_ignored"]
     assert s["end_error_theta"] == pytest.approx(math.radians(90.0 - 80.0))  # order 12
+
+
+def reached_engine(after_goal: str = "resume", max_steps: int = 30) -> EpisodeEngine:
+    e = EpisodeEngine(Planner(PlannerConfig(k=1, seed=3)), max_steps, after_goal=after_goal)
+    e.set_outline(prepare_outline(*SPEC.outline(0.002)))
+    e.new_goal([0.1, 0.0, 0.0])
+    e.estimate(1.0, state_at(0.0))
+    assert e.step().action == "push"
+    e.push_executed(2.0)
+    e.estimate(3.0, state_at(0.099))
+    assert e.step().action == "reached" and e.phase == "reached" and e.steps == 1
+    return e
+
+
+def test_after_the_goal_the_point_estimate_is_watched_and_pushing_resumes() -> None:
+    e = reached_engine()
+    # Uncertain but the point estimate inside the region: still reached, nothing planned.
+    e.estimate(4.0, state_at(0.095), np.diag([1e-4, 1e-4, 1e-4, 0, 0, 0, 0]))
+    assert e.step().action == "wait" and e.phase == "reached" and e.counts["left"] == 0
+    # An injected push (not ours) knocks the object 3 cm off: reported, and pushing resumes
+    # from that estimate within the same max_steps.
+    e.push_executed(5.0)
+    e.estimate(4.5, state_at(0.07))  # predates the injected push: stale
+    assert e.step().action == "wait" and e.phase == "reached"
+    e.estimate(6.0, state_at(0.07))
+    step = e.step()
+    assert step.action == "push" and step.resumed and "30.0 mm" in step.reason
+    assert e.phase == "pushing" and e.steps == 2 and e.counts["left"] == 1
+    e.push_executed(7.0)
+    e.estimate(8.0, state_at(0.1))
+    assert e.step().action == "reached"
+
+
+def test_after_the_goal_report_only_and_max_steps_still_bound_a_resumed_episode() -> None:
+    e = reached_engine("report")
+    e.estimate(4.0, state_at(0.05))
+    step = e.step()
+    assert step.action == "left" and e.phase == "left" and "50.0 mm" in step.reason
+    e.estimate(5.0, state_at(0.05))
+    assert e.step().action == "wait" and e.steps == 1 and not e.in_flight  # never pushed for
+    e.estimate(6.0, state_at(0.1))  # put back: reached again
+    assert e.step().action == "reached" and e.counts["left"] == 1
+    # resume, but the episode's one step is used: it fails after max steps
+    e = reached_engine(max_steps=1)
+    e.estimate(4.0, state_at(0.05))
+    step = e.step()
+    assert step.action == "failed" and step.reason == "max steps" and step.resumed
+    with pytest.raises(ValueError, match="after_goal"):
+        EpisodeEngine(Planner(), 3, after_goal="ignore")

@@ -36,6 +36,19 @@ Rules (docs/ARCHITECTURE.md, "Episode engine"):
    newest estimate becomes usable again (nothing moved, so it is not stale).
 6. A new goal starts a new episode (step 0) and re-opens the newest estimate once (the same
    pose, a new question). A new outline clears the avoid list.
+7. **Watching after the goal** (issue 15). Once ``reached``, every further usable estimate
+   (rule 1) is checked against the goal region by the *point* estimate (the stop rule without
+   the covariance, :meth:`Planner.reached` with ``covariance=None``): entering needs the
+   confident rule, leaving needs the point estimate outside the full region, so uncertainty
+   noise alone never re-opens a reached goal. If the object left the region (knocked, an
+   injected push, drift) it is counted (``left``) and, by ``after_goal``:
+
+   - ``resume`` (default): the episode goes on from this estimate within the same
+     ``max_steps`` (the steps so far count): rule 2-3 as usual, the step says ``resumed``;
+   - ``report``: the phase becomes ``left`` and the step is ``left``; no push is planned. A
+     later estimate that satisfies the stop rule again gives ``reached``.
+
+   The in-process loops end at the first ``reached``, so this changes nothing for them.
 
 Scoring (:func:`end_score`, :func:`true_errors`): success from the *true* end pose against the
 true goal, the orientation modulo the object's k-fold symmetry and not counted for a
@@ -56,6 +69,7 @@ from push_core.planner import NoFeasiblePush, Outline, Planner, PushPlan
 from push_core.symmetry import has_continuous_symmetry, symmetry_order_of_polygon
 
 __all__ = [
+    "AFTER_GOAL",
     "COUNTERS",
     "EpisodeEngine",
     "Step",
@@ -66,7 +80,9 @@ __all__ = [
 
 #: Counters an :class:`EpisodeEngine` keeps (``planner_node`` reports them in its status).
 COUNTERS = ("estimates", "planned", "ignored_stale", "ignored_duplicate", "ignored_busy",
-            "lost")
+            "lost", "left")
+#: What the engine does when the object leaves the goal region after ``reached`` (rule 7).
+AFTER_GOAL = ("resume", "report")
 
 
 @dataclass(frozen=True)
@@ -77,19 +93,24 @@ class Step:
     ----------
     action : str
         ``"push"`` (execute ``plan``), ``"reached"``, ``"failed"`` (``reason`` says why),
-        ``"refused"`` (the estimate could not be planned for: ``reason``) or ``"wait"``
-        (nothing to do until the next event).
+        ``"refused"`` (the estimate could not be planned for: ``reason``), ``"left"`` (the
+        object left the reached goal region; ``after_goal = "report"``) or ``"wait"`` (nothing
+        to do until the next event).
     plan : PushPlan or None
         For ``"push"`` (a ``push_core.pushnet.PushNetPlan`` for that planner).
     state : numpy.ndarray or None
         The estimate the decision was made on, (7,).
     reason : str
+    resumed : bool
+        The object had left the reached goal region and the episode resumed with this step
+        (``after_goal = "resume"``; ``reason`` says how far off it was).
     """
 
     action: str
     plan: PushPlan | None = None
     state: NDArray[np.float64] | None = None
     reason: str = ""
+    resumed: bool = False
 
 
 @dataclass
@@ -104,11 +125,15 @@ class EpisodeEngine:
         covariance, outline)``, e.g. ``push_core.pushnet.PushNetPlanner``.
     max_steps : int
         Pushes per episode (executed or lost) before it fails.
+    after_goal : str
+        ``resume`` | ``report``: what happens when the object leaves the goal region after
+        ``reached`` (module docstring, rule 7).
 
     Attributes
     ----------
     phase : str
-        ``waiting`` | ``pushing`` | ``reached`` | ``failed``.
+        ``waiting`` | ``pushing`` | ``reached`` | ``left`` (after_goal ``report``) |
+        ``failed``.
     steps : int
         Pushes sent in this episode.
     failure : str
@@ -119,6 +144,7 @@ class EpisodeEngine:
 
     planner: Planner | Any
     max_steps: int = 30
+    after_goal: str = "resume"
     phase: str = "waiting"
     steps: int = 0
     failure: str = ""
@@ -141,6 +167,9 @@ class EpisodeEngine:
                 or self.max_steps < 1:
             raise ValueError(f"max_steps: expected an integer >= 1, got {self.max_steps!r}")
         self.max_steps = int(self.max_steps)
+        if self.after_goal not in AFTER_GOAL:
+            raise ValueError(f"after_goal: expected one of {', '.join(AFTER_GOAL)}, got "
+                             f"{self.after_goal!r}")
 
     # ---- events --------------------------------------------------------------------------------
     def reset(self) -> None:
@@ -211,6 +240,7 @@ class EpisodeEngine:
     # ---- decision ------------------------------------------------------------------------------
     @property
     def finished(self) -> bool:
+        """Reached or failed (a reached goal is still watched, rule 7)."""
         return self.phase in ("reached", "failed")
 
     @property
@@ -221,32 +251,55 @@ class EpisodeEngine:
     def step(self) -> Step:
         """Decide on the newest estimate if rule 1 allows it (module docstring, rules 2-3)."""
         if (self._latest is None or self.goal is None or self.outline is None
-                or self.finished or self.in_flight):
+                or self.phase == "failed" or self.in_flight):
             return Step("wait")
         stamp, state, cov = self._latest
         if stamp < self.last_push_end or stamp <= self._used_stamp:
             return Step("wait")
         self._used_stamp = stamp
+        resumed, why = False, ""
+        if self.phase == "reached":  # rule 7: watching the reached goal
+            if self.planner.reached(state[:3], self.goal, None, self.outline):
+                return Step("wait", state=state)
+            self.counts["left"] += 1
+            why = self._how_far(state)
+            if self.after_goal == "report":
+                self.phase = "left"
+                return Step("left", state=state, reason=why)
+            resumed = True
         if self.planner.reached(state[:3], self.goal, cov, self.outline):
             self.phase = "reached"
             return Step("reached", state=state)
+        if self.phase == "left":  # after_goal report: watched, never pushed for
+            return Step("wait", state=state)
         if self.steps >= self.max_steps:
             self.phase, self.failure = "failed", "max steps"
-            return Step("failed", state=state, reason="max steps")
+            return Step("failed", state=state, reason="max steps", resumed=resumed)
         try:
             plan = self.planner.plan(self.outline, state, self.goal, avoid=self._avoid)
         except NoFeasiblePush as exc:
             self.phase, self.failure = "failed", "no feasible push"
-            return Step("failed", state=state, reason=f"no feasible push: {exc}")
+            return Step("failed", state=state, reason=f"no feasible push: {exc}",
+                        resumed=resumed)
         except ValueError as exc:
-            return Step("refused", state=state, reason=str(exc))
+            if resumed:
+                self.phase = "waiting"  # left the goal; planned again on the next estimate
+            return Step("refused", state=state, reason=str(exc), resumed=resumed)
         self.steps += 1
         self.phase = "pushing"
         self.counts["planned"] += 1
         self.in_flight = True
         index = getattr(plan, "index", None)  # the pushnet baseline has no contact point
         self._in_flight_point = None if index is None else self.outline.points[index].copy()
-        return Step("push", plan=plan, state=state)
+        return Step("push", plan=plan, state=state, reason=why, resumed=resumed)
+
+    def _how_far(self, state: NDArray[np.float64]) -> str:
+        """How far the point estimate is off the goal (for the rule 7 report)."""
+        goal = state[:3] if self.goal is None else self.goal
+        dxy = math.hypot(*(goal[:2] - state[:2]))
+        dth = abs(float(wrap_angle(goal[2] - state[2])))
+        return (f"left the goal region: the estimate is {1e3 * dxy:.1f} mm and "
+                f"{math.degrees(dth):.1f} deg off the goal")
 
 
 # ------------------------------------------------------------------------------------ scoring
