@@ -284,7 +284,7 @@ class PushEKF(EKFBase):
                  end: NDArray[np.float64]) -> PushPrediction:
         cfg = self.config
         return _predict_push(state, self.outline, start, end, cfg.pusher_radius, cfg.substep,
-                             cfg.contact_tol, True)
+                             cfg.contact_tol, True, cfg.max_substeps)
 
     # ---- update ------------------------------------------------------------------------------
     def residual(self, z: NDArray[np.float64], hx: NDArray[np.float64]) -> NDArray[np.float64]:

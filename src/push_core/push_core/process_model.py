@@ -3,7 +3,8 @@
 ROS-free; SI units, state as in :mod:`push_core.estimator_config`. :func:`predict_push` is the
 analytical pushing model of SPEC section 3 (:mod:`push_core.model`) driven by the executed
 straight push (pusher axis from ``pusher_start`` to ``pusher_end`` in ``world``), integrated in
-substeps of at most ``substep`` (a push no longer than one substep is a single model step).
+substeps of at most ``substep`` (a push no longer than one substep is a single model step;
+``max_substeps`` bounds the loop: a longer push is split into that many equal substeps).
 Every substep finds the contact on the *decimated* outline polygon
 (:class:`push_core.contact.ContactOutline`) the way :func:`push_core.rollout.rollout_push` does
 (closest outline feature to the pusher centre at the substep start, contact test ``approach >
@@ -313,7 +314,7 @@ def _substep(pose: list[float], c: tuple[float, float], l: float, m: float,  # n
 def predict_push(state: ArrayLike, outline: ContactOutline, pusher_start: ArrayLike,
                  pusher_end: ArrayLike, *, pusher_radius: float = PUSHER_RADIUS,
                  substep: float = 0.01, contact_tol: float = CONTACT_TOL,
-                 jacobian: bool = True) -> PushPrediction:
+                 jacobian: bool = True, max_substeps: int | None = None) -> PushPrediction:
     """The process model: the state after one straight push, with its Jacobian.
 
     Parameters
@@ -333,6 +334,10 @@ def predict_push(state: ArrayLike, outline: ContactOutline, pusher_start: ArrayL
         Contact test tolerance, m.
     jacobian : bool
         Also compute ``d new state / d state``.
+    max_substeps : int, optional
+        Bound on the model steps of one push (bounded work per push): a push that needs more
+        substeps of ``substep`` is integrated in ``max_substeps`` equal, longer substeps.
+        None: unbounded.
 
     Returns
     -------
@@ -353,14 +358,18 @@ def predict_push(state: ArrayLike, outline: ContactOutline, pusher_start: ArrayL
         raise ValueError(f"pusher_radius must be >= 0, got {pusher_radius!r}")
     if not contact_tol >= 0.0:
         raise ValueError(f"contact_tol must be >= 0, got {contact_tol!r}")
+    if max_substeps is not None and not (isinstance(max_substeps, int) and max_substeps >= 1):
+        raise ValueError(f"max_substeps must be an integer >= 1 or None, got {max_substeps!r}")
     if not isinstance(outline, ContactOutline):
         raise ValueError(f"outline must be a ContactOutline, got {type(outline).__name__}")
-    return _predict_push(x, outline, start, end, pusher_radius, substep, contact_tol, jacobian)
+    return _predict_push(x, outline, start, end, pusher_radius, substep, contact_tol, jacobian,
+                         max_substeps)
 
 
 def _predict_push(x: NDArray[np.float64], outline: ContactOutline, start: NDArray[np.float64],
                   end: NDArray[np.float64], pusher_radius: float, substep: float,
-                  contact_tol: float, jacobian: bool) -> PushPrediction:
+                  contact_tol: float, jacobian: bool,
+                  max_substeps: int | None = None) -> PushPrediction:
     """:func:`predict_push` without the input checks (the filter checks once)."""
     # Python floats throughout: numpy scalars would make every operation below slower.
     push = (float(end[0]) - float(start[0]), float(end[1]) - float(start[1]))
@@ -373,6 +382,9 @@ def _predict_push(x: NDArray[np.float64], outline: ContactOutline, start: NDArra
     touched, in_contact = False, 0.0
     sx, sy = float(start[0]), float(start[1])
     scale = substep / total if total > 0.0 else 0.0  # substep as a fraction of the push
+    if max_substeps is not None and n_sub > max_substeps:  # bounded work: longer substeps
+        n_sub = max_substeps
+        scale = 1.0 / n_sub
     for k in range(n_sub):
         # Fixed-length substeps from the start, the last one shorter: the substep boundaries
         # do not depend on the state, so the prediction is continuous in it.

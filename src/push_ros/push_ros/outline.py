@@ -20,7 +20,7 @@ from sensor_msgs.msg import PointCloud2, PointField
 from push_core.geometry import NonFiniteError
 from push_ros.frames import OBJECT_FRAME
 
-__all__ = ["OUTLINE_FIELDS", "outline_cloud_msg", "outline_from_cloud"]
+__all__ = ["OUTLINE_FIELDS", "decimate_outline", "outline_cloud_msg", "outline_from_cloud"]
 
 #: Field names of the outline cloud, all float32, in this order.
 OUTLINE_FIELDS = ("x", "y", "z", "normal_x", "normal_y", "normal_z")
@@ -79,7 +79,8 @@ def outline_cloud_msg(points: ArrayLike, normals: ArrayLike, stamp: Time | None 
     return msg
 
 
-def outline_from_cloud(msg: PointCloud2, frame_id: str = OBJECT_FRAME
+def outline_from_cloud(msg: PointCloud2, frame_id: str = OBJECT_FRAME,
+                       max_points: int | None = None
                        ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Outline points and outward normals of ``perception/outline``, checked.
 
@@ -94,6 +95,9 @@ def outline_from_cloud(msg: PointCloud2, frame_id: str = OBJECT_FRAME
         counter-clockwise along the outline (not checked here).
     frame_id : str
         The required ``header.frame_id``.
+    max_points : int, optional
+        A cloud of more points (``width * height``) is refused before anything is decoded
+        (bounded work and memory per message); None: no bound.
 
     Returns
     -------
@@ -107,7 +111,8 @@ def outline_from_cloud(msg: PointCloud2, frame_id: str = OBJECT_FRAME
     ValueError
         Every other problem, named in the message: a wrong ``header.frame_id``; a missing
         field, one that is not FLOAT32 with count 1, or one whose offset does not fit
-        ``point_step``; an empty cloud or one of fewer than 3 points; ``row_step`` smaller than
+        ``point_step``; an empty cloud, one of fewer than 3 points or of more than
+        ``max_points``; ``row_step`` smaller than
         ``width * point_step``; ``data`` not ``row_step * height`` bytes long.
     """
     if msg.header.frame_id != frame_id:
@@ -129,6 +134,8 @@ def outline_from_cloud(msg: PointCloud2, frame_id: str = OBJECT_FRAME
         raise ValueError("the outline is empty: the cloud has no points (width * height = 0)")
     if count < 3:
         raise ValueError(f"the outline has {count} points, need >= 3")
+    if max_points is not None and count > max_points:
+        raise ValueError(f"the outline has {count} points, more than the {max_points} accepted")
     if msg.row_step < msg.width * msg.point_step:
         raise ValueError(f"row_step {msg.row_step} is smaller than width * point_step = "
                          f"{msg.width} * {msg.point_step}")
@@ -150,3 +157,29 @@ def outline_from_cloud(msg: PointCloud2, frame_id: str = OBJECT_FRAME
         raise NonFiniteError(f"the outline has NaN or infinite coordinates ({int(bad.sum())} "
                              f"of {count} points, the first at index {int(np.argmax(bad))})")
     return points, normals
+
+
+def decimate_outline(points: ArrayLike, normals: ArrayLike, max_points: int
+                     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """At most ``max_points`` of an outline: every k-th point (and its normal) from the first,
+    ``k = ceil(K / max_points)``; an outline of at most ``max_points`` is returned unchanged.
+
+    Bounds the work of consumers whose cost grows faster than linearly with the outline (the
+    estimator's polygon checks). Keeps the order (counter-clockwise stays counter-clockwise).
+
+    Raises
+    ------
+    ValueError
+        ``max_points < 3`` or points and normals that are not (K, 2) arrays of one shape.
+    """
+    p = np.asarray(points, dtype=np.float64)
+    n = np.asarray(normals, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != 2 or p.shape != n.shape:
+        raise ValueError(f"outline points and normals must both be (K, 2), got {p.shape} and "
+                         f"{n.shape}")
+    if max_points < 3:
+        raise ValueError(f"max_points must be >= 3, got {max_points}")
+    if len(p) <= max_points:
+        return p, n
+    k = -(-len(p) // max_points)
+    return p[::k].copy(), n[::k].copy()

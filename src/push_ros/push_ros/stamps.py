@@ -1,7 +1,20 @@
 """``builtin_interfaces/Time`` <-> float seconds: the one time codec.
 
-The rule, stated once: a time is **finite and in [0, 2^31) s** (``sec`` is an int32); it is
-rounded to the nearest nanosecond (``nanosec < 1e9``).
+The rule, stated once, for every reader and writer: a time is **finite and in
+[0, MAX_STAMP_SECONDS]**, ``MAX_STAMP_SECONDS = 2^31 - 1 us`` (``sec`` is an int32; a time
+within 1 us of 2^31 s cannot round-trip through float seconds: the nearest doubles round to
+2^31 s, which ``sec`` cannot hold). A stamp is rounded to the nearest nanosecond
+(``nanosec < 1e9``) when written.
+
+- Reading (:func:`seconds_from_stamp`): a stamp with ``sec < 0``, ``nanosec >= 1e9`` or a time
+  above ``MAX_STAMP_SECONDS`` is rejected with ``ValueError`` naming the field, so a node never
+  applies a time it could not write back.
+- Writing (:func:`stamp_from_seconds`): a time outside the rule raises ``ValueError``; with
+  ``clamp=True`` a finite time is clamped into the range instead (publishing an estimate then
+  never raises; NaN still raises, it is a bug).
+
+Whether a valid stamp is acceptable for a node (not in the future beyond a tolerance, not
+before the episode) is the node's rule, documented in its module docstring.
 """
 
 from __future__ import annotations
@@ -10,28 +23,56 @@ import math
 
 from builtin_interfaces.msg import Time
 
-__all__ = ["MAX_SECONDS", "seconds_from_stamp", "stamp_from_seconds"]
+__all__ = ["MAX_SECONDS", "MAX_STAMP_SECONDS", "seconds_from_stamp", "stamp_from_seconds"]
 
 _NS = 1_000_000_000
-#: Exclusive upper bound of a representable time, s.
+#: Exclusive upper bound of the int32 ``sec`` field, s.
 MAX_SECONDS = 2.0**31
+#: Largest stamp, ns (exact): 2^31 s - 1 us.
+_MAX_NS = 2**31 * _NS - 1000
+#: Largest time a stamp may carry, s: 2^31 s - 1 us (it still round-trips).
+MAX_STAMP_SECONDS = _MAX_NS / _NS
 
 
-def stamp_from_seconds(seconds: float) -> Time:
+def stamp_from_seconds(seconds: float, *, clamp: bool = False) -> Time:
     """Float seconds -> ``builtin_interfaces/Time`` (rounded to the nearest nanosecond).
+
+    Parameters
+    ----------
+    seconds : float
+    clamp : bool
+        Clamp a finite time outside [0, ``MAX_STAMP_SECONDS``] into it instead of raising.
 
     Raises
     ------
     ValueError
-        If the time is not finite or not in [0, 2^31) s.
+        If the time is not finite, or (without ``clamp``) not in [0, ``MAX_STAMP_SECONDS``].
     """
     seconds = float(seconds)
-    if not (math.isfinite(seconds) and 0.0 <= seconds < MAX_SECONDS):
-        raise ValueError(f"stamp: time must be finite and in [0, 2^31) s, got {seconds!r}")
-    sec, nanosec = divmod(round(seconds * _NS), _NS)
+    if clamp and math.isfinite(seconds):
+        seconds = min(max(seconds, 0.0), MAX_STAMP_SECONDS)
+    if not (math.isfinite(seconds) and 0.0 <= seconds <= MAX_STAMP_SECONDS):
+        raise ValueError(f"stamp: time must be finite and in [0, 2^31 s - 1 us], got "
+                         f"{seconds!r}")
+    sec, nanosec = divmod(min(round(seconds * _NS), _MAX_NS), _NS)
     return Time(sec=int(sec), nanosec=int(nanosec))
 
 
 def seconds_from_stamp(stamp: Time) -> float:
-    """``builtin_interfaces/Time`` -> float seconds."""
-    return stamp.sec + stamp.nanosec / _NS
+    """``builtin_interfaces/Time`` -> float seconds, checked against the module's rule.
+
+    Raises
+    ------
+    ValueError
+        ``sec`` negative, ``nanosec >= 1e9``, or a time above ``MAX_STAMP_SECONDS`` (the
+        message names the field and the value).
+    """
+    sec, nanosec = int(stamp.sec), int(stamp.nanosec)
+    if sec < 0:
+        raise ValueError(f"stamp: sec must be >= 0, got {sec}")
+    if not 0 <= nanosec < _NS:
+        raise ValueError(f"stamp: nanosec must be in [0, 1e9), got {nanosec}")
+    if sec * _NS + nanosec > _MAX_NS:
+        raise ValueError(f"stamp: {sec} s {nanosec} ns is within 1 us of 2^31 s (cannot "
+                         "round-trip)")
+    return sec + nanosec / _NS
