@@ -331,6 +331,7 @@ def test_bad_inputs_are_refused_and_the_node_keeps_working(harness: Harness) -> 
     # Valid input still works, and an estimate a plan cannot use (l = 0) is refused too.
     h.publish_outline(points, normals)
     h.publish_goal(0.1, 0.0, 0.0)
+    assert h.spin_until(lambda: h.status[-1].message == "waiting for estimate")
     h.publish_estimate((0.0, 0.0, 0.0), stamp=5.0, state=[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.25])
     expect_refusal("estimate")
     assert not h.pushes

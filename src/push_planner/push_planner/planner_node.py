@@ -104,6 +104,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -118,13 +119,20 @@ from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
-from push_core.episode import EpisodeEngine
+from push_core.episode import AFTER_GOAL, EpisodeEngine
 from push_core.geometry import wrap_angle
-from push_core.planner import Planner, PlannerConfig, PushPlan, prepare_outline
+from push_core.planner import Planner, PlannerConfig, PushPlan, check_state, prepare_outline
 from push_planner.conversions import affordance_markers
 from push_ros.diagnostics import DiagnosticsPublisher
 from push_ros.frames import WORLD_FRAME
-from push_ros.node import ParamSpec, declare_config, parameter_values, run_node
+from push_ros.node import (
+    ParamSpec,
+    ThrottledLog,
+    declare_config,
+    guarded,
+    parameter_values,
+    run_node,
+)
 from push_ros.outline import outline_from_cloud
 from push_ros.paths import push_path
 from push_ros.poses import check_frame, pose_with_covariance_from_msg, xytheta_from_pose
@@ -143,6 +151,9 @@ PAIR_TOLERANCE_THETA = 1e-6
 PAIR_BUFFER = 10
 #: Said in planner/status when the outline is continuously symmetric (push_core.symmetry).
 ORIENTATION_IGNORED = "orientation ignored: rotationally symmetric outline"
+#: Seconds between two log lines of one kind of refused input or callback error (each is
+#: counted on planner/status and /diagnostics regardless).
+LOG_THROTTLE_S = 2.0
 
 
 #: The parameter table. Episode parameters are settable (applied on ``~/reset``); the
@@ -165,6 +176,10 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               "Phi^-1(confidence) of its standard deviations (0.5 = stop on the point "
               "estimate).", (0.5, 0.999999)),
     ParamSpec("max_steps", 30, "Pushes per episode before it fails.", (1, 100000)),
+    ParamSpec("after_goal", "resume", "When the object leaves the goal region after 'goal "
+              "reached' (the point estimate outside it): resume (report it and push again, "
+              "within max_steps) | report (report it only).",
+              constraints="resume | report"),
     ParamSpec("push_speed", 0.02, "Pusher speed the plan's pose stamps assume, m/s.",
               (1e-3, 0.5), read_only=True),
     ParamSpec("approach_clearance", 0.005, "Approach point before the touching position, m.",
@@ -178,6 +193,9 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec("workspace.y_max", 0.3, "See workspace.x_min, m.", (-10.0, 10.0), read_only=True),
     ParamSpec("push_timeout", 30.0, "Wall-clock seconds to wait for pusher/executed before a "
               "push counts as lost.", (0.1, 3600.0), read_only=True),
+    ParamSpec("max_future_stamp", 10.0, "Estimates and pusher/executed stamped more than this "
+              "many seconds ahead of the node's clock are refused, s (not applied while a "
+              "sim-time clock reads 0).", (0.0, 3600.0), read_only=True),
     ParamSpec("seed", 0, "Seed of the contact sampling (re-seeded on ~/reset).", (0, 2**31 - 1)),
     ParamSpec("lrn_weights", "", "Weights of the learned affordance model (method lrn); "
               "empty = the bundled model.", read_only=True),
@@ -207,6 +225,10 @@ class PlannerNodeParams:
         s of wall time.
     lrn_weights : str
         Path of the learned model's weights, "" = bundled.
+    after_goal : str
+        ``resume`` | ``report`` (:data:`push_core.episode.AFTER_GOAL`).
+    max_future_stamp : float
+        s.
     """
 
     planner: PlannerConfig
@@ -214,6 +236,8 @@ class PlannerNodeParams:
     push_speed: float
     push_timeout: float
     lrn_weights: str
+    after_goal: str = "resume"
+    max_future_stamp: float = 10.0
 
     @classmethod
     def from_values(cls, values: dict[str, Any]) -> PlannerNodeParams:
@@ -242,10 +266,19 @@ class PlannerNodeParams:
         for name in ("max_steps", "push_speed", "push_timeout"):
             if not values[name] > 0:
                 raise ValueError(f"parameter '{name}': must be > 0, got {values[name]!r}")
+        after_goal = str(values["after_goal"]).strip()
+        if after_goal not in AFTER_GOAL:
+            raise ValueError(f"parameter 'after_goal': expected one of {', '.join(AFTER_GOAL)}, "
+                             f"got {values['after_goal']!r}")
+        future = float(values["max_future_stamp"])
+        if not (math.isfinite(future) and future >= 0.0):
+            raise ValueError(f"parameter 'max_future_stamp': must be finite and >= 0, got "
+                             f"{values['max_future_stamp']!r}")
         return cls(planner=config, max_steps=int(values["max_steps"]),
                    push_speed=float(values["push_speed"]),
                    push_timeout=float(values["push_timeout"]),
-                   lrn_weights=str(values["lrn_weights"]))
+                   lrn_weights=str(values["lrn_weights"]), after_goal=after_goal,
+                   max_future_stamp=future)
 
 
 def _load_learned_model(weights: str) -> Any:
@@ -294,16 +327,23 @@ class PlannerNode(Node):
 
     def __init__(self, node_name: str = "planner_node", **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
+        self._log = ThrottledLog(self.get_logger(), LOG_THROTTLE_S)
         self.params = declare_config(self, PARAMETERS, PlannerNodeParams.from_values)
         self._model = (_load_learned_model(self.params.lrn_weights)
                        if self.params.planner.method == "lrn" else None)
         self._planner = Planner(self.params.planner, affordance_model=self._model)
         #: The closed-loop rules (push_core.episode): goal, outline, estimates, pushes.
-        self._engine = EpisodeEngine(self._planner, self.params.max_steps)
+        self._engine = EpisodeEngine(self._planner, self.params.max_steps,
+                                     after_goal=self.params.after_goal)
         self._poses: deque[tuple[float, np.ndarray]] = deque(maxlen=PAIR_BUFFER)
         self._states: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=PAIR_BUFFER)
         self._refused = 0
         self._last_refusal = ""
+        #: Exceptions stopped by the callback guards (push_ros.node.guarded).
+        self._errors = 0
+        self._last_error = ""
+        #: Goals taken from another publisher than the previous goal's (logged, in the status).
+        self._goal_switches = 0
         self._new_episode()
 
         self._pub_push = self.create_publisher(Path, "planner/push", RELIABLE_QOS)
@@ -312,25 +352,60 @@ class PlannerNode(Node):
         self._pub_status = self.create_publisher(DiagnosticStatus, "planner/status", LATCHED_QOS)
         self._diagnostics = DiagnosticsPublisher(self)
         estimates = latched_reader_qos(PAIR_BUFFER)  # late subscriber: the last estimate
-        self.create_subscription(Float64MultiArray, "estimator/state", self._on_state,
+        guard = self._guard
+        self.create_subscription(Float64MultiArray, "estimator/state", guard(self._on_state),
                                  estimates)
         self.create_subscription(PoseWithCovarianceStamped, "estimator/object_pose",
-                                 self._on_pose, estimates)
-        self.create_subscription(PointCloud2, "perception/outline", self._on_outline,
+                                 guard(self._on_pose), estimates)
+        self.create_subscription(PointCloud2, "perception/outline", guard(self._on_outline),
                                  LATCHED_QOS)
-        self.create_subscription(PoseStamped, "goal_pose", self._on_goal, RELIABLE_QOS)
-        self.create_subscription(Path, "pusher/executed", self._on_executed, RELIABLE_QOS)
-        self.create_service(Trigger, "~/reset", self._on_reset)
+        on_goal = guard(self._on_goal)
+
+        def on_goal_with_info(msg: PoseStamped, info: Any) -> None:  # 2 args: with MessageInfo
+            on_goal(msg, info)
+
+        self.create_subscription(PoseStamped, "goal_pose", on_goal_with_info, RELIABLE_QOS)
+        self.create_subscription(Path, "pusher/executed", guard(self._on_executed),
+                                 RELIABLE_QOS)
+        self.create_service(Trigger, "~/reset", guard(self._on_reset))
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._steady = steady
-        self.create_timer(DIAGNOSTICS_PERIOD_S, self._on_timer, clock=steady)
+        self.create_timer(DIAGNOSTICS_PERIOD_S, guard(self._on_timer), clock=steady)
         cfg = self.params.planner
         self.get_logger().info(
             f"planner ready: method {cfg.method}{' (direct)' if cfg.direct else ''}, k {cfg.k}, "
             f"lambda {cfg.lam} mm/deg, temperature {cfg.temperature} mm, tolerance "
             f"{cfg.tolerance_xy} m / {math.degrees(cfg.tolerance_theta):.2f} deg, max steps "
-            f"{self.params.max_steps}")
+            f"{self.params.max_steps}, after the goal: {self.params.after_goal}")
         self._publish_status()
+
+    # ---- robustness --------------------------------------------------------------------------
+    def _guard(self, callback: Callable[..., Any]) -> Callable[..., Any]:
+        """``callback`` wrapped by :func:`push_ros.node.guarded` (nothing escapes a callback)."""
+        return guarded(callback, self._log, self._on_callback_error, callback.__name__)
+
+    def _on_callback_error(self, name: str, message: str) -> None:
+        """An exception reached a guard (which logged it): count it, report it."""
+        self._errors += 1
+        self._last_error = f"{name}: {message}"
+        self._note, self._level = f"error in {name}: {message}", DiagnosticStatus.WARN
+        self._publish_status()
+
+    def _clock_seconds(self) -> float | None:
+        """The node's clock, s; None while a sim-time clock has not started (reads 0)."""
+        clock = self.get_clock()
+        ns = clock.now().nanoseconds
+        if clock.ros_time_is_active and ns <= 0:
+            return None
+        return ns * 1e-9
+
+    def _check_stamp(self, stamp: float) -> None:
+        """``ValueError`` if ``stamp`` (s) is more than ``max_future_stamp`` ahead of the node's
+        clock (not applied while a sim-time clock reads 0)."""
+        now = self._clock_seconds()
+        if now is not None and stamp > now + self.params.max_future_stamp:
+            raise ValueError(f"stamp {stamp:.9f} s is {stamp - now:.3f} s ahead of the node's "
+                             f"clock (max_future_stamp {self.params.max_future_stamp} s)")
 
     # ---- episode -----------------------------------------------------------------------------
     def _new_episode(self) -> None:
@@ -340,6 +415,9 @@ class PlannerNode(Node):
         self._level = DiagnosticStatus.OK
         self._poses.clear()
         self._states.clear()
+        #: Who published the current goal (:func:`_goal_source`), "" = nobody yet.
+        self._goal_source = ""
+        self._goal_sequence: int | None = None
 
     def _read_params(self) -> PlannerNodeParams:
         return PlannerNodeParams.from_values(parameter_values(self, PARAMETERS))
@@ -358,15 +436,17 @@ class PlannerNode(Node):
             return response
         self.params, self._model, self._planner = params, model, planner
         outline = self._engine.outline
-        self._engine = EpisodeEngine(planner, params.max_steps, counts=self._engine.counts)
+        self._engine = EpisodeEngine(planner, params.max_steps, after_goal=params.after_goal,
+                                     counts=self._engine.counts)
         if outline is not None:
             self._engine.set_outline(outline)
         self._new_episode()
         cfg = params.planner
         response.success = True
-        response.message = (f"new episode: step 0, estimates and goal forgotten, outline kept; "
-                            f"method {cfg.method}{' (direct)' if cfg.direct else ''}, k {cfg.k}, "
-                            f"seed {cfg.seed}, max steps {params.max_steps}")
+        response.message = (f"new episode: step 0, estimates, pushes and goal forgotten, "
+                            f"outline kept; method {cfg.method}{' (direct)' if cfg.direct else ''}"
+                            f", k {cfg.k}, seed {cfg.seed}, max steps {params.max_steps}, after "
+                            f"the goal: {params.after_goal}")
         self.get_logger().info(f"reset: {response.message}")
         self._publish_status()
         return response
@@ -374,36 +454,76 @@ class PlannerNode(Node):
     # ---- inputs ------------------------------------------------------------------------------
     def _refuse(self, what: str, reason: str) -> None:
         self._refused += 1
-        self._last_refusal = f"{what}: {reason}"
-        self._note = f"refused {what}: {reason}"
+        self._last_refusal = f"{what}: {reason}"[:500]
+        self._note = f"refused {what}: {reason}"[:500]
         self._level = DiagnosticStatus.WARN
-        self.get_logger().warning(f"refused {what}: {reason}")
+        self._log.warning(f"refused:{what}", f"refused {what}: {reason}"[:500])
         self._publish_status()
 
-    def _on_goal(self, msg: PoseStamped) -> None:
+    def _on_goal(self, msg: PoseStamped, info: Any = None) -> None:
+        source, sequence = _goal_source(info)
+        previous, self._goal_sequence = self._goal_sequence, sequence
         try:
             goal = _goal_from_msg(msg, self.params.planner.workspace)
         except ValueError as exc:
             self._refuse("goal_pose", str(exc))
             return
+        switched = self._is_other_source(source, sequence, previous)
+        self._goal_source = source
         self._engine.new_goal(goal)
         self._failure = ""
         self._note, self._level = "", DiagnosticStatus.OK
-        self.get_logger().info(f"new goal (x {goal[0]:.4f} m, y {goal[1]:.4f} m, theta "
-                               f"{goal[2]:.4f} rad): new episode")
+        text = (f"new goal (x {goal[0]:.4f} m, y {goal[1]:.4f} m, theta {goal[2]:.4f} rad)"
+                f"{f' from {source}' if source else ''}: new episode")
+        if switched:
+            self._goal_switches += 1
+            self._note = (f"goal replaced by another publisher ({source or 'unknown'}; "
+                          f"goal_pose publishers: {self._goal_publishers()})")
+            self._level = DiagnosticStatus.WARN
+            self.get_logger().warning(f"{text}; {self._note}")
+        else:
+            self.get_logger().info(text)
         self._try_plan()
         self._publish_status()
+
+    def _is_other_source(self, source: str, sequence: int | None,
+                         previous: int | None) -> bool:
+        """Whether a goal comes from another publisher than the current goal's.
+
+        With a publisher GID in the message info: compared. Without (rclpy Jazzy's
+        MessageInfo has none): a publisher numbers its messages 1, 2, 3, ..., so a goal whose
+        ``publication_sequence_number`` does not follow that of the previous ``goal_pose``
+        message (``previous``, refused ones included) is taken to come from another publisher
+        (or a restarted one). Never for the first goal of an episode.
+        """
+        if self._engine.goal is None:
+            return False
+        if source or self._goal_source:
+            return source != self._goal_source
+        return sequence is not None and previous is not None and sequence != previous + 1
+
+    def _goal_publishers(self) -> str:
+        """The publishers of ``goal_pose`` now: node names and endpoint GIDs."""
+        try:
+            infos = self.get_publishers_info_by_topic(self.resolve_topic_name("goal_pose"))
+        except Exception as exc:  # noqa: BLE001 - only for the log line
+            return f"unknown ({exc})"
+        return ", ".join(f"{i.node_namespace.rstrip('/')}/{i.node_name} (gid "
+                         f"{'.'.join(format(x, '02x') for x in i.endpoint_gid)})"
+                         for i in infos) or "none"
 
     def _on_outline(self, msg: PointCloud2) -> None:
         try:
             points, normals = outline_from_cloud(msg)
-            outline = prepare_outline(points, normals,
-                                      simplify_tolerance=self.params.planner.simplify_tolerance)
+            outline = self._planner.check_outline(prepare_outline(
+                points, normals, simplify_tolerance=self.params.planner.simplify_tolerance))
         except ValueError as exc:
             self._refuse("perception/outline", str(exc))
             return
         self._engine.set_outline(outline)  # also forgets the avoided points of another outline
-        self.get_logger().info(f"outline with {len(outline.points)} points "
+        decimated = (f", decimated from {outline.source_points}"
+                     if outline.source_points > len(outline.points) else "")
+        self.get_logger().info(f"outline with {len(outline.points)} points{decimated} "
                                f"({len(outline.polyline)}-vertex contact polyline)")
         self._try_plan()
         self._publish_status()
@@ -411,6 +531,7 @@ class PlannerNode(Node):
     def _on_pose(self, msg: PoseWithCovarianceStamped) -> None:
         try:
             estimate = pose_with_covariance_from_msg(msg)
+            self._check_stamp(estimate.stamp)
         except ValueError as exc:
             self._refuse("estimator/object_pose", str(exc))
             return
@@ -440,6 +561,7 @@ class PlannerNode(Node):
 
     def _on_estimate(self, stamp: float, state: np.ndarray, covariance: np.ndarray) -> None:
         try:
+            check_state(state, self._engine.outline)  # before the engine sees it
             self._engine.estimate(stamp, state, covariance)
         except ValueError as exc:
             self._refuse("estimate", str(exc))
@@ -448,13 +570,19 @@ class PlannerNode(Node):
         self._publish_status()
 
     def _on_executed(self, msg: Path) -> None:
-        if msg.header.frame_id != WORLD_FRAME or not msg.poses:
-            self._refuse("pusher/executed", f"expected poses in 'world', got "
-                         f"{len(msg.poses)} poses in {msg.header.frame_id!r}")
+        try:
+            if msg.header.frame_id != WORLD_FRAME or not msg.poses:
+                raise ValueError(f"expected poses in 'world', got {len(msg.poses)} poses in "
+                                 f"{msg.header.frame_id!r}")
+            end = max([seconds_from_stamp(msg.header.stamp)]
+                      + [seconds_from_stamp(p.header.stamp) for p in msg.poses])
+            self._check_stamp(end)
+        except ValueError as exc:
+            self._refuse("pusher/executed", str(exc))
             return
-        end = max([seconds_from_stamp(msg.header.stamp)]
-                  + [seconds_from_stamp(p.header.stamp) for p in msg.poses])
-        self._engine.push_executed(end)  # the object may have moved: nothing avoided
+        # Ours or anybody's: the object may have moved, so nothing is avoided and estimates
+        # before its end are stale (a push after "goal reached" is then seen, rule 7).
+        self._engine.push_executed(end)
         self._try_plan()
         self._publish_status()
 
@@ -477,11 +605,16 @@ class PlannerNode(Node):
 
     # ---- planning ----------------------------------------------------------------------------
     def _try_plan(self) -> None:
-        """Ask the episode engine (stale-estimate rule, stop rule, max steps) and act on it."""
+        """Ask the episode engine (stale-estimate rule, stop rule, max steps, watching after the
+        goal) and act on it."""
         step = self._engine.step()
         if step.action == "reached":
             self._note, self._level = "", DiagnosticStatus.OK
             self.get_logger().info(f"goal reached after {self._engine.steps} pushes")
+        elif step.action == "left":
+            self._note, self._level = f"{step.reason} (after_goal: report)", DiagnosticStatus.WARN
+            self.get_logger().warning(f"object {step.reason}; reported only (after_goal: "
+                                      f"report)")
         elif step.action == "failed":
             self._failure = ("failed after max steps" if self._engine.failure == "max steps"
                              else "failed: no feasible push")
@@ -492,6 +625,10 @@ class PlannerNode(Node):
             self._refuse("estimate", step.reason)
         elif step.action == "push":
             self._publish_push(step.plan, step.state)
+            if step.resumed:
+                self._note = f"{step.reason}; pushing again (after_goal: resume)"
+                self._level = DiagnosticStatus.WARN
+                self.get_logger().warning(f"object {self._note}")
 
     def _publish_push(self, plan: PushPlan, state: np.ndarray) -> None:
         self._note, self._level = "", DiagnosticStatus.OK
@@ -518,6 +655,8 @@ class PlannerNode(Node):
             message = "goal reached"
             if not self._orientation_matters():
                 message += f" ({ORIENTATION_IGNORED})"
+        elif phase == "left":
+            message = "goal left"
         elif phase == "failed":
             message = self._failure
         else:
@@ -529,12 +668,15 @@ class PlannerNode(Node):
         if self._note:
             message += f" - {self._note}"
         goal = "" if engine.goal is None else " ".join(f"{v:.4f}" for v in engine.goal)
-        counts = {k: v for k, v in engine.counts.items() if k != "lost"}
+        counts = {k: v for k, v in engine.counts.items() if k not in ("lost", "left")}
         values = {"state": phase, "step": engine.steps, "max_steps": self.params.max_steps,
                   "goal": goal, "orientation": "used" if self._orientation_matters() else
                   "ignored", **counts, "refused": self._refused, "lost": engine.counts["lost"],
                   "last_refusal": self._last_refusal,
-                  "last_push_end": f"{engine.last_push_end:.6f}"}
+                  "last_push_end": f"{engine.last_push_end:.6f}",
+                  "left_goal": engine.counts["left"], "after_goal": self.params.after_goal,
+                  "goal_source": self._goal_source, "goal_switches": self._goal_switches,
+                  "errors": self._errors, "last_error": self._last_error}
         return self._diagnostics.status(self._level, message, values)
 
     def _orientation_matters(self) -> bool:
@@ -548,6 +690,27 @@ class PlannerNode(Node):
 
     def _publish_diagnostics(self, status: DiagnosticStatus | None = None) -> None:
         self._diagnostics.publisher.publish(self._diagnostics.array(status or self._status()))
+
+
+def _goal_source(info: Any) -> tuple[str, int | None]:
+    """(publisher GID as hex or "", publication sequence number or None) of a message info.
+
+    rclpy Jazzy's message info (a dict) carries ``publication_sequence_number`` but no
+    publisher GID; a ``publisher_gid`` entry (later rclpy) is used when present.
+    """
+    if not isinstance(info, dict):
+        return "", None
+    gid = info.get("publisher_gid")
+    data = gid.get("data") if isinstance(gid, dict) else gid
+    source = ""
+    if data is not None:
+        try:
+            source = "gid " + ".".join(format(int(x), "02x") for x in data)
+        except (TypeError, ValueError):
+            source = ""
+    sequence = info.get("publication_sequence_number")
+    return source, sequence if isinstance(sequence, int) and not isinstance(sequence, bool) \
+        else None
 
 
 def main(args: list[str] | None = None) -> None:
