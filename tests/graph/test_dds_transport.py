@@ -59,6 +59,7 @@ def test_session_uses_the_bundled_profile() -> None:
     text = profile_path().read_text()
     assert "<segment_size>33554432</segment_size>" in text
     assert "<receiveBufferSize>4194304</receiveBufferSize>" in text
+    assert "<address>127.0.0.1</address>" in text  # loopback only (test_closed_graph.py)
 
 
 def test_full_size_frames_reach_another_process(processes: ProcessManager) -> None:

@@ -7,7 +7,12 @@ Checks, one output line each (``OK`` or ``FAIL`` and a reason):
 - the DDS environment: ``ROS_DOMAIN_ID``, ``ROS_AUTOMATIC_DISCOVERY_RANGE``, the RMW in use;
 - a real two-process publish/subscribe round trip on this machine: a subscriber and a
   publisher run as two subprocesses of this Python (``python -m pushbot.doctor_probe``) and
-  must exchange messages carrying a random nonce within ``--timeout`` seconds.
+  must exchange messages carrying a random nonce within ``--timeout`` seconds;
+- the network exposure (``DDS exposure``): the discovery range, whether the DDS profile in
+  effect binds loopback only, and the UDP sockets the probes' participants actually held
+  (``/proc``). ``closed`` when DDS receives on loopback only; ``OPEN by choice`` (still OK,
+  with the warning) when ``PUSHBOT_DDS_NETWORK=1`` or ``ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET``
+  opened it; FAIL when DDS receives on a non-loopback address nobody asked for.
 
 Test hook: ``PUSHBOT_DOCTOR_SUB_DOMAIN_OFFSET=k`` starts the probe subscriber on domain
 ``ROS_DOMAIN_ID + k``, which makes the exchange fail for real (used by the test suite to check
@@ -21,6 +26,7 @@ import contextlib
 import ctypes
 import importlib
 import importlib.metadata
+import ipaddress
 import json
 import os
 import secrets
@@ -30,7 +36,7 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
-from pushbot.dds import PROFILE_ENV
+from pushbot.dds import NETWORK_ENV, PROFILE_ENV, RANGE_ENV, network_reason, profile_path
 from pushbot.doctor_probe import DEFAULT_COUNT, DEFAULT_TIMEOUT
 
 SUB_DOMAIN_OFFSET_ENV = 'PUSHBOT_DOCTOR_SUB_DOMAIN_OFFSET'
@@ -177,7 +183,8 @@ def check_environment() -> list[Check]:
     else:
         checks.append(Check('discovery range', True, scope))
     notes = [f'{key}={os.environ[key]}' for key in (
-        'FASTDDS_BUILTIN_TRANSPORTS', 'ROS_LOCALHOST_ONLY', 'ROS_STATIC_PEERS', PROFILE_ENV
+        'FASTDDS_BUILTIN_TRANSPORTS', 'ROS_LOCALHOST_ONLY', 'ROS_STATIC_PEERS', PROFILE_ENV,
+        NETWORK_ENV,
     ) if os.environ.get(key)]
     checks.append(Check('DDS settings', True, ', '.join(notes) or 'no overrides'))
     return checks
@@ -208,8 +215,68 @@ def _report(output: str) -> dict:
     return {}
 
 
-def check_pubsub(timeout: float, count: int) -> Check:
-    """Exchange ``count`` messages between two fresh processes within ``timeout`` seconds."""
+def profile_binding(path: str | None) -> str:
+    """What the profile at ``path`` does with the UDPv4 interfaces, in a few words."""
+    if not path:
+        return 'no profile: Fast DDS builtin transports on every interface'
+    if path == str(profile_path()):
+        return 'profile binds 127.0.0.1 only (pushbot fastdds.xml)'
+    if path == str(profile_path(network=True)):
+        return 'profile binds every interface (pushbot fastdds_network.xml)'
+    try:
+        text = open(path, encoding='utf-8').read()
+    except OSError as exc:
+        return f'profile {path} unreadable ({exc.strerror})'
+    if 'interfaceWhiteList' in text or '<allowlist>' in text:
+        return f'profile {path} has an interface allowlist'
+    return f'profile {path} has no interface allowlist'
+
+
+def check_exposure(reports: list[dict]) -> Check:
+    """The exposure verdict from the environment, the profile and the probes' sockets."""
+    name = 'DDS exposure'
+    scope = os.environ.get(RANGE_ENV) or 'SUBNET (default)'
+    reason = network_reason()
+    parts = [f'discovery {scope}', profile_binding(os.environ.get(PROFILE_ENV))]
+    listed = [r['sockets'] for r in reports if isinstance(r.get('sockets'), list)]
+    if not listed:
+        why = next((r['sockets'] for r in reports if isinstance(r.get('sockets'), str)),
+                   'the probes reported no sockets')
+        detail = '; '.join(parts + [why])
+        if reason:
+            return Check(name, True, f'OPEN by choice ({reason}): {detail}')
+        return Check(name, False, f'unverified: {detail}')
+    sockets = {(s['address'], s['port'], s['receiving']) for sockets in listed for s in sockets}
+    exposed = sorted(f'{a}:{p}' for a, p, rx in sockets if rx and not _loopback(a))
+    sending = sorted(f'{a}:{p}' for a, p, rx in sockets if not rx and not _loopback(a))
+    receiving = sorted(f'{a}:{p}' for a, p, rx in sockets if rx and _loopback(a))
+    parts.append('probe receives on ' + (', '.join(exposed + receiving) or 'no UDP socket'))
+    if sending:
+        parts.append('send sockets on ' + ', '.join(sending))
+    detail = '; '.join(parts)
+    if reason:
+        return Check(name, True, f'OPEN by choice ({reason}): {detail}. WARNING: DDS without '
+                                 'security lets any peer on the network command the robot')
+    if exposed:
+        return Check(name, False, f'OPEN to the network: {detail}. Unset {RANGE_ENV} and '
+                                  f'{PROFILE_ENV} for pushbot\'s loopback-only default')
+    if sending:
+        hint = (f' (rmw_fastrtps adds them under {RANGE_ENV}=LOCALHOST; unset it for '
+                'loopback-only sockets)') if os.environ.get(RANGE_ENV) == 'LOCALHOST' else ''
+        return Check(name, True, f'closed (DDS receives on loopback only): {detail}{hint}')
+    return Check(name, True, f'closed (loopback only): {detail}')
+
+
+def _loopback(address: str) -> bool:
+    ip = ipaddress.ip_address(address)
+    return ip.is_loopback or ip.is_multicast
+
+
+def check_pubsub(timeout: float, count: int, reports: list[dict] | None = None) -> Check:
+    """Exchange ``count`` messages between two fresh processes within ``timeout`` seconds.
+
+    The probes' JSON reports are appended to ``reports`` when given.
+    """
     name = 'pub/sub (2 processes)'
     nonce = secrets.token_hex(6)
     hook = None
@@ -240,6 +307,8 @@ def check_pubsub(timeout: float, count: int) -> Check:
                 proc.wait()
     elapsed = time.monotonic() - start
     sub, pub = _report(outputs['sub'][0]), _report(outputs['pub'][0])
+    if reports is not None:
+        reports += [sub, pub]
     suffix = f' [{hook}]' if hook else ''
     for role, report in (('sub', sub), ('pub', pub)):
         if 'error' in report:
@@ -283,12 +352,15 @@ def run_doctor(args: argparse.Namespace) -> int:
         checks.append(check)
         print(check.line(), flush=True)
     rclpy_ok = checks[0].ok
+    reports: list[dict] = []
     if rclpy_ok:
-        pubsub = check_pubsub(timeout, count)
+        pubsub = check_pubsub(timeout, count, reports)
     else:
         pubsub = Check('pub/sub (2 processes)', False, 'skipped: rclpy cannot be imported')
-    checks.append(pubsub)
-    print(pubsub.line(), flush=True)
+    exposure = check_exposure(reports)
+    for check in (pubsub, exposure):
+        checks.append(check)
+        print(check.line(), flush=True)
     failed = [c for c in checks if not c.ok]
     if failed:
         print(f'doctor: {len(failed)} of {len(checks)} checks FAILED: '

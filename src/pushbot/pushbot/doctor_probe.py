@@ -10,6 +10,8 @@ depth 10), so concurrent doctors never see each other's messages.
 
 Each side prints exactly one JSON line on stdout describing what happened and exits 0 only when
 its part succeeded: the sub when all K messages arrived, the pub when they were acknowledged.
+The report also lists the UDP sockets the side's participant holds (``sockets``: address, port,
+whether DDS receives on it; :func:`pushbot.dds.udp_sockets`), for doctor's exposure check.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ import time
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
+from pushbot.dds import udp_sockets
 from pushbot.graph import RosUnavailableError, cli_node, spin_until
 
 if TYPE_CHECKING:
@@ -43,6 +46,15 @@ def _reliable_qos() -> QoSProfile:
     )
 
 
+def own_sockets() -> list[dict] | str:
+    """This process's UDP sockets as JSON-ready dicts, or why they cannot be listed."""
+    try:
+        return [{'address': s.address, 'port': s.port, 'receiving': s.receiving}
+                for s in udp_sockets()]
+    except OSError as exc:
+        return f'cannot list sockets ({exc})'
+
+
 def run_publisher(nonce: str, count: int, timeout: float) -> dict:
     """Publish ``count`` nonce messages once a subscriber matched; return a report dict."""
     from rclpy.duration import Duration
@@ -56,6 +68,7 @@ def run_publisher(nonce: str, count: int, timeout: float) -> dict:
         report['matched'] = spin_until(
             executor, lambda: pub.get_subscription_count() > 0, deadline
         )
+        report['sockets'] = own_sockets()
         if report['matched']:
             for i in range(count):
                 pub.publish(String(data=f'{nonce}:{i}'))
@@ -96,6 +109,7 @@ def run_subscriber(nonce: str, count: int, timeout: float) -> dict:
             return len(received) >= count
 
         spin_until(executor, done, deadline)
+        report['sockets'] = own_sockets()
     report.update(
         received=len(received),
         expected=count,
