@@ -488,3 +488,127 @@ def test_lrn_method_plans_with_the_bundled_model(ros_context: Any,
         h.executor.shutdown()
         h.client.destroy_node()
         h.node.destroy_node()
+
+
+def call_reset(h: Harness) -> Any:
+    reset = h.client.create_client(Trigger, "planner_node/reset")
+    assert reset.wait_for_service(timeout_sec=10.0)
+    future = reset.call_async(Trigger.Request())
+    assert h.spin_until(future.done)
+    return future.result()
+
+
+def test_far_future_stamps_are_refused(harness: Harness) -> None:
+    h = harness
+    h.publish_outline(*rect1_outline())
+    h.publish_goal(0.1, 0.0, 0.0)
+    assert h.spin_until(lambda: h.status[-1].message == "waiting for estimate")
+    h.publish_executed(2147483645.0, 2147483646.0)  # wall clock + far more than 10 s
+    assert h.spin_until(lambda: h.count("refused") == 1)
+    assert "ahead of the node's clock" in h.values()["last_refusal"]
+    assert h.values()["last_push_end"] == "-inf"  # no state change
+    h.publish_estimate((0.0, 0.0, 0.0), stamp=2147483646.0)
+    assert h.spin_until(lambda: h.count("refused") == 2)
+    assert h.values()["last_refusal"].startswith("estimator/object_pose")
+    assert h.count("estimates") == 0
+    h.publish_estimate((0.0, 0.0, 0.0), stamp=5.0)  # the node still plans
+    assert h.spin_until(lambda: len(h.pushes) == 1)
+
+
+def test_reset_clears_a_wedge_accepted_before_the_clock_started(
+        ros_context: Any, wait_for: Callable[..., bool]) -> None:
+    # use_sim_time without /clock: the clock reads 0, the future rule cannot apply, the
+    # far-future push end is accepted and makes every estimate stale; ~/reset forgets it.
+    h = make_harness(ros_context, wait_for, [Parameter("use_sim_time", value=True)])
+    try:
+        h.publish_outline(*rect1_outline())
+        h.publish_goal(0.1, 0.0, 0.0)
+        h.publish_executed(2147483645.0, 2147483646.0)
+        assert h.spin_until(lambda: h.values().get("last_push_end") == "2147483646.000000")
+        h.publish_estimate((0.0, 0.0, 0.0), stamp=5.0)
+        assert h.spin_until(lambda: h.count("ignored_stale") == 1)
+        assert not h.pushes
+        assert call_reset(h).success
+        assert h.spin_until(lambda: h.values().get("last_push_end") == "-inf"
+                            and h.status[-1].message == "waiting for goal, estimate")
+        h.publish_goal(0.1, 0.0, 0.0)
+        h.publish_estimate((0.0, 0.0, 0.0), stamp=6.0)
+        assert h.spin_until(lambda: len(h.pushes) == 1)
+    finally:
+        h.executor.shutdown()
+        h.client.destroy_node()
+        h.node.destroy_node()
+
+
+@pytest.mark.parametrize("after_goal", ["resume", "report"])
+def test_after_the_goal_a_displaced_object_is_reported_and_pushed_again(
+        ros_context: Any, wait_for: Callable[..., bool], after_goal: str) -> None:
+    h = make_harness(ros_context, wait_for, [Parameter("k", value=1), Parameter("seed", value=3),
+                                             Parameter("after_goal", value=after_goal)])
+    try:
+        h.publish_outline(*rect1_outline())
+        h.publish_goal(0.1, 0.0, 0.0)
+        h.publish_estimate((0.099, 0.0, 0.0), stamp=1.0)
+        assert h.spin_until(lambda: h.status[-1].message == "goal reached")
+        # Another client pushes the object 3 cm off (its pusher/executed), the next estimate
+        # shows it.
+        h.publish_executed(2.0, 3.0)
+        assert h.spin_until(lambda: h.values().get("last_push_end") == "3.000000")
+        h.publish_estimate((0.07, 0.0, 0.0), stamp=4.0)
+        assert h.spin_until(lambda: h.values().get("left_goal") == "1")
+        message = h.status[-1].message
+        assert h.status[-1].level == DiagnosticStatus.WARN and "left the goal region" in message
+        if after_goal == "resume":
+            assert h.spin_until(lambda: len(h.pushes) == 1)
+            assert message.startswith("pushing step 1 - left the goal region") and \
+                "pushing again" in message
+        else:
+            assert message.startswith("goal left - left the goal region")
+            assert h.values()["state"] == "left" and not h.pushes
+            h.publish_estimate((0.1, 0.0, 0.0), stamp=5.0)  # put back
+            assert h.spin_until(lambda: h.status[-1].message == "goal reached")
+    finally:
+        h.executor.shutdown()
+        h.client.destroy_node()
+        h.node.destroy_node()
+
+
+def test_a_goal_from_another_publisher_is_noted(harness: Harness) -> None:
+    h = harness
+    other = h.client.create_publisher(PoseStamped, "goal_pose", RELIABLE_QOS)
+    assert h.spin_until(lambda: other.get_subscription_count() > 0)
+    h.publish_outline(*rect1_outline())
+    h.publish_goal(0.1, 0.0, 0.0)
+    assert h.spin_until(lambda: h.values().get("goal") == "0.1000 0.0000 0.0000")
+    h.publish_goal(0.1, 0.05, 0.0)  # the same publisher again: not a switch
+    assert h.spin_until(lambda: h.values().get("goal") == "0.1000 0.0500 0.0000")
+    assert h.values()["goal_switches"] == "0"
+    msg = PoseStamped()
+    msg.header.frame_id = "world"
+    msg.pose.position.x, msg.pose.orientation.w = -0.1, 1.0
+    other.publish(msg)
+    assert h.spin_until(lambda: h.values().get("goal_switches") == "1")
+    assert h.values()["goal"] == "-0.1000 0.0000 0.0000"  # taken, but not silently
+    assert "goal replaced by another publisher" in h.status[-1].message
+    assert "planner_test_client (gid" in h.status[-1].message
+    assert h.status[-1].level == DiagnosticStatus.WARN
+
+
+def test_an_exception_in_a_callback_is_counted_and_the_node_keeps_working(
+        harness: Harness) -> None:
+    h = harness
+    planner, original = h.node._planner, h.node._planner.plan
+
+    def broken(*args: Any, **kwargs: Any) -> Any:
+        raise RuntimeError("injected fault")
+
+    planner.plan = broken
+    h.publish_outline(*rect1_outline())
+    h.publish_goal(0.1, 0.0, 0.0)
+    h.publish_estimate((0.0, 0.0, 0.0), stamp=1.0)
+    assert h.spin_until(lambda: h.values().get("errors") == "1")
+    assert "injected fault" in h.values()["last_error"]
+    assert h.status[-1].level == DiagnosticStatus.WARN
+    planner.plan = original
+    h.publish_estimate((0.0, 0.0, 0.0), stamp=2.0)
+    assert h.spin_until(lambda: len(h.pushes) == 1)
