@@ -35,8 +35,11 @@ from pushbot.dds import NETWORK_ENV, PROFILE_ENV, RANGE_ENV, udp_sockets
 if TYPE_CHECKING:  # the fixtures come from tests/conftest.py
     from conftest import ProcessManager
 
-pytestmark = [pytest.mark.ros, pytest.mark.skipif(not os.path.isdir('/proc/self/net'),
-                                                  reason='needs Linux /proc')]
+pytestmark = [
+    pytest.mark.ros,
+    pytest.mark.graph,
+    pytest.mark.skipif(not os.path.isdir('/proc/self/net'), reason='needs Linux /proc'),
+]
 
 MULTICAST_GROUP = '239.255.0.1'  # RTPS default discovery group
 SPDP_WRITER = b'\x00\x01\x00\xc2'  # ENTITYID_SPDP_BUILTIN_RTPSParticipant_WRITER

@@ -23,10 +23,15 @@ Arguments:
 
 Which nodes, parameters and remappings is decided by :func:`pushbot_bringup.graph.graph_nodes`
 (a plain function, tested without ``launch``); this file only turns its answer into ``Node``
-actions. Every node also gets the project's Fast DDS profile (``FASTRTPS_DEFAULT_PROFILES_FILE``
-unless already set; :func:`pushbot_bringup.graph.dds_environment`), without which most 640 x 480
-camera images never reach segmentation_node in another process (docs/ARCHITECTURE.md, "DDS
-profile").
+actions. Every node also gets the project's DDS environment
+(:func:`pushbot_bringup.graph.dds_environment`, the same rule as ``pushbot``): the Fast DDS
+profile (``FASTRTPS_DEFAULT_PROFILES_FILE`` unless already set), without which most 640 x 480
+camera images never reach segmentation_node in another process, and which binds UDP to
+127.0.0.1 only, with ``ROS_AUTOMATIC_DISCOVERY_RANGE=SYSTEM_DEFAULT`` unless a range is set: a
+closed graph. ``PUSHBOT_DDS_NETWORK=1`` (or ``ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET``) in the
+environment of ``ros2 launch`` opens it to the network, without DDS-Security (README,
+"Security"; docs/ARCHITECTURE.md, "DDS profile"). Under SROS2 Enforce each ``Node`` would also
+need ``ros_arguments=['--enclave', '/pushbot/<executable>']`` (not passed today).
 """
 
 from __future__ import annotations
