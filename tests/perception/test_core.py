@@ -11,6 +11,8 @@ import pytest
 from push_core.geometry import closest_point_on_polyline, object_to_world
 from push_core.objects import load_object
 from push_perception.core import (
+    MAX_OUTLINE_POINTS,
+    MAX_RASTER_SIDE,
     EpisodeTracker,
     PerceptionConfig,
     PerceptionError,
@@ -83,6 +85,27 @@ def test_config_validation_names_the_field() -> None:
         PerceptionConfig(closing_radius=1.5)
 
 
+@pytest.mark.parametrize(("values", "field"), [
+    ({"resolution": 2e-4}, "resolution"),        # the view falls apart: no pose (issue 15)
+    ({"resolution": 5e-3}, "resolution"),        # 2 deg of yaw error
+    ({"closing_radius": 0}, "closing_radius"),   # fragmented
+    ({"closing_radius": 1}, "closing_radius"),
+    ({"resolution": 3e-3, "closing_radius": 5}, "closing_radius"),  # 15 mm: 4.6 mm, 5 deg off
+    ({"outline_spacing": 2e-4}, "outline_spacing"),
+    ({"min_height": 0.02}, "min_height"),        # above the objects' 13 mm: no points left
+])
+def test_config_refuses_values_that_break_the_pose(values, field) -> None:
+    with pytest.raises(ValueError, match=f"^{field}"):
+        PerceptionConfig(**values)
+
+
+def test_config_accepts_the_measured_ranges() -> None:
+    for values in ({"resolution": 5e-4}, {"resolution": 3e-3}, {"closing_radius": 10},
+                   {"resolution": 2e-3, "closing_radius": 5}, {"outline_spacing": 5e-4},
+                   {"outline_spacing": 0.01}, {"min_height": 0.01}):
+        PerceptionConfig(**values)
+
+
 # --------------------------------------------------------------------------------------------
 # Top-down view and outline
 # --------------------------------------------------------------------------------------------
@@ -109,6 +132,18 @@ def test_top_down_view_without_object_points_raises() -> None:
     with pytest.raises(PerceptionError, match="above the table") as info:
         top_down_view(np.array([[0.0, 0.0, 0.001], [0.01, 0.0, 0.0], [0.0, 0.01, 0.0]]), CFG)
     assert info.value.kind == "few_pixels"
+
+
+@pytest.mark.parametrize("far", [100.0, 1e23])
+def test_absurd_extent_is_refused_before_the_raster_is_allocated(far: float) -> None:
+    # A few points 100 m apart would need a 100 000-cell raster side; 1e23 m is beyond what
+    # float64 resolves in millimetres.
+    pts = plate_points(LOPSIDED, np.zeros(3))
+    pts = np.vstack([pts, [[far, far, 0.013]]]) if far < 1e3 else pts + [far, 0.0, 0.0]
+    with pytest.raises(PerceptionError, match="m") as info:
+        top_down_view(pts, CFG)
+    assert info.value.kind == "too_large"
+    assert str(MAX_RASTER_SIDE) in str(info.value) or "origin" in str(info.value)
 
 
 def test_smooth_outline_of_a_rasterised_circle() -> None:
@@ -207,6 +242,23 @@ def test_sample_sdf_reads_more_points_than_one_remap_takes(make_frame) -> None:
 # --------------------------------------------------------------------------------------------
 # The tracker
 # --------------------------------------------------------------------------------------------
+def test_a_long_outline_is_capped_and_the_rotation_search_still_works(make_frame) -> None:
+    # A 40 x 30 cm object at 0.5 mm spacing would have ~2400 outline points (the issue: > 820
+    # crashed cv2.remap in the coarse search); it gets MAX_OUTLINE_POINTS, evenly spread.
+    big = 4.0 * LOPSIDED
+    cfg = PerceptionConfig(outline_spacing=5e-4)
+    tracker = EpisodeTracker(cfg)
+    f0 = make_frame(big, np.array([0.0, 0.0, 0.0]))
+    tracker.update(f0.mask, f0.depth, f0.camera_matrix, f0.T_world_camera)
+    points, normals = tracker.outline
+    assert len(points) == MAX_OUTLINE_POINTS and normals.shape == points.shape
+    gaps = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    assert gaps.max() < 1.5 * np.median(gaps)
+    f1 = make_frame(big, np.array([0.01, -0.01, 0.2]))
+    meas = tracker.update(f1.mask, f1.depth, f1.camera_matrix, f1.T_world_camera)
+    assert meas.pose[2] == pytest.approx(0.2, abs=math.radians(0.5))
+
+
 def test_tracker_measures_pose_and_outline_in_the_object_frame(make_frame) -> None:
     tracker = EpisodeTracker()
     pose0 = np.array([0.03, 0.05, 1.0])

@@ -66,6 +66,9 @@ table-top scene gives, so they never act on one): the top-down raster is at most
 e.g. from absurd intrinsics, extrinsics or depth, is a :class:`PerceptionError` of kind
 ``"too_large"``); an outline has at most ``MAX_OUTLINE_POINTS`` (1000) points (a longer
 boundary is resampled with the spacing widened to fit: 2 m of perimeter at the default 2 mm);
+object points farther than ``MAX_COORDINATE`` (1 km) from the origin are ``"too_large"`` too
+(float64 no longer resolves a cell there) and a footprint of fewer than
+``MIN_FOOTPRINT_CELLS`` cells is ``"few_pixels"``;
 the dense curve it is smoothed on has at most ``MAX_DENSE_POINTS``; the rotation search
 refines at most ``MAX_REFINED_MINIMA`` (64) coarse minima (the lowest; a 3 degree grid has at
 most 60) and reads the signed distance fields in remap calls of bounded size.
@@ -111,6 +114,10 @@ NOMINAL_PIXELS = 5000
 MIN_FOOTPRINT_SHARE = 0.9
 #: Range of the closing radius in metres (``closing_radius * resolution``), PerceptionConfig.
 CLOSING_RANGE = (0.001, 0.01)
+#: Largest |x|, |y| of an object point in ``world``, m (the table scene spans about a metre).
+MAX_COORDINATE = 1000.0
+#: Smallest footprint, cells (a library object covers thousands at 1 mm).
+MIN_FOOTPRINT_CELLS = 9
 #: Largest side of the top-down raster, cells (2.048 m at the default 1 mm resolution).
 MAX_RASTER_SIDE = 2048
 #: Most outline points of one frame; a longer boundary is resampled with a wider spacing.
@@ -218,7 +225,7 @@ class PerceptionConfig:
             if isinstance(value, bool) or not (np.isfinite(value) and low <= value <= high):
                 raise ValueError(f"{name}: must be in [{low}, {high}], got {value!r}")
             object.__setattr__(self, name, float(value))
-        for name, low, high in (("closing_radius", 0, 10), ("min_pixels", 3, 10**7),
+        for name, low, high in (("closing_radius", 2, 10), ("min_pixels", 3, 10**7),
                                 ("max_border_pixels", 0, 10**7)):
             value = getattr(self, name)
             if isinstance(value, bool) or int(value) != value or not low <= value <= high:
@@ -387,6 +394,10 @@ def top_down_view(points: NDArray[np.float64], cfg: PerceptionConfig,
     if len(xy) < 3:
         raise PerceptionError("few_pixels", f"only {len(xy)} mask point(s) above the table "
                               f"(>{1e3 * cfg.min_height:.1f} mm)")
+    far = float(np.max(np.abs(xy)))
+    if not far <= MAX_COORDINATE:  # beyond it float64 cannot resolve millimetre cells
+        raise PerceptionError("too_large", f"object points {far:.3g} m from the world origin "
+                              f"(at most {MAX_COORDINATE:g} m; bad depth or extrinsics?)")
     res = cfg.resolution
     pad = max(pad, cfg.chamfer_truncation + 2 * res)
     lo = np.floor((xy.min(axis=0) - pad) / res) * res
@@ -418,6 +429,9 @@ def top_down_view(points: NDArray[np.float64], cfg: PerceptionConfig,
                               "apart (an object narrower than a few millimetres?)")
     mom = cv2.moments(img, binaryImage=True)
     cells = mom["m00"]
+    if cells < MIN_FOOTPRINT_CELLS or len(outer) < 3:
+        raise PerceptionError("few_pixels", f"the footprint covers only {cells:.0f} cells of "
+                              f"{1e3 * res:g} mm (need {MIN_FOOTPRINT_CELLS})")
     centroid = lo + (np.array([mom["m10"], mom["m01"]]) / cells + 0.5) * res
     area = cells * res * res
     # Polar second moment of the cells about the centroid (+ each cell's own, res^2 / 6).
