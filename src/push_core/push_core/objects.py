@@ -226,20 +226,67 @@ def _from_library_entry(name: str, entry: dict[str, Any]) -> ObjectSpec:
     return object_from_dict(spec, name=name, source=f"library:{name}")
 
 
+#: What each field of a specification file must be: the error of a file names the field and
+#: this rule, never the file's text (a path can name any file on the machine).
+_FIELD_RULES = {
+    "shape": "must be a mapping with a 'type' field (polygon or ellipse)",
+    "shape.type": "must be polygon or ellipse",
+    "shape.vertices": "must be at least 3 finite [x, y] vertices (m) of a simple "
+                      "counter-clockwise polygon with non-zero area",
+    "shape.semi_axes": "must be two finite numbers > 0 [a, b] (m)",
+    "thickness": "must be a finite number > 0 (m)",
+    "mass": "give exactly one of 'mass' (kg, > 0) or 'density' (kg/m^3, > 0)",
+    "density": "give exactly one of 'mass' (kg, > 0) or 'density' (kg/m^3, > 0)",
+    "com_offset": "must be two finite numbers [x, y] (m) inside the convex hull of the outline",
+    "friction_table": "must be a finite number >= 0",
+    "friction_pusher": "must be a finite number >= 0",
+}
+_KNOWN_FIELDS = ("com_offset", "density", "friction_pusher", "friction_table", "mass", "name",
+                 "shape", "thickness")
+
+
+def _spec_file_error(path: Path, problem: str) -> ValueError:
+    return ValueError(f"object: '{path}' is not a valid object specification: {problem}")
+
+
 def _load_spec_file(path: Path) -> ObjectSpec:
+    """Parse a specification file; its errors name a schema field and rule, never the file's
+    content (no parser context, no value, no unknown key)."""
     if not path.is_file():
         raise ValueError(f"object: specification file '{path}' does not exist")
-    text = path.read_text()
     try:
-        if path.suffix.lower() == ".json":
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError):
+        raise _spec_file_error(path, "cannot read it as UTF-8 text") from None
+    kind = "JSON" if path.suffix.lower() == ".json" else "YAML"
+    try:
+        if kind == "JSON":
             data = json.loads(text)
         else:
             import yaml
 
             data = yaml.safe_load(text)
     except Exception as exc:  # noqa: BLE001 - any parser error becomes a clear ValueError
-        raise ValueError(f"object: cannot parse '{path}': {exc}") from None
-    return object_from_dict(data, name=path.stem, source=str(path))
+        mark = getattr(exc, "problem_mark", None)
+        line = getattr(exc, "lineno", None) or (mark.line + 1 if mark is not None else None)
+        where = f" (line {line})" if line else ""
+        raise _spec_file_error(path, f"cannot parse it as {kind}{where}") from None
+    if not isinstance(data, dict):
+        raise _spec_file_error(path, "an object specification must be a mapping of fields "
+                               f"({', '.join(_KNOWN_FIELDS)})")
+    unknown = [key for key in data if key not in _KNOWN_FIELDS]
+    if unknown:
+        raise _spec_file_error(path, f"{len(unknown)} unknown field(s); the known fields are "
+                               f"{', '.join(_KNOWN_FIELDS)}")
+    try:
+        return object_from_dict(data, name=path.stem, source=str(path))
+    except Exception as exc:  # noqa: BLE001 - whatever the values, one clean ValueError
+        field, _, detail = str(exc).partition(":") if isinstance(exc, ValueError) else ("", "", "")
+        if field not in _FIELD_RULES:
+            raise _spec_file_error(path, "invalid shape or values") from None
+        rule = ("missing required field" if detail.strip() == "missing required field"
+                else _FIELD_RULES[field])
+        raise _spec_file_error(path, f"{field}: {rule}") from None
 
 
 _LIBRARY_CACHE: dict[str, Any] = {}

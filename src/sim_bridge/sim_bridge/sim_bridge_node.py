@@ -83,6 +83,8 @@ which would be worse); nothing is lost meanwhile, messages wait in their queues.
 from __future__ import annotations
 
 import math
+import os
+import stat
 import threading
 import traceback
 from collections.abc import Callable
@@ -101,11 +103,18 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import CameraInfo, Image
 from std_srvs.srv import Trigger
 
-from push_core.objects import load_object
+from push_core.objects import library_names, load_object
 from push_ros.diagnostics import DiagnosticsPublisher
 from push_ros.frames import CAMERA_FRAME, PUSHER_FRAME, WORLD_FRAME
 from push_ros.images import camera_info_msg, depth_image_msg, rgb_image_msg
-from push_ros.node import ParamSpec, ThrottledLog, declare_config, parameter_values, run_node
+from push_ros.node import (
+    ParamSpec,
+    ThrottledLog,
+    declare_config,
+    guarded,
+    parameter_values,
+    run_node,
+)
 from push_ros.paths import path_from_points, push_points_from_path
 from push_ros.poses import pose_stamped_msg, transform_msg
 from push_ros.qos import CLOCK_QOS, LATCHED_QOS, RELIABLE_QOS, SENSOR_QOS
@@ -123,6 +132,10 @@ __all__ = ["SimBridgeNode", "SimBridgeParams", "main"]
 LOG_THROTTLE_S = 1.0
 #: Period of the regular /diagnostics message, seconds of wall time.
 DIAGNOSTICS_PERIOD_S = 1.0
+#: Suffixes of the object specification files the ``object`` parameter accepts.
+SPEC_SUFFIXES = (".json", ".yaml", ".yml")
+#: Largest object specification file the ``object`` parameter reads, bytes (a spec is < 10 kB).
+MAX_SPEC_BYTES = 1 << 20
 
 
 # --------------------------------------------------------------------------------------------
@@ -218,10 +231,11 @@ class SimBridgeParams:
         name = str(values["object"]).strip()
         if not name:
             raise ValueError("parameter 'object' is empty; give a library name or a spec path")
+        check_object_parameter(name)
         try:
             load_object(name)
-        except (ValueError, OSError) as exc:
-            raise ValueError(f"parameter 'object' = {name!r}: {exc}") from exc
+        except (ValueError, OSError) as exc:  # load_object's messages never quote a file
+            raise ValueError(f"parameter 'object' = {name[:200]!r}: {exc}") from None
         com = values["com_offset"]
         if com is not None and len(com) > 0:
             com_arr = np.asarray(com, dtype=float)
@@ -294,6 +308,32 @@ class SimBridgeParams:
         )
 
 
+def check_object_parameter(name: str) -> None:
+    """Accept a library name or a readable object specification file; nothing else.
+
+    A file must end in ``.json``, ``.yaml`` or ``.yml``, be a regular file and hold at most
+    ``MAX_SPEC_BYTES``; it is then parsed as a specification by ``load_object``, whose errors
+    name the schema field and never quote the file. Raises ``ValueError`` otherwise.
+    """
+    if name in library_names():
+        return
+    shown = f"{name[:200]!r}"
+    if not name.lower().endswith(SPEC_SUFFIXES):
+        raise ValueError(f"parameter 'object' = {shown}: unknown object {shown}; library "
+                         f"objects are {', '.join(library_names())}, or give the path of an "
+                         f"object specification file ({', '.join(SPEC_SUFFIXES)})")
+    try:
+        info = os.stat(name)
+    except (OSError, ValueError):
+        raise ValueError(f"parameter 'object' = {shown}: no such object specification "
+                         "file") from None
+    if not stat.S_ISREG(info.st_mode):
+        raise ValueError(f"parameter 'object' = {shown}: not a regular file")
+    if info.st_size > MAX_SPEC_BYTES:
+        raise ValueError(f"parameter 'object' = {shown}: {info.st_size} bytes, larger than "
+                         f"an object specification file may be ({MAX_SPEC_BYTES} bytes)")
+
+
 def _spec_default_if_negative(value: float) -> float | None:
     return None if value < 0.0 else float(value)
 
@@ -338,7 +378,8 @@ class SimBridgeNode(Node):
         self._push_seq = 0  # number of pushes handed to the worker
         self._closing = False
         self._counts = {"pushes_executed": 0, "pushes_rejected_busy": 0,
-                        "pushes_rejected_invalid": 0, "pushes_failed": 0, "resets": 0}
+                        "pushes_rejected_invalid": 0, "pushes_failed": 0, "resets": 0,
+                        "callback_errors": 0}
         self._last_error = ""
         self._error_active = False
         self._log = ThrottledLog(self.get_logger(), LOG_THROTTLE_S)
@@ -372,13 +413,21 @@ class SimBridgeNode(Node):
             self._pub_tf = self.create_publisher(TFMessage, "/tf", RELIABLE_QOS)
             self._pub_tf_static = self.create_publisher(TFMessage, "/tf_static", LATCHED_QOS)
 
-        self.create_subscription(Path, "planner/push", self._on_push, RELIABLE_QOS)
-        self.create_service(Trigger, "~/reset", self._on_reset)
+        # Every callback is guarded: no exception leaves it (logged, counted as
+        # callback_errors, reported on /diagnostics); the guarded callables are attributes so
+        # tests can call them directly with real messages.
+        self.on_push = self._guard(self._on_push)
+        self.on_reset = self._guard(self._on_reset)
+        self.create_subscription(Path, "planner/push", self.on_push, RELIABLE_QOS)
+        self.create_service(Trigger, "~/reset", self.on_reset)
 
         steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.create_timer(1.0 / self._params.clock_rate, self._on_clock_timer, clock=steady)
-        self.create_timer(1.0 / self._params.idle_frame_rate, self._on_idle_timer, clock=steady)
-        self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_diagnostics, clock=steady)
+        self.create_timer(1.0 / self._params.clock_rate, self._guard(self._on_clock_timer),
+                          clock=steady)
+        self.create_timer(1.0 / self._params.idle_frame_rate, self._guard(self._on_idle_timer),
+                          clock=steady)
+        self.create_timer(DIAGNOSTICS_PERIOD_S, self._guard(self._publish_diagnostics),
+                          clock=steady)
 
         self._worker.submit(self._after_build).result()
         self.get_logger().info(f"sim bridge ready: {self._params.summary()}")
@@ -600,8 +649,13 @@ class SimBridgeNode(Node):
             self._reject(f"rejected push command on planner/push: busy ({busy}); pushes are "
                          "never queued, resend when idle", "pushes_rejected_busy")
             return
-        self._publish_diagnostics()
-        self._submit(self._run_push, seq, points)
+        try:
+            self._publish_diagnostics()
+            self._submit(self._run_push, seq, points)
+        except BaseException:  # never left busy without a job that ends it
+            with self._lock:
+                self._busy = ""
+            raise
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response
                   ) -> Trigger.Response:
@@ -623,11 +677,13 @@ class SimBridgeNode(Node):
             response.message = f"reset refused: busy ({busy})"
             self.get_logger().warning(response.message)
             return response
-        self._publish_diagnostics()
         try:  # _run_reset logs and reports its own failures
+            self._publish_diagnostics()
             response.success, response.message = self._submit(
                 self._run_reset, config, params).result()
         except Exception as exc:  # a last resort: the job itself broke
+            with self._lock:  # never left busy without a job that ends it
+                self._busy = ""
             response.success, response.message = False, f"reset failed: {exc}"
             self.get_logger().error(f"~/reset: {response.message}")
         if response.success:
@@ -635,6 +691,17 @@ class SimBridgeNode(Node):
         return response
 
     # ---- helpers -----------------------------------------------------------------------------
+    def _guard(self, callback: Callable[..., Any]) -> Callable[..., Any]:
+        return guarded(callback, self._log, self._on_callback_error)
+
+    def _on_callback_error(self, name: str, message: str) -> None:
+        """An exception inside a callback (already logged by ``guarded``): count, report."""
+        with self._lock:
+            self._counts["callback_errors"] += 1
+            self._last_error = f"{name} failed: {message}"
+            self._error_active = True
+        self._publish_diagnostics()
+
     def _submit(self, job: Callable[..., Any], *args: Any) -> ThreadFuture:
         return self._worker.submit(job, *args)
 
