@@ -180,3 +180,38 @@ def test_the_parser_reads_a_known_announcement() -> None:
     data = struct.pack('<HH', 0, 16) + b'\x00\x01\x00\xc7' + SPDP_WRITER + bytes(8) + payload
     datagram = b'RTPS' + bytes(16) + bytes([0x15, 0x05]) + struct.pack('<H', len(data)) + data
     assert spdp_locators(datagram) == {('metatraffic unicast', 1, '127.0.0.1', 7410)}
+
+
+def _report(*sockets: tuple[str, int, bool]) -> dict:
+    return {'sockets': [{'address': a, 'port': p, 'receiving': rx} for a, p, rx in sockets]}
+
+
+def test_doctor_verdicts(monkeypatch: pytest.MonkeyPatch) -> None:
+    from pushbot.dds import profile_path
+    from pushbot.doctor import check_exposure
+
+    for name in (RANGE_ENV, NETWORK_ENV):
+        monkeypatch.delenv(name, raising=False)
+    monkeypatch.setenv(PROFILE_ENV, str(profile_path()))
+    closed = check_exposure([_report(('127.0.0.1', 7410, True), ('239.255.0.1', 7400, True),
+                                     ('127.0.0.1', 40000, False))])
+    assert closed.ok and closed.detail.startswith('closed (loopback only)'), closed.detail
+    assert 'profile binds 127.0.0.1 only' in closed.detail
+    # LOCALHOST: rmw_fastrtps's own transport adds send sockets only; still closed for input.
+    monkeypatch.setenv(RANGE_ENV, 'LOCALHOST')
+    sending = check_exposure([_report(('127.0.0.1', 7410, True), ('0.0.0.0', 40001, False))])
+    assert sending.ok and 'send sockets on 0.0.0.0:40001' in sending.detail
+    assert 'unset it' in sending.detail
+    # Receiving on every interface without asking for it: FAIL.
+    monkeypatch.delenv(RANGE_ENV)
+    monkeypatch.setenv(PROFILE_ENV, str(profile_path(network=True)))
+    opened = check_exposure([_report(('0.0.0.0', 7410, True))])
+    assert not opened.ok and opened.detail.startswith('OPEN to the network'), opened.detail
+    # ... and asked for: OK, with the warning.
+    monkeypatch.setenv(NETWORK_ENV, '1')
+    chosen = check_exposure([_report(('0.0.0.0', 7410, True))])
+    assert chosen.ok and chosen.detail.startswith(f'OPEN by choice ({NETWORK_ENV}=1)')
+    assert 'any peer on the network command the robot' in chosen.detail
+    # No socket list (not Linux, or the probes failed): not verified, FAIL unless opened.
+    monkeypatch.delenv(NETWORK_ENV)
+    assert not check_exposure([{}]).ok

@@ -259,7 +259,9 @@ def check_exposure(reports: list[dict]) -> Check:
                                  'security lets any peer on the network command the robot')
     if exposed:
         return Check(name, False, f'OPEN to the network: {detail}. Unset {RANGE_ENV} and '
-                                  f'{PROFILE_ENV} for pushbot\'s loopback-only default')
+                                  f'{PROFILE_ENV} for pushbot\'s loopback-only default, or '
+                                  f'set {NETWORK_ENV}=1 if the network is meant (README, '
+                                  '"Security")')
     if sending:
         hint = (f' (rmw_fastrtps adds them under {RANGE_ENV}=LOCALHOST; unset it for '
                 'loopback-only sockets)') if os.environ.get(RANGE_ENV) == 'LOCALHOST' else ''
