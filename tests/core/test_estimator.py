@@ -320,6 +320,32 @@ def test_predict_push_rejects_bad_inputs(kwargs: dict, match: str) -> None:
                      **extra)
 
 
+def test_max_substeps_bounds_the_loop_and_leaves_shorter_pushes_bit_identical() -> None:
+    outline = ContactOutline.from_points(square(0.03, 4))
+    state = np.array([0.0, 0.0, 0.0, 0.004, -0.006, 0.03, 0.3])
+    start, end = np.array([-0.04, 0.005]), np.array([0.01, 0.005])  # 5 cm: 50 substeps
+    free = predict_push(state, outline, start, end, substep=1e-3)
+    for bound in (50, 51, 1000):  # not binding: the same bits
+        capped = predict_push(state, outline, start, end, substep=1e-3, max_substeps=bound)
+        assert capped.n_substeps == 50
+        np.testing.assert_array_equal(capped.state, free.state)
+        np.testing.assert_array_equal(capped.jacobian, free.jacobian)
+    capped = predict_push(state, outline, start, end, substep=1e-3, max_substeps=10)
+    assert capped.n_substeps == 10  # ten equal 5 mm substeps
+    coarse = predict_push(state, outline, start, end, substep=5e-3)
+    np.testing.assert_allclose(capped.state, coarse.state, rtol=0, atol=1e-15)
+    with pytest.raises(ValueError, match="max_substeps"):
+        predict_push(state, outline, start, end, max_substeps=0)
+    # The filter takes the bound from its config; the default never binds on a 1 m push.
+    assert EKFConfig().max_substeps * EKFConfig().substep >= 1.0
+    ekf = square_ekf(max_substeps=3)
+    ekf.update_pose([0.0, 0.0, 0.0])
+    assert ekf.predict_push([-0.5, 0.0], [0.5, 0.0]).n_substeps == 3
+    for bad in (0, 10**6 + 1, 1.5, True, math.nan):
+        with pytest.raises(ValueError, match="max_substeps"):
+            EKFConfig(max_substeps=bad)
+
+
 # --------------------------------------------------------------------------------------------
 # The filter
 # --------------------------------------------------------------------------------------------

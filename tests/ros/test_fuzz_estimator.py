@@ -540,6 +540,32 @@ def test_stamps_cannot_wedge_the_node_and_reset_clears_them(harness: Harness) ->
     assert h.node.counts["observations"] == 3 and h.node.filter.initialized
 
 
+def test_the_stamp_rule_read_and_write() -> None:
+    from push_ros.outline import decimate_outline
+    from push_ros.stamps import MAX_STAMP_SECONDS, seconds_from_stamp
+
+    last = Time(sec=2147483647, nanosec=999_999_000)  # 2^31 s - 1 us: still round-trips
+    assert stamp_from_seconds(seconds_from_stamp(last)).sec == 2147483647
+    for bad, match in ((Time(sec=2147483647, nanosec=999_999_999), "2\\^31"),
+                       (Time(sec=-1, nanosec=0), "sec"),
+                       (Time(sec=0, nanosec=1_000_000_000), "nanosec")):
+        with pytest.raises(ValueError, match=match):
+            seconds_from_stamp(bad)
+    for bad in (math.nan, math.inf, -1.0, 2.0**31, MAX_STAMP_SECONDS + 5e-7):
+        with pytest.raises(ValueError, match="time must be finite"):
+            stamp_from_seconds(bad)
+    assert stamp_from_seconds(2.0**31, clamp=True) == stamp_from_seconds(MAX_STAMP_SECONDS)
+    assert stamp_from_seconds(-5.0, clamp=True) == Time(sec=0, nanosec=0)
+    with pytest.raises(ValueError):
+        stamp_from_seconds(math.nan, clamp=True)
+    # The outline cap: every k-th point, unchanged at or below the bound.
+    pts, normals = _circle(3000)
+    small, small_normals = decimate_outline(pts, normals, 1000)
+    assert len(small) == 1000 and np.array_equal(small, pts[::3])
+    assert np.array_equal(small_normals, normals[::3])
+    assert decimate_outline(pts[:1000], normals[:1000], 1000)[0] is not None
+
+
 # ---- over DDS -------------------------------------------------------------------------------
 N_DDS = 100
 
