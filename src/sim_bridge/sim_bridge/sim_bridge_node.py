@@ -82,6 +82,7 @@ which would be worse); nothing is lost meanwhile, messages wait in their queues.
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import stat
@@ -233,7 +234,10 @@ class SimBridgeParams:
             raise ValueError("parameter 'object' is empty; give a library name or a spec path")
         check_object_parameter(name)
         try:
-            load_object(name)
+            if name in library_names():
+                _check_library_object(name)
+            else:
+                load_object(name)
         except (ValueError, OSError) as exc:  # load_object's messages never quote a file
             raise ValueError(f"parameter 'object' = {name[:200]!r}: {exc}") from None
         com = values["com_offset"]
@@ -306,6 +310,13 @@ class SimBridgeParams:
             f"camera {self.image_width}x{self.image_height}, seed {self.seed}"
             f"{', randomized' if self.randomize else ''}"
         )
+
+
+@functools.cache
+def _check_library_object(name: str) -> None:
+    """``load_object`` of a bundled library entry, once (up to 0.2 s each: every parameter set
+    re-validates the whole table)."""
+    load_object(name)
 
 
 def check_object_parameter(name: str) -> None:
