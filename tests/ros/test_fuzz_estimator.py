@@ -540,6 +540,31 @@ def test_stamps_cannot_wedge_the_node_and_reset_clears_them(harness: Harness) ->
     assert h.node.counts["observations"] == 3 and h.node.filter.initialized
 
 
+def test_with_sim_time_before_the_first_clock_the_future_rule_waits_and_reset_recovers(
+        ros_context: Any) -> None:
+    """The documented case: use_sim_time and no /clock yet (the clock reads 0, not valid)."""
+    node = EkfNode(context=ros_context,
+                   parameter_overrides=[Parameter("use_sim_time", value=True)])
+    try:
+        h = Harness.__new__(Harness)
+        h.node, h.published = node, []
+        h.callbacks = {s.topic_name: s.callback for s in node.subscriptions}
+        h.reset_callback = next(s.callback for s in node.services
+                                if s.srv_name.endswith("/reset"))
+        h.outline()
+        h.observe((0.0, 0.0, 0.0), 1.0)
+        h.observe((0.0, 0.0, 0.0), 2147483646.0)  # cannot be judged yet: applied
+        assert node.counts["observations"] == 2 and node.counts["dropped_future"] == 0
+        h.observe((0.0, 0.0, 0.0), 3.0)  # older than the last applied input
+        assert node.counts["dropped_out_of_order"] == 1
+        assert h.reset().success  # clears every "last applied" time
+        h.observe((0.0, 0.0, 0.0), 3.0)
+        assert node.counts["observations"] == 3 and node.filter.initialized
+        assert node.counts["callback_errors"] == 0
+    finally:
+        node.destroy_node()
+
+
 def test_the_stamp_rule_read_and_write() -> None:
     from push_ros.outline import decimate_outline
     from push_ros.stamps import MAX_STAMP_SECONDS, seconds_from_stamp
