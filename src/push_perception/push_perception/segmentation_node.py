@@ -54,12 +54,28 @@ parameters are re-read and validated; invalid values refuse the reset and keep t
 
 Bad input never stops the node and never produces a pose for that frame; each class is
 logged (at most once per second per class, with the number suppressed) and counted on
-``/diagnostics``: ``bad_color`` (encoding, step/size), ``bad_depth``, ``size_mismatch``
-(colour vs depth), ``bad_camera_info`` (K, size), ``frame_mismatch`` (image frame vs the
-extrinsics' child frame), ``missing_camera_info`` (colour and depth without camera_info of the
-same stamp), ``no_extrinsics``, ``empty_mask``, ``out_of_view`` (mask on the image border),
-``few_pixels``, ``no_depth`` (too few mask pixels with a valid depth), ``fragmented`` (the
-top-down view falls apart, e.g. a sliver narrower than a few millimetres).
+``/diagnostics``. Every message is checked when it arrives, by its codec's rules
+(:mod:`push_ros.images`, :mod:`push_ros.poses`): a rejected one is counted, never enters the
+stamp matching (so it cannot push a good pending image out) and never replaces the latched
+extrinsics. Per message: ``bad_color`` (encoding not ``rgb8``/``bgr8``, width or height
+outside [1, 8192], ``step`` smaller than a row, ``len(data) != height * step``),
+``bad_depth`` (the same for ``32FC1``/``16UC1``/``mono16``), ``bad_camera_info`` (size
+outside [1, 8192], K not finite, fx or fy outside [1, 1e5] px, last row not (0, 0, 1),
+principal point more than half the image size outside the image), ``bad_extrinsics`` (NaN /
+inf, |translation| > 100 m, quaternion not of unit norm within 1e-3), ``bad_stamp`` (a
+negative ``sec`` or ``nanosec >= 1e9``). Per frame: ``size_mismatch`` (colour vs depth),
+``bad_camera_info`` (camera_info of another size), ``frame_mismatch`` (image frame vs the
+extrinsics' child frame), ``missing_camera_info`` (colour and depth without camera_info of
+the same stamp), ``no_extrinsics``, ``empty_mask``, ``out_of_view`` (mask on the image
+border), ``few_pixels`` (also a footprint under 9 cells), ``no_depth`` (too few mask pixels
+with a valid depth), ``fragmented`` (the top-down view falls apart, e.g. a sliver narrower
+than a few millimetres), ``too_large`` (object points more than 2048 raster cells apart or
+1 km from the origin: absurd depth, intrinsics or extrinsics; checked before the raster is
+allocated). Work per frame is bounded (:mod:`push_perception.core`, "Bounded work per
+frame": outline at most 1000 points). Every callback (subscriptions, the reset service, the
+diagnostics timer) is wrapped by :func:`push_ros.node.guarded`: an exception that still
+escaped would be logged, counted as ``callback_error`` and reported, and the node keeps
+running (the fuzz tests, ``tests/ros/test_fuzz_perception.py``, expect none).
 
 Parameters (declared below with descriptions and ranges; defaults and units commented in
 ``pushbot_bringup/config/push_perception.yaml``): ``weights``, ``torch_threads``,

@@ -60,6 +60,17 @@ units in ``pushbot_bringup/config/sim_bridge.yaml``): ``object``, ``initial_pose
 wall time). A bad value fails start-up with a clear message (exit status 2); a set that the
 node can check (e.g. an unknown object) is refused with the reason, what only the world can
 check (e.g. a COM outside the outline) makes the next ``~/reset`` fail and keep the scene.
+``object`` accepts a library name or the path of a regular ``.json``/``.yaml``/``.yml``
+object specification file of at most 1 MiB, parsed as a specification; anything else is
+refused, and no refusal, ``~/reset`` answer or log line quotes a file's content (the errors
+name the specification field and its rule: ``not a valid object specification: thickness:
+must be a finite number > 0 (m)``).
+
+Bad input. Every callback (``planner/push``, ``~/reset``, the timers) is wrapped by
+:func:`push_ros.node.guarded`: an exception that still escaped is logged, counted as
+``callback_errors`` on ``/diagnostics`` and the node keeps running (never left busy); the fuzz
+tests (``tests/ros/test_fuzz_bridge.py``) expect none. A rejected push (see Subscriptions) or
+parameter changes nothing.
 
 Frames: ``world`` (table frame, z up, origin on the table at the workspace centre),
 ``camera_color_optical_frame`` (REP 103 optical frame), ``pusher``.
