@@ -391,6 +391,14 @@ class PlannerNode(Node):
         self._note, self._level = f"error in {name}: {message}", DiagnosticStatus.WARN
         self._publish_status()
 
+    def _info(self, kind: str, text: str) -> None:
+        """An info line, at most one of ``kind`` every ``LOG_THROTTLE_S`` (a flood of goals or
+        outlines must not flood the log; rclpy logging costs ~3 ms a line)."""
+        log, suppressed = self._log.allow(kind)
+        if log:
+            self.get_logger().info(text + (f" ({suppressed} similar message(s) suppressed)"
+                                           if suppressed else ""))
+
     def _clock_seconds(self) -> float | None:
         """The node's clock, s; None while a sim-time clock has not started (reads 0)."""
         clock = self.get_clock()
@@ -480,9 +488,9 @@ class PlannerNode(Node):
             self._note = (f"goal replaced by another publisher ({source or 'unknown'}; "
                           f"goal_pose publishers: {self._goal_publishers()})")
             self._level = DiagnosticStatus.WARN
-            self.get_logger().warning(f"{text}; {self._note}")
+            self._log.warning("goal_switch", f"{text}; {self._note}")
         else:
-            self.get_logger().info(text)
+            self._info("goal", text)
         self._try_plan()
         self._publish_status()
 
@@ -523,8 +531,8 @@ class PlannerNode(Node):
         self._engine.set_outline(outline)  # also forgets the avoided points of another outline
         decimated = (f", decimated from {outline.source_points}"
                      if outline.source_points > len(outline.points) else "")
-        self.get_logger().info(f"outline with {len(outline.points)} points{decimated} "
-                               f"({len(outline.polyline)}-vertex contact polyline)")
+        self._info("outline", f"outline with {len(outline.points)} points{decimated} "
+                   f"({len(outline.polyline)}-vertex contact polyline)")
         self._try_plan()
         self._publish_status()
 
