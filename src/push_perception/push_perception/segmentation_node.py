@@ -418,12 +418,12 @@ class SegmentationNode(Node):
             extrinsics, extrinsics_frame = self._extrinsics.lookup(frame)
             if extrinsics is None:
                 raise PerceptionError("no_extrinsics", "no camera extrinsics yet (tf2 world -> "
-                                      f"{frame!r} or the latched camera/color/extrinsics)")
+                                      f"{frame[:64]!r} or the latched camera/color/extrinsics)")
             if frame != depth_msg.header.frame_id or (extrinsics_frame
                                                       and frame != extrinsics_frame):
-                raise PerceptionError("frame_mismatch", f"colour frame {frame!r}, depth frame "
-                                      f"{depth_msg.header.frame_id!r} and extrinsics child "
-                                      f"{extrinsics_frame!r} must be the same frame")
+                raise PerceptionError("frame_mismatch", f"colour frame {frame[:64]!r}, depth frame "
+                                      f"{depth_msg.header.frame_id[:64]!r} and extrinsics child "
+                                      f"{extrinsics_frame[:64]!r} must be the same frame")
             seg = self._segmenter(rgb, depth, k, extrinsics)
             if self._params.publish_mask:
                 self._pub_mask.publish(mask_image_msg(seg.mask, stamp, frame))
