@@ -20,7 +20,14 @@ Subscriptions (names relative and remappable; QoS as in ``docs/ARCHITECTURE.md``
 - ``perception/outline`` (sensor_msgs/PointCloud2, ``object``; latched): x, y, z, normal_x,
   normal_y, normal_z float32, counter-clockwise, outward normals.
 - ``goal_pose`` (geometry_msgs/PoseStamped, ``world``; reliable): RViz's "2D Goal Pose". A new
-  goal starts a new episode (step 0).
+  goal starts a new episode (step 0). The callback takes the message info: a goal from
+  another publisher than the previous goal's is still taken, but logged (warning, with the
+  node names and endpoint GIDs of the ``goal_pose`` publishers) and noted in the status
+  (`` - goal replaced by another publisher ...``, level WARN, ``goal_switches``). rclpy Jazzy's
+  message info has no publisher GID, so "another publisher" is decided from
+  ``publication_sequence_number`` (a publisher numbers its messages 1, 2, 3, ...: a goal whose
+  number does not follow the previous ``goal_pose`` message's comes from another or a
+  restarted publisher); a ``publisher_gid`` in the info (later rclpy) is compared instead.
 - ``pusher/executed`` (nav_msgs/Path, ``world``; reliable): the executed push; its header stamp
   (= the stamp of its last pose) is the time the push ended.
 - ``/clock`` only with ``use_sim_time`` true (default false: wall time; the simulation sets
@@ -35,17 +42,23 @@ Publications:
   coloured by eq. (5.1) score (green = best), the sampled candidates, the chosen push
   (:func:`push_planner.conversions.affordance_markers`).
 - ``planner/status`` (diagnostic_msgs/DiagnosticStatus; latched): ``message`` starts with
-  ``waiting``, ``pushing step n``, ``goal reached`` or ``failed`` (``failed after max steps``,
-  ``failed: no feasible push``), followed by `` - <reason>`` after a refused input; level OK,
-  WARN (input refused, push lost) or ERROR (failed). ``values``: ``state`` (waiting | pushing |
-  reached | failed), ``step``, ``max_steps``, ``goal``, counters (``estimates``,
+  ``waiting``, ``pushing step n``, ``goal reached``, ``goal left`` (``after_goal: report``) or
+  ``failed`` (``failed after max steps``, ``failed: no feasible push``), followed by
+  `` - <note>`` after a refused input (``refused <topic>: <reason>``), a callback error, the
+  object leaving a reached goal (``left the goal region: ... off the goal; pushing again``) or
+  a goal from another publisher; level OK, WARN (input refused, push lost, goal left, goal
+  replaced, callback error) or ERROR (failed). ``values``: ``state`` (waiting | pushing |
+  reached | left | failed), ``step``, ``max_steps``, ``goal``, counters (``estimates``,
   ``planned``, ``ignored_stale``, ``ignored_duplicate``, ``ignored_busy``, ``refused`` inputs,
-  ``lost`` pushes), ``last_refusal``, ``last_push_end``.
+  ``lost`` pushes, ``left_goal``, ``goal_switches``, ``errors``), ``last_refusal``,
+  ``last_push_end``, ``after_goal``, ``goal_source``, ``last_error``.
 - ``/diagnostics`` (diagnostic_msgs/DiagnosticArray; reliable): the same status, 1 Hz and on
   every change.
 
-Services: ``~/reset`` (std_srvs/srv/Trigger): new episode (step 0, no push in flight, estimates
-and goal forgotten, the planner re-seeded); the outline is kept (latched). The episode
+Services: ``~/reset`` (std_srvs/srv/Trigger): new episode (a new episode engine: step 0, no
+push in flight, the last push end, estimates, the pairing buffers, the goal and its publisher
+forgotten, the planner re-seeded); the outline is kept (latched). So whatever was accepted
+before (e.g. a far-future push end while a sim-time clock read 0) is cleared by a reset. The episode
 parameters (below) are re-read and validated first; an invalid value refuses the reset and
 keeps the previous ones. The goal is forgotten because an episode is one goal: with the goal
 kept, the first estimate of the next scene would be planned against the previous episode's
@@ -79,11 +92,38 @@ plans again from the newest fresh estimate (nothing has moved, so it is not stal
 the outline points of the lost pushes (``Planner.plan(avoid=...)``, within ``AVOID_RADIUS``)
 until a push is executed or a new outline arrives.
 
-Bad input is refused with a warning log, a WARN status and the ``refused`` counter; the node
-keeps running: goals with NaN/inf, quaternions that break the one planarity rule (unit norm and
-``|q_x|, |q_y|`` within 1e-3, :mod:`push_core.geometry`), another frame, or off
-the workspace; outlines that are empty, malformed, in another frame or not a valid polygon;
-states with NaN or a bad layout; estimates a plan cannot use (l <= 0).
+Watching after the goal (the engine's rule 7, docs/ARCHITECTURE.md "Episode engine"): after
+``goal reached`` every further usable estimate is checked by its *point* estimate (confidence
+noise never re-opens the goal); outside the goal region the status says ``left the goal
+region`` (``left_goal``) and, with ``after_goal: resume`` (default), the node pushes again
+within the episode's ``max_steps``; with ``report`` it only reports (``goal left``) until the
+stop rule holds again. A ``pusher/executed`` that is not the node's own push (another client's)
+is taken like one: estimates before its end are stale, so the next estimate shows its effect.
+
+Bad input is refused with a (throttled, ``LOG_THROTTLE_S``) warning log, a WARN status and the
+``refused`` counter, and changes nothing; the node keeps running. Rules per field:
+
+- ``goal_pose``: frame ``world``; position finite and on the workspace; the quaternion rule of
+  :mod:`push_core.geometry` (finite, unit norm within 1e-3, ``|q_x|, |q_y| <= 1e-3``).
+- ``perception/outline``: frame ``object``; fields, offsets, steps and sizes consistent
+  (:mod:`push_ros.outline`); finite; >= 3 points, counter-clockwise with positive area; more than
+  ``push_core.planner.MAX_OUTLINE_POINTS`` (1000) points are decimated to that many (every
+  ``N / 1000``-th point); an object whose radius exceeds the workspace diagonal is refused.
+- ``estimator/object_pose``: frame ``world``, finite, planar quaternion; its stamp the
+  :mod:`push_ros.stamps` rule and at most ``max_future_stamp`` s ahead of the node's clock (not
+  applied while a sim-time clock reads 0).
+- ``estimator/state``: the documented layout (labels, sizes, offset 0, 56 values), finite,
+  covariance finite with a non-negative diagonal.
+- estimate (a paired pose + state): :func:`push_core.planner.check_state` against the outline:
+  ``0 < l <= 4 r``, ``0 <= m <= 10``, ``|c| <= 2 r`` (``r`` the outline's radius).
+- ``pusher/executed``: frame ``world``, at least one pose; its end (the latest of the header's
+  and the poses' stamps) by the stamp rule and at most ``max_future_stamp`` ahead.
+
+Every callback (subscriptions, timer, ``~/reset``) is wrapped by :func:`push_ros.node.guarded`:
+an exception is logged (throttled), counted (``errors``, ``last_error``), reported on
+``planner/status`` and ``/diagnostics``, and the input dropped; the node keeps spinning.
+Bounded work per message: the outline cap above and the planner core's bounds
+(:mod:`push_core.planner`, "Bounded work and memory").
 
 Parameters (declared once below with descriptors; documented with defaults and units in
 ``pushbot_bringup/config/push_planner.yaml``; read at start-up and validated by building the
@@ -91,9 +131,10 @@ Parameters (declared once below with descriptors; documented with defaults and u
 the parameter; a set that would make it invalid is refused with the reason). Episode
 parameters, settable and applied on the next ``~/reset``: ``method``,
 ``direct``, ``k``, ``lambda``, ``temperature``, ``goal_tolerance.xy``,
-``goal_tolerance.theta``, ``goal_tolerance.confidence``, ``max_steps``, ``seed``. Read-only:
-``push_speed``, ``approach_clearance``, ``pusher_radius``,
-``workspace.{x_min,x_max,y_min,y_max}``, ``push_timeout``, ``lrn_weights``.
+``goal_tolerance.theta``, ``goal_tolerance.confidence``, ``max_steps``, ``after_goal``,
+``seed``. Read-only: ``push_speed``, ``approach_clearance``, ``pusher_radius``,
+``workspace.{x_min,x_max,y_min,y_max}``, ``push_timeout``, ``max_future_stamp``,
+``lrn_weights``.
 
 Frames: ``world`` (table, z up), ``object`` (outline). Time: ``use_sim_time`` (the node's
 clock stamps the plans; estimates and pushes carry their own stamps, which is all the
