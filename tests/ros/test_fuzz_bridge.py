@@ -206,17 +206,25 @@ def test_reset_answer_never_quotes_a_spec_file_edited_after_it_was_set(
 
 
 # ---- in-process fuzzing ------------------------------------------------------------------------
-@FUZZ
-@given(msg=hostile_paths())
-def test_fuzz_push_paths(node: SimBridgeNode, msg: Path) -> None:
-    before = _counts(node)
-    seq = node._push_seq
-    assert node.on_push(msg) is None
-    after = _counts(node)
-    if after["pushes_rejected_invalid"] > before["pushes_rejected_invalid"] or \
-            after["pushes_rejected_busy"] > before["pushes_rejected_busy"]:
-        assert node._push_seq == seq, "a rejected push was handed to the world"
-    assert after["callback_errors"] == 0, node._last_error
+def test_fuzz_push_paths(node: SimBridgeNode) -> None:
+    """2,000 hostile paths through the subscribed callback (hypothesis inside)."""
+
+    @FUZZ
+    @given(msg=hostile_paths())
+    def one(msg: Path) -> None:
+        before = _counts(node)
+        seq = node._push_seq
+        assert node.on_push(msg) is None
+        after = _counts(node)
+        if after["pushes_rejected_invalid"] > before["pushes_rejected_invalid"] or \
+                after["pushes_rejected_busy"] > before["pushes_rejected_busy"]:
+            assert node._push_seq == seq, "a rejected push was handed to the world"
+        assert after["callback_errors"] == 0, node._last_error
+
+    one()
+    _wait_idle(node)
+    counts = _counts(node)
+    assert counts["pushes_executed"] > 0 and counts["pushes_rejected_invalid"] > 0, counts
 
 
 def test_fuzz_parameters(node: SimBridgeNode, files: dict[str, str]) -> None:
@@ -272,7 +280,6 @@ def test_after_the_fuzz_the_bridge_executes_a_valid_push(node: SimBridgeNode) ->
     moved = _object_pose(node) - before
     assert 0.02 < moved[0] < 0.06 and abs(moved[1]) < 0.005, moved
     assert abs(moved[2]) < math.radians(3), moved
-    assert _counts(node)["pushes_executed"] >= 2  # the fuzz's valid pushes ran too
     assert _counts(node)["callback_errors"] == 0
 
 
