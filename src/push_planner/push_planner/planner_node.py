@@ -92,13 +92,14 @@ plans again from the newest fresh estimate (nothing has moved, so it is not stal
 the outline points of the lost pushes (``Planner.plan(avoid=...)``, within ``AVOID_RADIUS``)
 until a push is executed or a new outline arrives.
 
-Watching after the goal (the engine's rule 7, docs/ARCHITECTURE.md "Episode engine"): after
-``goal reached`` every further usable estimate is checked by its *point* estimate (confidence
-noise never re-opens the goal); outside the goal region the status says ``left the goal
-region`` (``left_goal``) and, with ``after_goal: resume`` (default), the node pushes again
-within the episode's ``max_steps``; with ``report`` it only reports (``goal left``) until the
-stop rule holds again. A ``pusher/executed`` that is not the node's own push (another client's)
-is taken like one: estimates before its end are stale, so the next estimate shows its effect.
+Watching after the goal (:mod:`push_core.episode` rule 7; docs/ARCHITECTURE.md "Episode
+engine", rule 5): after ``goal reached`` every further usable estimate is checked by its
+*point* estimate (confidence noise never re-opens the goal); outside the goal region the status
+says ``left the goal region`` (``left_goal``) and, with ``after_goal: resume`` (default), the
+node pushes again within the episode's ``max_steps``; with ``report`` it only reports (``goal
+left``) until the stop rule holds again. A ``pusher/executed`` that is not the node's own push
+(another client's) is taken like one: estimates before its end are stale, so the next estimate
+shows its effect.
 
 Bad input is refused with a (throttled, ``LOG_THROTTLE_S``) warning log, a WARN status and the
 ``refused`` counter, and changes nothing; the node keeps running. Rules per field:
