@@ -433,14 +433,14 @@ class SegmentationNode(Node):
         except PerceptionError as exc:
             self._fail(exc.kind, str(exc))
             return
-        self._pub_pose.publish(pose_with_covariance_msg(meas.pose, meas.covariance, stamp))
-        if meas.is_reference:
+        if meas.is_reference:  # the outline first: consumers need it for this pose
             points, normals = self._tracker.outline
             self._pub_outline.publish(outline_cloud_msg(points, normals, stamp))
             self.get_logger().info(
                 f"new episode reference at t={seconds_from_stamp(stamp):.3f} s: object at "
                 f"({meas.pose[0]:.4f}, {meas.pose[1]:.4f}) m, area "
                 f"{meas.area * 1e4:.1f} cm^2, outline of {len(points)} points")
+        self._pub_pose.publish(pose_with_covariance_msg(meas.pose, meas.covariance, stamp))
         self._counts["poses"] += 1
         self._latency.append(time.perf_counter() - started)
         self._last_stamp = seconds_from_stamp(stamp)

@@ -51,7 +51,8 @@ Publications:
   reached | left | failed), ``step``, ``max_steps``, ``goal``, counters (``estimates``,
   ``planned``, ``ignored_stale``, ``ignored_duplicate``, ``ignored_busy``, ``refused`` inputs,
   ``lost`` pushes, ``left_goal``, ``goal_switches``, ``errors``), ``last_refusal``,
-  ``last_push_end``, ``after_goal``, ``goal_source``, ``last_error``.
+  ``last_push_end``, ``outline_stamp`` (header stamp of the outline in use: its episode's
+  reference frame), ``after_goal``, ``goal_source``, ``last_error``.
 - ``/diagnostics`` (diagnostic_msgs/DiagnosticArray; reliable): the same status, 1 Hz and on
   every change.
 
@@ -380,6 +381,8 @@ class PlannerNode(Node):
         self._poses: deque[tuple[float, np.ndarray]] = deque(maxlen=PAIR_BUFFER)
         self._states: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=PAIR_BUFFER)
         self._refused = 0
+        #: Header stamp of the outline in use (its episode's reference frame), s.
+        self._outline_stamp = -math.inf
         self._last_refusal = ""
         #: Exceptions stopped by the callback guards (push_ros.node.guarded).
         self._errors = 0
@@ -564,6 +567,7 @@ class PlannerNode(Node):
 
     def _on_outline(self, msg: PointCloud2) -> None:
         try:
+            stamp = seconds_from_stamp(msg.header.stamp)
             points, normals = outline_from_cloud(msg)
             outline = self._planner.check_outline(prepare_outline(
                 points, normals, simplify_tolerance=self.params.planner.simplify_tolerance))
@@ -571,6 +575,7 @@ class PlannerNode(Node):
             self._refuse("perception/outline", str(exc))
             return
         self._engine.set_outline(outline)  # also forgets the avoided points of another outline
+        self._outline_stamp = stamp
         decimated = (f", decimated from {outline.source_points}"
                      if outline.source_points > len(outline.points) else "")
         self._info("outline", f"outline with {len(outline.points)} points{decimated} "
@@ -724,6 +729,7 @@ class PlannerNode(Node):
                   "ignored", **counts, "refused": self._refused, "lost": engine.counts["lost"],
                   "last_refusal": self._last_refusal,
                   "last_push_end": f"{engine.last_push_end:.6f}",
+                  "outline_stamp": f"{self._outline_stamp:.6f}",
                   "left_goal": engine.counts["left"], "after_goal": self.params.after_goal,
                   "goal_source": self._goal_source, "goal_switches": self._goal_switches,
                   "errors": self._errors, "last_error": self._last_error}

@@ -197,6 +197,12 @@ class GraphRunner:
         t_start = time.perf_counter()
         rec = new_record(trial.as_dict(), step_latency_ms=[], engine="graph")
         first_stamp, first_est = self._first_estimate(trial)
+        # The planner must hold this scene's outline (stamped with its reference frame, the
+        # frame of the first estimate) before the goal: with the previous scene's outline it
+        # would plan, or declare the goal reached, for the wrong object.
+        self.wait(lambda: any(_outline_stamp(s) >= first_stamp - 1e-6 for s in self.rec.status),
+                  STEP_TIMEOUT, f"planner_node to hold the outline of the frame at "
+                  f"{first_stamp:.3f} s")
         pose0_true = self._true_at(first_stamp)
         goal = trial.goal(first_est)
         n_push, n_exec, n_status = (len(self.rec.pushes), len(self.rec.executed),
@@ -376,6 +382,13 @@ def _same_goal(a: str, b: str) -> bool:
         return False
     return len(va) == len(vb) == 3 and all(abs(x - y) < 2e-4 for x, y in zip(va, vb,
                                                                               strict=True))
+
+
+def _outline_stamp(status: dict[str, str]) -> float:
+    try:
+        return float(status.get("outline_stamp", "-inf"))
+    except ValueError:
+        return -math.inf
 
 
 def _reason(message: str) -> str:

@@ -71,7 +71,9 @@ class GraphNodes:
         for name in NODES:
             params = ["-p", "use_sim_time:=true"] if name != "sim_bridge_node" else []
             if name == "planner_node":
-                params += ["-p", f"push_timeout:={PUSH_TIMEOUT}"]
+                # A protocol episode ends at "goal reached" (as in-process): the planner only
+                # reports it if the object leaves the region afterwards, it pushes no more.
+                params += ["-p", f"push_timeout:={PUSH_TIMEOUT}", "-p", "after_goal:=report"]
             for value in self.node_args[name]:
                 params += ["-p", value]
             with open(self.log_dir / f"{name}.log", "ab") as log:  # a restart appends
