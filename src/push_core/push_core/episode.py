@@ -172,14 +172,6 @@ class EpisodeEngine:
                              f"{self.after_goal!r}")
 
     # ---- events --------------------------------------------------------------------------------
-    def reset(self) -> None:
-        """Forget goal, estimates and pushes (a new scene); the outline and counters stay."""
-        self.goal, self._latest = None, None
-        self.phase, self.steps, self.failure = "waiting", 0, ""
-        self.last_push_end, self._used_stamp = -math.inf, -math.inf
-        self.in_flight, self._in_flight_point = False, None
-        self._avoid.clear()
-
     def new_goal(self, goal: ArrayLike) -> None:
         """Start an episode for ``goal`` (x, y, theta in ``world``): step 0; the newest
         estimate is usable again."""
@@ -295,7 +287,7 @@ class EpisodeEngine:
 
     def _how_far(self, state: NDArray[np.float64]) -> str:
         """How far the point estimate is off the goal (for the rule 7 report)."""
-        goal = state[:3] if self.goal is None else self.goal
+        goal = self.goal  # set: step() decides only with a goal
         dxy = math.hypot(*(goal[:2] - state[:2]))
         dth = abs(float(wrap_angle(goal[2] - state[2])))
         return (f"left the goal region: the estimate is {1e3 * dxy:.1f} mm and "

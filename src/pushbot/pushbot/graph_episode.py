@@ -200,7 +200,8 @@ class GraphRunner:
         # The planner must hold this scene's outline (stamped with its reference frame, the
         # frame of the first estimate) before the goal: with the previous scene's outline it
         # would plan, or declare the goal reached, for the wrong object.
-        self.wait(lambda: any(_outline_stamp(s) >= first_stamp - 1e-6 for s in self.rec.status),
+        self.wait(lambda: any(_status_seconds(s, "outline_stamp") >= first_stamp - 1e-6
+                                for s in self.rec.status),
                   STEP_TIMEOUT, f"planner_node to hold the outline of the frame at "
                   f"{first_stamp:.3f} s")
         pose0_true = self._true_at(first_stamp)
@@ -342,10 +343,7 @@ class GraphRunner:
         They come from other publishers than the status, so they can still be in flight (or
         queued here) when it arrives."""
         steps = int(status.get("step", 0))
-        try:
-            last_end = float(status.get("last_push_end", "-inf"))
-        except ValueError:
-            last_end = -math.inf
+        last_end = _status_seconds(status, "last_push_end")
 
         def complete() -> bool:
             if len(self.rec.pushes) - n_push < steps:
@@ -384,9 +382,10 @@ def _same_goal(a: str, b: str) -> bool:
                                                                               strict=True))
 
 
-def _outline_stamp(status: dict[str, str]) -> float:
+def _status_seconds(status: dict[str, str], key: str) -> float:
+    """A time value (s) of planner/status; -inf when absent or unreadable."""
     try:
-        return float(status.get("outline_stamp", "-inf"))
+        return float(status.get(key, "-inf"))
     except ValueError:
         return -math.inf
 
