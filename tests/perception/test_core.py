@@ -330,3 +330,54 @@ def test_covariance_grows_with_worse_evidence() -> None:
     np.testing.assert_allclose(sigmas(n_valid=1250), 2 * base)
     # The residual a correct match leaves (below the floor) does not widen the yaw.
     np.testing.assert_allclose(sigmas(match_cost=0.9 * CFG.match_cost_floor), base)
+
+
+@pytest.mark.parametrize("name, stale_deg", [("tri1", 12.0), ("hex", -20.0), ("butter", 25.0)])
+def test_an_anchored_tracker_continues_the_episode_frame(make_frame, name: str,
+                                                         stale_deg: float) -> None:
+    # A restarted perception (issue 15): a new tracker anchored to the episode's outline and a
+    # stale yaw estimate (a push has turned the object since) reports the yaws the first
+    # tracker reports, in the episode frame, and keeps the episode's outline.
+    poly = load_object(name).polyline()
+    pose0 = np.array([0.01, -0.02, 0.3])
+    first = EpisodeTracker()
+    first.update(*_args(make_frame(poly, pose0)))
+    turns = [0.5, 0.8, 1.1]  # steps below half of hex's 60 degree symmetry
+    expected = [first.update(*_args(make_frame(poly, pose0 + [0.02 * k, 0.01, t]))).pose[2]
+                for k, t in enumerate(turns)]
+    second = EpisodeTracker()
+    points, normals = first.outline
+    second.anchor(points, normals, yaw=turns[0] - math.radians(stale_deg))
+    assert second.anchored and second.outline is None
+    got = []
+    for k, t in enumerate(turns):
+        meas = second.update(*_args(make_frame(poly, pose0 + [0.02 * k, 0.01, t])))
+        assert meas.is_reference == meas.anchored == (k == 0)
+        got.append(meas.pose[2])
+    np.testing.assert_allclose(got, expected, atol=math.radians(0.5))
+    np.testing.assert_allclose(got, turns, atol=math.radians(1.0))
+    np.testing.assert_array_equal(second.outline[0], points)
+    assert not second.anchored
+
+
+def test_an_anchor_of_another_object_is_dropped(make_frame) -> None:
+    first = EpisodeTracker()
+    first.update(*_args(make_frame(load_object("tri1").polyline(), np.zeros(3))))
+    second = EpisodeTracker()
+    second.anchor(*first.outline, yaw=0.2)
+    meas = second.update(*_args(make_frame(LOPSIDED, np.array([0.0, 0.0, 0.7]))))
+    assert meas.is_reference and not meas.anchored and meas.pose[2] == 0.0
+    with pytest.raises(ValueError, match="finite"):
+        second.anchor(*first.outline, yaw=math.nan)
+
+
+def test_an_anchored_disc_keeps_the_anchor_yaw(make_frame) -> None:
+    disc = load_object("ellip1").polyline()
+    first = EpisodeTracker()
+    first.update(*_args(make_frame(disc, np.zeros(3))))
+    second = EpisodeTracker()
+    second.anchor(*first.outline, yaw=0.25)
+    for pose in ([0.01, 0.0, 0.0], [0.03, -0.02, 0.7]):
+        meas = second.update(*_args(make_frame(disc, np.array(pose))))
+        assert meas.pose[2] == 0.25 and not meas.orientation_observed
+        assert math.hypot(*(meas.pose[:2] - pose[:2])) < 1e-3

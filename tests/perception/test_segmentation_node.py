@@ -26,6 +26,7 @@ rclpy = pytest.importorskip("rclpy")
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import (  # noqa: E402
     DurabilityPolicy,
     QoSProfile,
@@ -82,8 +83,10 @@ def frames(world_factory: Callable[..., Any]) -> dict[str, Rendered]:
 class Harness:
     """The node under test plus a test node that feeds it and records what it publishes."""
 
-    def __init__(self, context: Any) -> None:
-        self.node = SegmentationNode(context=context)
+    def __init__(self, context: Any, anchor_timeout: float = 0.0) -> None:
+        # No re-anchoring wait after start-up unless a test asks for it (the restart test).
+        self.node = SegmentationNode(context=context, parameter_overrides=[
+            Parameter("anchor_timeout", value=float(anchor_timeout))])
         self.client = rclpy.create_node("perception_test_client", context=context)
         self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.node)
@@ -358,3 +361,48 @@ def test_object_out_of_view_gives_no_pose(name: str, kind: str, harness: Harness
     h.wait(lambda: h.counter(kind) >= 1, kind, resend=lambda: h.publish(msgs))
     assert not h.poses
     h.pose_for(frames["a"])
+
+
+def test_a_restarted_node_re_anchors_to_the_estimators_episode(
+        ros_context: Any, frames: dict[str, Rendered]) -> None:
+    # Issue 15: a perception restarted mid-episode keeps the episode's orientation reference:
+    # it matches its first frame against the estimator's latched outline (near the latched
+    # estimate's yaw) instead of starting a new yaw 0, and re-publishes that outline unchanged.
+    a, b = frames["a"], frames["b"]
+    first = Harness(ros_context, anchor_timeout=5.0)
+    try:
+        first.send_extrinsics(a.t)
+        first.pose_for(a)
+        outline = first.wait(lambda: first.outlines[-1] if first.outlines else None,
+                             "the outline")
+        yaw_b = xytheta_from_pose(first.pose_for(b).pose.pose)[2]
+        stamp_after = first.time
+    finally:
+        first.close()
+    assert abs(yaw_b) > 0.3  # b is turned against a: a new reference would say 0
+    restarted = Harness(ros_context, anchor_timeout=5.0)
+    try:
+        restarted.time = stamp_after
+        c = restarted.client
+        pub_outline = c.create_publisher(PointCloud2, "estimator/outline", LATCHED)
+        pub_estimate = c.create_publisher(PoseWithCovarianceStamped, "estimator/object_pose",
+                                          LATCHED)
+        pub_outline.publish(outline)
+        estimate = PoseWithCovarianceStamped()
+        estimate.header.frame_id = WORLD_FRAME
+        estimate.header.stamp = stamp_from_seconds(stamp_after)
+        stale = yaw_b - 0.2  # a push has turned the object since the last estimate
+        estimate.pose.pose.orientation.z = math.sin(stale / 2)
+        estimate.pose.pose.orientation.w = math.cos(stale / 2)
+        pub_estimate.publish(estimate)
+        restarted.send_extrinsics(a.t)
+        got = xytheta_from_pose(restarted.pose_for(b).pose.pose)
+        assert got[2] == pytest.approx(yaw_b, abs=math.radians(1.0))
+        republished = restarted.wait(lambda: restarted.outlines[-1] if restarted.outlines
+                                     else None, "the re-published outline")
+        assert republished.header.stamp == outline.header.stamp
+        np.testing.assert_array_equal(outline_from_cloud(republished)[0],
+                                      outline_from_cloud(outline)[0])
+        restarted.wait(lambda: restarted.counter("anchored") == 1, "the anchored counter")
+    finally:
+        restarted.close()

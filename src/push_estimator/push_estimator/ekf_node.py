@@ -93,6 +93,12 @@ volatile ones only get what follows:
 - ``estimator/state`` (std_msgs/Float64MultiArray; latched): dim 0 label ``state`` size 7
   (``x,y,theta,c_x,c_y,l,m``), dim 1 label ``covariance_row_major`` size 49; data = the 7
   values then the 7 x 7 covariance (:func:`push_ros.state.state_array_msg`).
+- ``estimator/outline`` (sensor_msgs/PointCloud2, ``object``; latched): the
+  ``perception/outline`` message the filter was built from, re-published as received (same
+  stamp, points and normals) whenever a different outline is accepted. With the latched
+  ``estimator/object_pose`` it is the episode's orientation reference that survives a restart
+  of ``segmentation_node`` (its own latched outline dies with it): a restarted perception
+  matches its first frame against it (docs/ARCHITECTURE.md, "Faults and recovery").
 - ``/tf`` world -> object (tf2_msgs/TFMessage; reliable): only where ``tf2_msgs`` is
   importable (full ROS install; see the tf note in ARCHITECTURE.md) and ``publish_tf``.
 - ``/diagnostics`` (diagnostic_msgs/DiagnosticArray; reliable): one status, every
@@ -442,6 +448,7 @@ class EkfNode(Node):
                                               LATCHED_QOS)
         self._pub_state = self.create_publisher(Float64MultiArray, "estimator/state",
                                                 LATCHED_QOS)
+        self._pub_outline = self.create_publisher(PointCloud2, "estimator/outline", LATCHED_QOS)
         self._diagnostics = DiagnosticsPublisher(self, "estimator", "push_estimator")
         self._pub_tf = None
         if TFMessage is not None and self.params.publish_tf:
@@ -616,6 +623,7 @@ class EkfNode(Node):
             self.get_logger().info(f"parameters applied with the new outline: {changed}")
         self._ekf, self._outline, self._normals = ekf, points, normals
         self._new_episode()
+        self._pub_outline.publish(msg)  # the episode's reference, latched (module docstring)
         self._counts["outlines"] += 1
         self._problem = ""
         o = ekf.outline

@@ -77,7 +77,7 @@ most 60) and reads the signed distance fields in remap calls of bounded size.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import cv2
@@ -91,6 +91,7 @@ __all__ = [
     "CLOSING_RANGE",
     "MAX_OUTLINE_POINTS",
     "MAX_RASTER_SIDE",
+    "ANCHOR_MAX_COST",
     "MAX_REFINED_MINIMA",
     "NOMINAL_PIXELS",
     "EpisodeTracker",
@@ -100,6 +101,7 @@ __all__ = [
     "TopDownView",
     "check_frame",
     "object_points",
+    "outline_view",
     "pose_covariance",
     "rotation_search",
     "smooth_outline",
@@ -126,6 +128,9 @@ MAX_OUTLINE_POINTS = 1000
 MAX_DENSE_POINTS = 65536
 #: Most coarse minima of the rotation search that are refined (the lowest ones).
 MAX_REFINED_MINIMA = 64
+#: Largest chamfer cost (m) of an anchor outline against the first frame after a restart
+#: (:meth:`EpisodeTracker.anchor`): above it the anchor is another object and is dropped.
+ANCHOR_MAX_COST = 0.003
 #: Points per row and per call of the remap in :meth:`TopDownView.sample_sdf` (OpenCV's maps
 #: must have fewer than 32767 rows and columns).
 _REMAP_WIDTH = 1024
@@ -446,6 +451,37 @@ def top_down_view(points: NDArray[np.float64], cfg: PerceptionConfig,
                        radius_of_gyration=r_gyr, boundary=boundary, sdf=sdf)
 
 
+def outline_view(points: ArrayLike, cfg: PerceptionConfig) -> TopDownView:
+    """The top-down view of the footprint enclosed by an outline (the anchor of
+    :meth:`EpisodeTracker.anchor`).
+
+    Parameters
+    ----------
+    points : (K, 2) float
+        Closed outline (metres), any frame; K >= 3.
+    cfg : PerceptionConfig
+
+    Returns
+    -------
+    TopDownView
+        :func:`top_down_view` of the centres of the ``cfg.resolution`` cells inside the
+        polygon (given a height of 1 cm, so none is taken for the table).
+    """
+    pts = np.asarray(points, dtype=np.float64)
+    res = cfg.resolution
+    lo = pts.min(axis=0) - 2 * res
+    side = np.ceil((pts.max(axis=0) + 2 * res - lo) / res).astype(int) + 1
+    if np.any(side > MAX_RASTER_SIDE):
+        raise PerceptionError("too_large", "anchor outline larger than the top-down raster")
+    img = np.zeros((side[1], side[0]), dtype=np.uint8)
+    poly = np.round((pts - lo) / res * 16.0 - 8.0).astype(np.int32)  # cell centres, 4 bits
+    cv2.fillPoly(img, [poly.reshape(-1, 1, 2)], 1, lineType=cv2.LINE_8, shift=4)
+    rows, cols = np.nonzero(img)
+    xy = lo + (np.stack([cols, rows], axis=1) + 0.5) * res
+    cloud = np.column_stack([xy, np.full(len(xy), 0.01)])
+    return top_down_view(cloud, cfg)
+
+
 def _signed_area(poly: NDArray[np.float64]) -> float:
     x, y = poly[:, 0], poly[:, 1]
     return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
@@ -703,6 +739,9 @@ class Measurement:
     orientation_observed : bool
         False for a continuously symmetric outline (:mod:`push_core.symmetry`): ``pose[2]`` is
         the episode frame's 0 and ``covariance[2, 2]`` is ``UNOBSERVED_VARIANCE``.
+    anchored : bool
+        True on the first frame after :meth:`EpisodeTracker.anchor` that matched the anchor:
+        the outline is the anchor's, the yaw the frame's in the episode frame.
     """
 
     pose: NDArray[np.float64]
@@ -714,6 +753,7 @@ class Measurement:
     candidates: int
     is_reference: bool
     orientation_observed: bool = True
+    anchored: bool = False
 
 
 class EpisodeTracker:
@@ -735,6 +775,44 @@ class EpisodeTracker:
         self._outline: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
         self._previous = 0.0
         self._symmetric = False
+        #: Yaw of the reference frame in the episode frame (non-zero only when anchored).
+        self._offset = 0.0
+        self._anchor: tuple[NDArray[np.float64], NDArray[np.float64], float] | None = None
+
+    def anchor(self, points: ArrayLike, normals: ArrayLike, yaw: float) -> None:
+        """Continue an episode begun elsewhere (a restarted perception node): the next good
+        frame is matched against this episode outline instead of becoming yaw 0.
+
+        Parameters
+        ----------
+        points, normals : (K, 2) float
+            The episode's outline in its ``object`` frame (metres, counter-clockwise, outward
+            unit normals): what the episode's first frame gave.
+        yaw : float
+            A recent estimate of the object's yaw in the episode frame, radians: it picks the
+            symmetric equivalent of the match (it need only be within half the symmetry angle)
+            and is the yaw reported for a continuously symmetric outline.
+
+        The next good frame's footprint is matched by :func:`rotation_search` against a
+        footprint rasterised from ``points`` (:func:`outline_view`); its yaw in the episode
+        frame becomes the offset of every later frame, and :attr:`outline` is ``points``. A
+        match costing more than ``ANCHOR_MAX_COST`` (another object) drops the anchor: that
+        frame becomes a new reference, as after :meth:`reset`.
+        """
+        pts = np.asarray(points, dtype=np.float64)
+        nrm = np.asarray(normals, dtype=np.float64)
+        if pts.ndim != 2 or pts.shape[1] != 2 or pts.shape != nrm.shape or len(pts) < 3:
+            raise ValueError(f"anchor outline must be (K, 2) points and normals with K >= 3, "
+                             f"got {pts.shape} and {nrm.shape}")
+        if not (np.all(np.isfinite(pts)) and np.all(np.isfinite(nrm)) and math.isfinite(yaw)):
+            raise ValueError("anchor outline and yaw must be finite")
+        self.reset()
+        self._anchor = (pts.copy(), nrm.copy(), float(yaw))
+
+    @property
+    def anchored(self) -> bool:
+        """Whether the next good frame will be matched against an anchor (:meth:`anchor`)."""
+        return self._anchor is not None and self._ref is None
 
     @property
     def outline(self) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
@@ -809,6 +887,10 @@ class EpisodeTracker:
         pts, normals = smooth_outline(view.boundary, cfg.outline_spacing,
                                       cfg.outline_smoothing,
                                       0.5 * cfg.resolution + cfg.outline_offset)
+        if self._ref is None and self._anchor is not None:
+            anchored = self._anchored_reference(view, pts, n_mask, n_valid, fraction)
+            if anchored is not None:
+                return anchored
         if self._ref is None:
             self._ref, self._ref_points = view, pts
             self._outline = (pts - view.centroid, normals)
@@ -823,14 +905,42 @@ class EpisodeTracker:
         if self._symmetric:  # no orientation to search for (a disc): position only
             cov = pose_covariance(n_valid, fraction, mismatch, 0.0, ref.area,
                                   ref.radius_of_gyration, cfg)
-            return self._measurement(np.array([*view.centroid, self._previous]), cov, n_mask,
-                                     n_valid, view.area, 0.0, 0, False)
+            return self._measurement(np.array([*view.centroid, self._offset + self._previous]),
+                                     cov, n_mask, n_valid, view.area, 0.0, 0, False)
         rot = rotation_search(ref, self._ref_points, view, pts, self._previous, cfg)
         self._previous = rot.theta
         cov = pose_covariance(n_valid, fraction, mismatch, rot.cost, ref.area,
                               ref.radius_of_gyration, cfg)
-        return self._measurement(np.array([*view.centroid, rot.theta]), cov, n_mask, n_valid,
-                                 view.area, rot.cost, len(rot.candidates), False)
+        return self._measurement(np.array([*view.centroid, self._offset + rot.theta]), cov,
+                                 n_mask, n_valid, view.area, rot.cost, len(rot.candidates),
+                                 False)
+
+    def _anchored_reference(self, view: TopDownView, pts: NDArray[np.float64], n_mask: int,
+                            n_valid: int, fraction: float) -> Measurement | None:
+        """Make ``view`` the reference of an anchored episode (:meth:`anchor`); None (and the
+        anchor dropped) when the anchor outline does not match it."""
+        cfg = self.cfg
+        points, normals, yaw = self._anchor
+        self._anchor = None
+        symmetric = has_continuous_symmetry(points)
+        cost = 0.0
+        if symmetric:
+            theta = yaw
+        else:
+            ref = outline_view(points, cfg)
+            rot = rotation_search(ref, points, view, pts, yaw, cfg)
+            if rot.cost > ANCHOR_MAX_COST:
+                return None
+            theta, cost = rot.theta, rot.cost
+        self._ref, self._ref_points = view, pts
+        self._outline = (points, normals)
+        self._symmetric = symmetric
+        self._offset, self._previous = float(theta), 0.0
+        cov = pose_covariance(n_valid, fraction, 0.0, cost, view.area, view.radius_of_gyration,
+                              cfg)
+        meas = self._measurement(np.array([*view.centroid, theta]), cov, n_mask, n_valid,
+                                 view.area, cost, 1, True)
+        return replace(meas, anchored=True)
 
     def _measurement(self, pose: NDArray[np.float64], cov: NDArray[np.float64], n_mask: int,
                      n_valid: int, area: float, cost: float, candidates: int,

@@ -21,6 +21,9 @@ Subscriptions (names relative and remappable; "sensor" = ``qos_profile_sensor_da
   whenever tf2 has no such transform, from the latched ``camera/color/extrinsics``
   (geometry_msgs/TransformStamped, ``world`` -> ``camera_color_optical_frame``; latched; the
   pip install's fallback, published by ``sim_bridge_node``). The latest one is used.
+- ``estimator/outline`` (sensor_msgs/PointCloud2, ``object``; latched) and
+  ``estimator/object_pose`` (geometry_msgs/PoseWithCovarianceStamped, ``world``; latched): the
+  episode's outline and the last estimate, read only to *re-anchor* after a restart (below).
 - ``/clock`` only with ``use_sim_time`` true. The default is false (a real camera stamps with
   wall time); the simulation (``pushbot demo``, the graph runner, the bringup YAML) sets it.
 
@@ -42,6 +45,21 @@ Publications:
   ``<node>: perception``; OK after a frame that gave a pose, WARN after one that did not
   (message = the reason); values: counters per outcome, last error, median latency, whether
   the episode has a reference. At 1 Hz (steady clock) and whenever the level changes.
+
+Restart recovery (re-anchoring; docs/ARCHITECTURE.md, "Faults and recovery"). A node started
+while an episode runs (a crash and restart) must not take its first frame as a new yaw 0: the
+estimator and the goal live in the episode frame. Until its first ``~/reset`` the node waits
+at most ``anchor_timeout`` seconds (steady clock) from start-up for the estimator's latched
+``estimator/outline`` and ``estimator/object_pose`` (the estimate stamped no earlier than the
+outline), skipping frames meanwhile (``waiting_for_anchor``). With both, the next good frame is
+matched against that outline (:meth:`push_perception.core.EpisodeTracker.anchor`: rotation
+search near the estimate's yaw, which picks the symmetric equivalent), its yaw in the episode
+frame is reported and the estimator's outline message is re-published unchanged on
+``perception/outline`` (same stamp and points: the estimator and the planner see the same
+outline); ``anchored`` counts it. An anchor that does not match the frame (chamfer cost above
+``ANCHOR_MAX_COST``, 3 mm: another object) is dropped, and so is the wait when nothing arrives in
+time (a fresh graph): the frame becomes a new reference as usual. ``~/reset`` ends the wait
+(an explicit new episode). ``anchor_timeout: 0.0`` disables re-anchoring.
 
 Services: ``~/reset`` (std_srvs/srv/Trigger): new episode. The next good frame becomes the
 orientation reference and its outline is published (the previous outline stays latched
@@ -114,9 +132,15 @@ from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image, PointCloud2
 from std_srvs.srv import Trigger
 
-from push_perception.core import EpisodeTracker, PerceptionConfig, PerceptionError
+from push_perception.core import (
+    MAX_OUTLINE_POINTS,
+    EpisodeTracker,
+    PerceptionConfig,
+    PerceptionError,
+)
 from push_ros.diagnostics import DiagnosticsPublisher
 from push_ros.extrinsics import CameraExtrinsics
+from push_ros.frames import OBJECT_FRAME, WORLD_FRAME
 from push_ros.images import (
     camera_matrix_from_info,
     check_image_layout,
@@ -132,8 +156,8 @@ from push_ros.node import (
     parameter_values,
     run_node,
 )
-from push_ros.outline import outline_cloud_msg
-from push_ros.poses import pose_with_covariance_msg
+from push_ros.outline import outline_cloud_msg, outline_from_cloud
+from push_ros.poses import check_frame, pose_with_covariance_msg, xytheta_from_pose
 from push_ros.qos import LATCHED_QOS, RELIABLE_QOS, SENSOR_QOS
 from push_ros.stamps import seconds_from_stamp
 
@@ -174,6 +198,9 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec("min_coarse_cells", 3, "Smallest coarse CNN component accepted as the object, "
               "cells of 8 x 8 px at 640 x 480.", (1, 10000), read_only=True),
     ParamSpec("publish_mask", True, "Publish perception/mask."),
+    ParamSpec("anchor_timeout", 5.0, "Seconds (steady) after start-up to wait for the "
+              "estimator's latched outline and estimate to continue a running episode after a "
+              "restart; 0 = never re-anchor.", (0.0, 60.0), read_only=True),
     ParamSpec("resolution", _GEOMETRY["resolution"], "Cell size of the top-down view, m.",
               (5e-4, 3e-3)),
     ParamSpec("min_height", _GEOMETRY["min_height"], "Mask points lower than this above the "
@@ -220,6 +247,8 @@ class SegmentationParams:
     publish_mask : bool
     geometry : PerceptionConfig
         The mask-to-state parameters.
+    anchor_timeout : float
+        Seconds to wait for a re-anchoring after start-up (module docstring).
     """
 
     weights: str
@@ -229,6 +258,7 @@ class SegmentationParams:
     min_coarse_cells: int
     publish_mask: bool
     geometry: PerceptionConfig
+    anchor_timeout: float = 5.0
 
     @classmethod
     def from_values(cls, values: dict[str, Any]) -> SegmentationParams:
@@ -241,7 +271,8 @@ class SegmentationParams:
         return cls(weights=str(values["weights"]), torch_threads=int(values["torch_threads"]),
                    sync_queue=int(values["sync_queue"]), threshold=float(values["threshold"]),
                    min_coarse_cells=int(values["min_coarse_cells"]),
-                   publish_mask=bool(values["publish_mask"]), geometry=config)
+                   publish_mask=bool(values["publish_mask"]), geometry=config,
+                   anchor_timeout=float(values["anchor_timeout"]))
 
 
 # --------------------------------------------------------------------------------------------
@@ -273,7 +304,15 @@ class SegmentationNode(Node):
 
         self._pending: OrderedDict[tuple[int, int], dict[str, Any]] = OrderedDict()
         self._counts = {"frames": 0, "poses": 0, "resets": 0, "previous_episode": 0,
+                        "waiting_for_anchor": 0, "anchored": 0,
                         **dict.fromkeys(FAILURE_KINDS, 0)}
+        # Re-anchoring after a restart (module docstring): until this steady time (None = not
+        # waiting) the first frame waits for the estimator's latched outline and estimate.
+        self._anchor_until: float | None = (time.monotonic() + self._params.anchor_timeout
+                                            if self._params.anchor_timeout > 0.0 else None)
+        self._anchor_outline: tuple[PointCloud2, np.ndarray, np.ndarray, float] | None = None
+        self._anchor_estimate: tuple[float, float] | None = None  # (stamp, yaw)
+        self._anchor_msg: PointCloud2 | None = None  # the outline to re-publish
         self._last_error = ""
         self._ok: bool | None = None
         self._latency: deque[float] = deque(maxlen=LATENCY_WINDOW)
@@ -297,6 +336,13 @@ class SegmentationNode(Node):
         self.on_depth = self._guard(self._on_depth)
         self.on_camera_info = self._guard(self._on_camera_info)
         self.on_reset = self._guard(self._on_reset)
+        self.on_estimator_outline = self._guard(self._on_estimator_outline)
+        self.on_estimate = self._guard(self._on_estimate)
+        if self._anchor_until is not None:
+            self.create_subscription(PointCloud2, "estimator/outline",
+                                     self.on_estimator_outline, LATCHED_QOS)
+            self.create_subscription(PoseWithCovarianceStamped, "estimator/object_pose",
+                                     self.on_estimate, LATCHED_QOS)
         self.create_subscription(Image, "camera/color/image_raw", self.on_color, sensor)
         self.create_subscription(Image, "camera/aligned_depth_to_color/image_raw",
                                  self.on_depth, sensor)
@@ -381,6 +427,52 @@ class SegmentationNode(Node):
             self._fail("missing_camera_info", f"colour and depth at t={key[0] + key[1] * 1e-9:.3f}"
                        " s have no camera_info with the same stamp; frame dropped")
 
+    # ---- re-anchoring after a restart ----------------------------------------------------------
+    def _on_estimator_outline(self, msg: PointCloud2) -> None:
+        if self._anchor_until is None:
+            return
+        try:
+            points, normals = outline_from_cloud(msg, OBJECT_FRAME, MAX_OUTLINE_POINTS)
+            stamp = seconds_from_stamp(msg.header.stamp)
+        except ValueError as exc:
+            self._fail("bad_input", f"estimator/outline rejected: {exc}")
+            return
+        self._anchor_outline = (msg, points, normals, stamp)
+
+    def _on_estimate(self, msg: PoseWithCovarianceStamped) -> None:
+        if self._anchor_until is None:
+            return
+        try:
+            check_frame(msg.header.frame_id, WORLD_FRAME)
+            yaw = float(xytheta_from_pose(msg.pose.pose)[2])
+            stamp = seconds_from_stamp(msg.header.stamp)
+        except ValueError as exc:
+            self._fail("bad_input", f"estimator/object_pose rejected: {exc}")
+            return
+        self._anchor_estimate = (stamp, yaw)
+
+    def _waiting_for_anchor(self) -> bool:
+        """Decide on re-anchoring before the first frame of a (re)started node (module
+        docstring); True while the frame must wait."""
+        if self._anchor_until is None or self._tracker.outline is not None:
+            self._anchor_until = None
+            return False
+        outline, estimate = self._anchor_outline, self._anchor_estimate
+        if outline is not None and estimate is not None and estimate[0] >= outline[3]:
+            self._tracker.anchor(outline[1], outline[2], estimate[1])
+            self._anchor_msg = outline[0]
+            self._anchor_until = None
+            self.get_logger().info(
+                f"re-anchoring to the running episode: the estimator's outline of "
+                f"t={outline[3]:.3f} s and estimate of t={estimate[0]:.3f} s (yaw "
+                f"{estimate[1]:.4f} rad)")
+            return False
+        if time.monotonic() < self._anchor_until:
+            self._counts["waiting_for_anchor"] += 1
+            return True
+        self._anchor_until = None
+        return False
+
     # ---- processing --------------------------------------------------------------------------
     def _process(self, rgb_msg: Image, depth_msg: Image, info: CameraInfo) -> None:
         started = time.perf_counter()
@@ -388,6 +480,8 @@ class SegmentationNode(Node):
         stamp_s = seconds_from_stamp(stamp)
         if stamp_s == self._episode_after:  # a repeated frame of the previous episode
             self._counts["previous_episode"] += 1
+            return
+        if self._waiting_for_anchor():
             return
         self._last_frame = stamp_s
         self._counts["frames"] += 1
@@ -433,9 +527,20 @@ class SegmentationNode(Node):
         except PerceptionError as exc:
             self._fail(exc.kind, str(exc))
             return
-        if meas.is_reference:  # the outline first: consumers need it for this pose
+        if meas.anchored:  # the episode's outline, unchanged (same stamp and points)
+            self._pub_outline.publish(self._anchor_msg)
+            self._counts["anchored"] += 1
+            self.get_logger().info(
+                f"re-anchored at t={seconds_from_stamp(stamp):.3f} s: object at "
+                f"({meas.pose[0]:.4f}, {meas.pose[1]:.4f}) m, yaw {meas.pose[2]:.4f} rad in the "
+                f"episode frame (match cost {1e3 * meas.match_cost:.2f} mm)")
+        elif meas.is_reference:  # the outline first: consumers need it for this pose
             points, normals = self._tracker.outline
             self._pub_outline.publish(outline_cloud_msg(points, normals, stamp))
+            if self._anchor_msg is not None:
+                self.get_logger().warning("the estimator's outline did not match the first "
+                                          "frame: a new episode reference instead")
+                self._anchor_msg = None
             self.get_logger().info(
                 f"new episode reference at t={seconds_from_stamp(stamp):.3f} s: object at "
                 f"({meas.pose[0]:.4f}, {meas.pose[1]:.4f}) m, area "
@@ -478,6 +583,8 @@ class SegmentationNode(Node):
             return response
         self._params = params
         self._tracker = EpisodeTracker(params.geometry)
+        self._anchor_until = None  # an explicit new episode: no re-anchoring
+        self._anchor_msg = None
         self._episode_after = self._last_frame
         self._counts["resets"] += 1
         response.success = True

@@ -19,10 +19,17 @@ Subscriptions (names relative and remappable; QoS as in ``docs/ARCHITECTURE.md``
   the last estimate (``push_ros.qos.latched_reader_qos``).
 - ``perception/outline`` (sensor_msgs/PointCloud2, ``object``; latched): x, y, z, normal_x,
   normal_y, normal_z float32, counter-clockwise, outward normals.
-- ``goal_pose`` (geometry_msgs/PoseStamped, ``world``; reliable): RViz's "2D Goal Pose". A new
-  goal starts a new episode (step 0). The callback takes the message info: a goal from
-  another publisher than the previous goal's is still taken, but logged (warning, with the
-  node names and endpoint GIDs of the ``goal_pose`` publishers) and noted in the status
+- ``goal_pose`` (geometry_msgs/PoseStamped, ``world``): RViz's "2D Goal Pose" (volatile) or a
+  latched sender (``push_ros.qos.GOAL_QOS``: the graph runner, ``pushbot``'s goal sender).
+  Read twice: a reliable *volatile* reader (matches every publisher) and a reliable
+  *transient-local* reader (matches latched senders only; it gives a node started or restarted
+  mid-episode the last goal, so a restarted planner resumes the episode). A latched sender's
+  sample arrives on both and is taken once (same ``publication_sequence_number`` and
+  ``source_timestamp``); the transient-local reader's expected QoS mismatch with a volatile
+  sender is logged at debug level only. A new goal starts a new episode (step 0). The
+  callback takes the message info: a goal from another publisher than the previous goal's
+  is still taken, but logged (warning, with the node names and endpoint GIDs of the
+  ``goal_pose`` publishers) and noted in the status
   (`` - goal replaced by another publisher ...``, level WARN, ``goal_switches``). rclpy Jazzy's
   message info has no publisher GID, so "another publisher" is decided from
   ``publication_sequence_number`` (a publisher numbers its messages 1, 2, 3, ...: a goal whose
@@ -156,6 +163,7 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from nav_msgs.msg import Path
 from rclpy.clock import Clock, ClockType
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Float64MultiArray
@@ -192,6 +200,8 @@ PAIR_TOLERANCE_XY = 1e-6
 PAIR_TOLERANCE_THETA = 1e-6
 #: Poses and states kept for pairing.
 PAIR_BUFFER = 10
+#: Goal samples remembered to take a sample received on both goal readers once.
+GOAL_SAMPLES_KEPT = 16
 #: Said in planner/status when the outline is continuously symmetric (push_core.symmetry).
 ORIENTATION_IGNORED = "orientation ignored: rotationally symmetric outline"
 #: Seconds between two log lines of one kind of refused input or callback error (each is
@@ -389,6 +399,9 @@ class PlannerNode(Node):
         self._last_error = ""
         #: Goals taken from another publisher than the previous goal's (logged, in the status).
         self._goal_switches = 0
+        #: (publication sequence number, source timestamp) of the last goal samples: a latched
+        #: sender's sample arrives on both goal readers and is taken once.
+        self._goal_samples: deque[tuple[int, int]] = deque(maxlen=GOAL_SAMPLES_KEPT)
         self._new_episode()
 
         self._pub_push = self.create_publisher(Path, "planner/push", RELIABLE_QOS)
@@ -409,7 +422,18 @@ class PlannerNode(Node):
         def on_goal_with_info(msg: PoseStamped, info: Any) -> None:  # 2 args: with MessageInfo
             on_goal(msg, info)
 
+        # Two readers of goal_pose (module docstring, "goal_pose"): a volatile one matches every
+        # publisher (RViz's volatile "2D Goal Pose" too), a transient-local one gives a
+        # (re)started node the last goal of a latched sender (push_ros.qos.GOAL_QOS). A sample
+        # of a latched sender arrives on both; _on_goal takes it once. A transient-local reader
+        # cannot match a volatile writer: that expected mismatch is logged at debug level only.
         self.create_subscription(PoseStamped, "goal_pose", on_goal_with_info, RELIABLE_QOS)
+        self.create_subscription(
+            PoseStamped, "goal_pose", on_goal_with_info, LATCHED_QOS,
+            event_callbacks=SubscriptionEventCallbacks(
+                incompatible_qos=lambda event: self.get_logger().debug(
+                    "a volatile goal_pose publisher (e.g. RViz) does not match the latched "
+                    "goal reader; its goals arrive on the volatile one")))
         self.create_subscription(Path, "pusher/executed", guard(self._on_executed),
                                  RELIABLE_QOS)
         self.create_service(Trigger, "~/reset", guard(self._on_reset))
@@ -514,6 +538,11 @@ class PlannerNode(Node):
         self._publish_status()
 
     def _on_goal(self, msg: PoseStamped, info: Any = None) -> None:
+        sample = _sample_key(info)
+        if sample is not None:
+            if sample in self._goal_samples:  # the same sample on the other goal reader
+                return
+            self._goal_samples.append(sample)
         source, sequence = _goal_source(info)
         previous, self._goal_sequence = self._goal_sequence, sequence
         try:
@@ -746,6 +775,20 @@ class PlannerNode(Node):
 
     def _publish_diagnostics(self, status: DiagnosticStatus | None = None) -> None:
         self._diagnostics.publisher.publish(self._diagnostics.array(status or self._status()))
+
+
+def _sample_key(info: Any) -> tuple[int, int] | None:
+    """(publication sequence number, source timestamp in ns) of a message info, or None.
+
+    The two identify one sample of one writer: the two ``goal_pose`` readers receive the same
+    sample with the same pair. rclpy Jazzy's message info is a dict with both entries.
+    """
+    if not isinstance(info, dict):
+        return None
+    sequence, stamp = info.get("publication_sequence_number"), info.get("source_timestamp")
+    if not all(isinstance(v, int) and not isinstance(v, bool) for v in (sequence, stamp)):
+        return None
+    return int(sequence), int(stamp)
 
 
 def _goal_source(info: Any) -> tuple[str, int | None]:

@@ -7,6 +7,10 @@
   needs (the outline, the camera extrinsics, the estimator's outputs, ``planner/status``);
   subscribers use it too (or :func:`latched_reader_qos`, the same with a deeper reader
   queue), otherwise they do not get the last sample;
+- :data:`GOAL_QOS`: what a goal *sender* publishes ``goal_pose`` with: latched, so a
+  ``planner_node`` started or restarted later still gets the last goal (the graph runner's
+  client and ``pushbot``'s own goal sender use it; RViz's volatile "2D Goal Pose" still
+  works: ``planner_node`` subscribes both ways, see its module docstring);
 - :data:`CLOCK_QOS`: ``/clock`` of the sim bridge, reliable, volatile, keep last 1 (matches the
   best-effort clock subscription of rclpy/rclcpp nodes and reliable ones).
 """
@@ -19,7 +23,8 @@ from rclpy.qos import (
     qos_profile_sensor_data,
 )
 
-__all__ = ["CLOCK_QOS", "LATCHED_QOS", "RELIABLE_QOS", "SENSOR_QOS", "latched_reader_qos"]
+__all__ = ["CLOCK_QOS", "GOAL_QOS", "LATCHED_QOS", "RELIABLE_QOS", "SENSOR_QOS",
+           "latched_reader_qos"]
 
 SENSOR_QOS = qos_profile_sensor_data
 RELIABLE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
@@ -28,6 +33,7 @@ RELIABLE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
 LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                          reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
+GOAL_QOS = LATCHED_QOS
 CLOCK_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                        reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.VOLATILE)

@@ -96,7 +96,7 @@ class GraphClient:
         )
         from sensor_msgs.msg import CameraInfo, Image, PointCloud2
 
-        from push_ros.qos import latched_reader_qos
+        from push_ros.qos import GOAL_QOS, latched_reader_qos
 
         apply_default_profile()
         self._context = Context()
@@ -123,7 +123,8 @@ class GraphClient:
             sub(CameraInfo, "camera/color/camera_info", self._on_info, qos_profile_sensor_data)
             sub(TransformStamped, "camera/color/extrinsics", self._on_extrinsics, latched)
             sub(PointCloud2, "perception/outline", self._on_outline, latched)
-        self._pub_goal = node.create_publisher(PoseStamped, "goal_pose", reliable)
+        # Latched (push_ros.qos.GOAL_QOS): a planner_node restarted mid-episode gets the goal.
+        self._pub_goal = node.create_publisher(PoseStamped, "goal_pose", GOAL_QOS)
         from rcl_interfaces.srv import SetParameters
         from std_srvs.srv import Trigger
 

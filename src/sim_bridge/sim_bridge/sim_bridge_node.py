@@ -46,18 +46,41 @@ Subscriptions:
   workspace, a push that the world refuses (approach inside the object), and any push that
   arrives while another push or a reset is running.
 
+- ``sim/knock`` (geometry_msgs/PoseStamped; reliable): a documented way to displace the object
+  (fault scenarios, tests, demos): frame ``world``, position (dx, dy) m and the yaw of the
+  orientation dyaw rad are *added* to the object's pose at rest (its frame origin moves by
+  (dx, dy), it turns by dyaw about that origin); z ignored. Read with the pose codec's rules
+  (finite, planar unit quaternion), ``|(dx, dy)| <= MAX_KNOCK_SHIFT`` (0.1 m), the new origin
+  on the workspace. Runs in the worker like a push (refused while busy, never queued): the
+  object is placed, settles (``INITIAL_SETTLE_STEPS``), and a fresh frame and
+  ``sim/object_pose`` are published (no ``pusher/executed``: nothing the robot did). Counted
+  as ``knocks`` / ``knocks_rejected``. Example: ``pushbot topic pub --once sim/knock
+  geometry_msgs/msg/PoseStamped "{header: {frame_id: world}, pose: {position: {x: 0.03},
+  orientation: {z: 0.0998, w: 0.995}}}"`` (3 cm along x, 0.2 rad).
+
 Services:
 
 - ``~/reset`` (std_srvs/srv/Trigger): re-read the current parameters and rebuild the scene;
   refused while busy. ``message`` says what was built or why not.
 
+Fault injection (``faults.*`` parameters, :class:`FaultConfig`, all off by default; read on
+start-up and ``~/reset``, draws re-seeded from ``faults.seed`` on every reset): each publication
+of a camera frame (colour, depth, camera_info together; also the idle re-publications) is
+dropped with probability ``faults.frame_drop``, or held back with probability
+``faults.frame_delay`` and published right after the next publication (late and after a newer
+frame: delayed and reordered delivery through DDS); a valid push is refused with probability
+``faults.push_refusal`` (``pushes_refused_fault``; the planner's ``push_timeout`` then counts
+it lost). Ground truth (``sim/object_pose``) is never dropped. Counters ``frames_dropped``,
+``frames_delayed`` on ``/diagnostics``.
+
 Parameters (declared once below with descriptions and ranges; documented with defaults and
 units in ``pushbot_bringup/config/sim_bridge.yaml``): ``object``, ``initial_pose.{x,y,theta}``,
 ``com_offset``, ``mass``, ``friction_table``, ``friction_pusher``, ``seed``, ``randomize``,
 ``image_width``, ``image_height``, ``depth_noise``, ``randomize_appearance``,
-``randomize_camera``, ``push_speed``, ``pusher_radius`` (all read on start-up and on
-``~/reset``), and the read-only ``idle_frame_rate`` and ``clock_rate`` (timer rates, Hz of
-wall time). A bad value fails start-up with a clear message (exit status 2); a set that the
+``randomize_camera``, ``push_speed``, ``pusher_radius``, ``faults.{frame_drop,frame_delay,
+push_refusal,seed}`` (all read on start-up and on ``~/reset``), and the read-only
+``idle_frame_rate`` and ``clock_rate`` (timer rates, Hz of wall time). A bad value fails
+start-up with a clear message (exit status 2); a set that the
 node can check (e.g. an unknown object) is refused with the reason, what only the world can
 check (e.g. a COM outside the outline) makes the next ``~/reset`` fail and keep the scene.
 ``object`` accepts a library name or the path of a regular ``.json``/``.yaml``/``.yml``
@@ -128,7 +151,7 @@ from push_ros.node import (
     run_node,
 )
 from push_ros.paths import path_from_points, push_points_from_path
-from push_ros.poses import pose_stamped_msg, transform_msg
+from push_ros.poses import check_frame, pose_stamped_msg, transform_msg, xytheta_from_pose
 from push_ros.qos import CLOCK_QOS, LATCHED_QOS, RELIABLE_QOS, SENSOR_QOS
 from push_ros.stamps import stamp_from_seconds
 from sim_bridge.world import CameraConfig, PushWorld, WorldConfig
@@ -144,6 +167,8 @@ __all__ = ["SimBridgeNode", "SimBridgeParams", "main"]
 LOG_THROTTLE_S = 1.0
 #: Period of the regular /diagnostics message, seconds of wall time.
 DIAGNOSTICS_PERIOD_S = 1.0
+#: Largest displacement of the object one ``sim/knock`` may ask for, m.
+MAX_KNOCK_SHIFT = 0.1
 #: Suffixes of the object specification files the ``object`` parameter accepts.
 SPEC_SUFFIXES = (".json", ".yaml", ".yml")
 #: Largest object specification file the ``object`` parameter reads, bytes (a spec is < 10 kB).
@@ -183,7 +208,41 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               "time).", (1.0, 1000.0), read_only=True),
     ParamSpec("push_speed", 0.02, "Pusher speed along the push, m/s.", (0.001, 0.2)),
     ParamSpec("pusher_radius", 0.0048, "Radius of the cylindrical pusher, m.", (0.001, 0.05)),
+    ParamSpec("faults.frame_drop", 0.0, "Fault injection: probability that a camera frame "
+              "publication (colour, depth, camera_info together) is dropped.", (0.0, 0.9)),
+    ParamSpec("faults.frame_delay", 0.0, "Fault injection: probability that a camera frame "
+              "publication is held back and published after the next one (delayed and "
+              "reordered).", (0.0, 0.9)),
+    ParamSpec("faults.push_refusal", 0.0, "Fault injection: probability that a valid push is "
+              "refused (as a robot refuses a command).", (0.0, 1.0)),
+    ParamSpec("faults.seed", 0, "Seed of the fault injection draws (re-seeded on ~/reset).",
+              (0, 2**31 - 1)),
 )
+
+
+@dataclass(frozen=True)
+class FaultConfig:
+    """Fault injection of the bridge (docs/ARCHITECTURE.md, "Faults"); all off by default.
+
+    Attributes
+    ----------
+    frame_drop : float
+        Probability in [0, 0.9] that one publication of a camera frame (colour, depth and
+        camera_info together) is dropped; ``sim/object_pose`` (ground truth) is never dropped.
+    frame_delay : float
+        Probability in [0, 0.9] that one publication of a camera frame is held back and
+        published right after the next publication (so it arrives late and after a newer frame).
+    push_refusal : float
+        Probability in [0, 1] that a valid push is refused (``pushes_refused_fault``).
+    seed : int
+        Seed of the draws, re-seeded on every ``~/reset``. Which publications are hit also
+        depends on how many idle re-publications happen, i.e. on wall time.
+    """
+
+    frame_drop: float = 0.0
+    frame_delay: float = 0.0
+    push_refusal: float = 0.0
+    seed: int = 0
 
 
 @dataclass(frozen=True)
@@ -210,6 +269,8 @@ class SimBridgeParams:
         m/s.
     pusher_radius : float
         m.
+    faults : FaultConfig
+        Fault injection (all off by default).
     """
 
     object: str
@@ -229,6 +290,7 @@ class SimBridgeParams:
     clock_rate: float
     push_speed: float
     pusher_radius: float
+    faults: FaultConfig = FaultConfig()
 
     @classmethod
     def from_values(cls, values: dict[str, Any]) -> SimBridgeParams:
@@ -286,6 +348,10 @@ class SimBridgeParams:
             clock_rate=float(values["clock_rate"]),
             push_speed=float(values["push_speed"]),
             pusher_radius=float(values["pusher_radius"]),
+            faults=FaultConfig(frame_drop=float(values["faults.frame_drop"]),
+                               frame_delay=float(values["faults.frame_delay"]),
+                               push_refusal=float(values["faults.push_refusal"]),
+                               seed=int(values["faults.seed"])),
         )
 
     def world_config(self) -> WorldConfig:
@@ -401,7 +467,12 @@ class SimBridgeNode(Node):
         self._closing = False
         self._counts = {"pushes_executed": 0, "pushes_rejected_busy": 0,
                         "pushes_rejected_invalid": 0, "pushes_failed": 0, "resets": 0,
-                        "callback_errors": 0}
+                        "callback_errors": 0, "knocks": 0, "knocks_rejected": 0,
+                        "pushes_refused_fault": 0, "frames_dropped": 0, "frames_delayed": 0}
+        # Fault injection (FaultConfig): its draws and the held-back frame; any thread.
+        self._fault_lock = threading.Lock()
+        self._fault_rng = np.random.default_rng(self._params.faults.seed)
+        self._held: _Capture | None = None
         self._last_error = ""
         self._error_active = False
         self._log = ThrottledLog(self.get_logger(), LOG_THROTTLE_S)
@@ -440,7 +511,9 @@ class SimBridgeNode(Node):
         # tests can call them directly with real messages.
         self.on_push = self._guard(self._on_push)
         self.on_reset = self._guard(self._on_reset)
+        self.on_knock = self._guard(self._on_knock)
         self.create_subscription(Path, "planner/push", self.on_push, RELIABLE_QOS)
+        self.create_subscription(PoseStamped, "sim/knock", self.on_knock, RELIABLE_QOS)
         self.create_service(Trigger, "~/reset", self.on_reset)
 
         steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -562,6 +635,9 @@ class SimBridgeNode(Node):
         # one stopped, so the new scene's stamps (after its initial settling) are strictly later.
         self._epoch = time_before
         self._params = params
+        with self._fault_lock:  # a held frame of the old scene must never follow the new one
+            self._fault_rng = np.random.default_rng(params.faults.seed)
+            self._held = None
         try:
             summary = self._after_build()
         except Exception as exc:
@@ -605,18 +681,41 @@ class SimBridgeNode(Node):
         subscriber is sometimes only delivered by the next heartbeat, up to 3 s later; after
         the burst it arrives at once. So reliable messages follow the images everywhere.
         """
-        for publisher, msg in (
-            (self._pub_rgb, capture.rgb),
-            (self._pub_depth, capture.depth),
-            (self._pub_info, capture.info),
-            (self._pub_pose, capture.object_pose),
-        ):
-            self._publish_safely(publisher, msg)
+        for frame in self._camera_faults(capture):
+            for publisher, msg in ((self._pub_rgb, frame.rgb), (self._pub_depth, frame.depth),
+                                   (self._pub_info, frame.info)):
+                self._publish_safely(publisher, msg)
+        self._publish_safely(self._pub_pose, capture.object_pose)
         if self._pub_tf is not None:
             pusher = np.eye(4)
             pusher[:2, 3] = capture.pusher_xy
             tf = transform_msg(pusher, capture.info.header.stamp, WORLD_FRAME, PUSHER_FRAME)
             self._publish_safely(self._pub_tf, TFMessage(transforms=[tf]))
+
+    def _camera_faults(self, capture: _Capture) -> list[_Capture]:
+        """The frames to publish now for one publication of ``capture``, in order
+        (:class:`FaultConfig`): none (dropped), ``capture``, or a held-back older frame after
+        it (delayed and reordered); ``capture`` itself may be held back for the next one."""
+        faults = self._params.faults
+        if faults.frame_drop <= 0.0 and faults.frame_delay <= 0.0 and self._held is None:
+            return [capture]
+        with self._fault_lock:
+            out = [capture]
+            if faults.frame_drop > 0.0 and self._fault_rng.random() < faults.frame_drop:
+                out = []
+                self._count("frames_dropped")
+            if (out and self._held is None and faults.frame_delay > 0.0
+                    and self._fault_rng.random() < faults.frame_delay):
+                self._held, out = capture, []
+                self._count("frames_delayed")
+            elif self._held is not None:
+                out.append(self._held)
+                self._held = None
+        return out
+
+    def _count(self, counter: str) -> None:
+        with self._lock:
+            self._counts[counter] += 1
 
     def _publish_diagnostics(self) -> None:
         with self._lock:
@@ -661,6 +760,14 @@ class SimBridgeNode(Node):
             self._reject(f"rejected push command on planner/push: {exc}",
                          "pushes_rejected_invalid")
             return
+        if self._params.faults.push_refusal > 0.0 and not self._busy:
+            with self._fault_lock:
+                refuse = self._fault_rng.random() < self._params.faults.push_refusal
+            if refuse:
+                self._reject("refused push command on planner/push (fault injection: "
+                             f"faults.push_refusal = {self._params.faults.push_refusal})",
+                             "pushes_refused_fault")
+                return
         with self._lock:
             busy = self._busy
             if not busy:
@@ -678,6 +785,58 @@ class SimBridgeNode(Node):
             with self._lock:
                 self._busy = ""
             raise
+
+    def _on_knock(self, msg: PoseStamped) -> None:
+        """``sim/knock``: displace the object at rest by (dx, dy, dyaw) (module docstring)."""
+        try:
+            check_frame(msg.header.frame_id, WORLD_FRAME)
+            delta = xytheta_from_pose(msg)
+            shift = float(np.hypot(delta[0], delta[1]))
+            if shift > MAX_KNOCK_SHIFT:
+                raise ValueError(f"displacement {shift:.4f} m is larger than {MAX_KNOCK_SHIFT} m")
+        except ValueError as exc:
+            self._reject(f"rejected knock on sim/knock: {exc}", "knocks_rejected")
+            return
+        with self._lock:
+            busy = self._busy
+            if not busy:
+                self._busy = "knocking the object"
+        if busy:
+            self._reject(f"rejected knock on sim/knock: busy ({busy}); knocks are never "
+                         "queued", "knocks_rejected")
+            return
+        try:
+            self._publish_diagnostics()
+            self._submit(self._run_knock, delta)
+        except BaseException:  # never left busy without a job that ends it
+            with self._lock:
+                self._busy = ""
+            raise
+
+    def _run_knock(self, delta: np.ndarray) -> None:
+        """Worker thread: teleport the object by ``delta``, settle, publish a fresh frame."""
+        before = np.asarray(self._world.object_pose(), dtype=float)
+        after = before + delta
+        (x0, x1), (y0, y1) = self._world.workspace
+        if not (x0 <= after[0] <= x1 and y0 <= after[1] <= y1):
+            self._finish_job(f"rejected knock on sim/knock: the object would leave the "
+                             f"workspace (to x {after[0]:.4f}, y {after[1]:.4f} m)",
+                             "knocks_rejected")
+            return
+        try:
+            self._world.set_object_pose(after)
+            capture = self._capture_scene()
+        except Exception as exc:
+            self.get_logger().error(f"knock failed:\n{traceback.format_exc()}")
+            self._finish_job(f"knock failed: {type(exc).__name__}: {exc}", "knocks_rejected")
+            return
+        self._capture = capture
+        self._finish_job(None, "knocks", publish=False)
+        self._publish_clock(capture.time)
+        self._publish_capture(capture)
+        self._publish_diagnostics()
+        self.get_logger().info(f"knocked the object by {np.round(delta, 4)} (m, m, rad): "
+                               f"now at {np.round(self._world.object_pose(), 4)}")
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response
                   ) -> Trigger.Response:
