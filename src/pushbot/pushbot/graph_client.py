@@ -10,7 +10,6 @@ as a node process exits), and drives the nodes through their services (``~/reset
 
 from __future__ import annotations
 
-import math
 import os
 import time
 from collections.abc import Callable
@@ -41,6 +40,8 @@ class Recorded:
     pushes: list[tuple[float, np.ndarray]] = field(default_factory=list)  # (wall, 3x2)
     executed: list[tuple[float, float, float]] = field(default_factory=list)  # (wall, t0, t1)
     status: list[dict[str, str]] = field(default_factory=list)
+    #: The last ``/diagnostics`` values per status name (``/sim_bridge_node: simulation``...).
+    diagnostics: dict[str, dict[str, str]] = field(default_factory=dict)
     frames: dict[float, np.ndarray] = field(default_factory=dict)  # stamp -> rgb
     masks: dict[float, np.ndarray] = field(default_factory=dict)  # stamp -> bool mask
     outline: np.ndarray | None = None
@@ -77,7 +78,7 @@ class GraphClient:
     def start(self) -> None:
         """Create the context, the node, its subscriptions, publisher and service clients."""
         import rclpy
-        from diagnostic_msgs.msg import DiagnosticStatus
+        from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
         from geometry_msgs.msg import (
             PointStamped,
             PoseStamped,
@@ -86,6 +87,7 @@ class GraphClient:
         )
         from nav_msgs.msg import Path as PathMsg
         from rclpy.context import Context
+        from rclpy.event_handler import PublisherEventCallbacks
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
         from rclpy.qos import (
@@ -117,6 +119,7 @@ class GraphClient:
         sub(PathMsg, "planner/push", self._on_push, reliable)
         sub(PathMsg, "pusher/executed", self._on_executed, reliable)
         sub(DiagnosticStatus, "planner/status", self._on_status, latched)
+        sub(DiagnosticArray, "/diagnostics", self._on_diagnostics, reliable)
         if self.record_frames:
             sub(Image, "camera/color/image_raw", self._on_rgb, qos_profile_sensor_data)
             sub(Image, "perception/mask", self._on_mask, qos_profile_sensor_data)
@@ -125,6 +128,12 @@ class GraphClient:
             sub(PointCloud2, "perception/outline", self._on_outline, latched)
         # Latched (push_ros.qos.GOAL_QOS): a planner_node restarted mid-episode gets the goal.
         self._pub_goal = node.create_publisher(PoseStamped, "goal_pose", GOAL_QOS)
+        # Fault scenarios (pushbot.graph_faults): a second, volatile goal sender (another
+        # client, like RViz) and the bridge's knock topic.
+        self._pub_other_goal = node.create_publisher(
+            PoseStamped, "goal_pose", reliable, event_callbacks=PublisherEventCallbacks(
+                incompatible_qos=lambda event: None))  # planner_node's latched goal reader
+        self._pub_knock = node.create_publisher(PoseStamped, "sim/knock", reliable)
         from rcl_interfaces.srv import SetParameters
         from std_srvs.srv import Trigger
 
@@ -182,6 +191,10 @@ class GraphClient:
         values = {kv.key: kv.value for kv in msg.values}
         values["_message"] = msg.message
         self.rec.status.append(values)
+
+    def _on_diagnostics(self, msg: Any) -> None:
+        for status in msg.status:
+            self.rec.diagnostics[status.name] = {kv.key: kv.value for kv in status.values}
 
     def _on_rgb(self, msg: Any) -> None:
         from push_ros.images import image_to_array
@@ -300,18 +313,28 @@ class GraphClient:
                 raise GraphError(f"{node_name} refused parameter {name!r} = {values[name]!r}: "
                                  f"{result.reason}")
 
-    def publish_goal(self, goal: np.ndarray) -> str:
-        """Send ``goal`` (x, y, theta) on ``goal_pose``; returns the text planner_node's
-        status shows for it."""
-        from geometry_msgs.msg import PoseStamped
+    def publish_goal(self, goal: np.ndarray, other: bool = False) -> str:
+        """Send ``goal`` (x, y, theta) on ``goal_pose`` (``other``: from the second, volatile
+        sender); returns the text planner_node's status shows for it."""
+        from push_ros.poses import pose_stamped_msg
+        from push_ros.stamps import stamp_from_seconds
 
-        msg = PoseStamped()
-        msg.header.frame_id = "world"
-        msg.pose.position.x, msg.pose.position.y = float(goal[0]), float(goal[1])
-        msg.pose.orientation.z = math.sin(goal[2] / 2.0)
-        msg.pose.orientation.w = math.cos(goal[2] / 2.0)
-        self._pub_goal.publish(msg)
+        msg = pose_stamped_msg(np.asarray(goal, dtype=float), stamp_from_seconds(0.0))
+        (self._pub_other_goal if other else self._pub_goal).publish(msg)
         from push_core.geometry import wrap_angle
 
         # planner_node reports the goal it works on in its status, 4 decimals (theta wrapped).
         return " ".join(f"{v:.4f}" for v in (goal[0], goal[1], float(wrap_angle(goal[2]))))
+
+    def publish_knock(self, delta: np.ndarray) -> None:
+        """Displace the object by ``delta`` (dx, dy m, dyaw rad) on ``sim/knock``."""
+        from push_ros.poses import pose_stamped_msg
+        from push_ros.stamps import stamp_from_seconds
+
+        self._pub_knock.publish(pose_stamped_msg(np.asarray(delta, dtype=float),
+                                                 stamp_from_seconds(0.0)))
+
+    def matched(self) -> bool:
+        """Whether the second goal sender and the knock publisher have their subscribers."""
+        return (self._pub_other_goal.get_subscription_count() > 0
+                and self._pub_knock.get_subscription_count() > 0)

@@ -55,6 +55,7 @@ import numpy as np
 
 from push_core.episode import new_record
 from pushbot.graph_client import GraphClient, Recorded
+from pushbot.graph_faults import Episode, Fault
 from pushbot.graph_nodes import (
     NODES,
     GraphError,
@@ -73,6 +74,9 @@ FIRST_ESTIMATE_TIMEOUT, FIRST_ESTIMATE_ATTEMPTS = 30.0, 3
 STEP_TIMEOUT = 90.0
 #: Scenes and seconds per scene to wait for the first estimate at the planner at start-up.
 WARM_UP_ATTEMPTS, WARM_UP_TIMEOUT = 24, 5.0
+#: The bridge's fault injection, off (every episode sets it; a fault scenario overrides it).
+NO_BRIDGE_FAULTS = {"faults.frame_drop": 0.0, "faults.frame_delay": 0.0,
+                    "faults.push_refusal": 0.0, "faults.seed": 0}
 _COM_RE = re.compile(r"COM \((-?[0-9.]+), (-?[0-9.]+)\) m")
 
 
@@ -163,6 +167,18 @@ class GraphRunner:
                              "manager)")
         return self.client
 
+    def knock(self, delta: np.ndarray) -> None:
+        """Displace the object by ``delta`` (dx, dy m, dyaw rad) on ``sim/knock``."""
+        self._client().publish_knock(delta)
+
+    def send_goal(self, goal: np.ndarray, other: bool = False) -> str:
+        """Send a goal (``other``: from the second, volatile sender); its status text."""
+        return self._client().publish_goal(goal, other=other)
+
+    def client_matched(self) -> bool:
+        """Whether the client's fault publishers (second goal sender, knock) are matched."""
+        return self._client().matched()
+
     def _planner_estimates(self) -> int:
         return self._client().planner_estimates()
 
@@ -191,12 +207,18 @@ class GraphRunner:
                          f"{WARM_UP_TIMEOUT:.0f} s; node logs in {self.log_dir}")
 
     # ---- one episode -------------------------------------------------------------------------
-    def run(self, trial: Trial) -> dict[str, Any]:
-        """Run ``trial`` through the graph; returns its episode record (module docstring)."""
+    def run(self, trial: Trial, fault: Fault | None = None) -> dict[str, Any]:
+        """Run ``trial`` through the graph; returns its episode record (module docstring).
+
+        ``fault``: a fault scenario (:mod:`pushbot.graph_faults`) injected during the episode;
+        the record then also has its fields (``fault``, ``fault_injected``, ``pushes_sent``,
+        ``goal_switches``, ``left_goal``, ...) and is scored against the episode's last goal.
+        """
         check_trial(trial)
+        fault = fault if fault is not None else Fault()
         t_start = time.perf_counter()
         rec = new_record(trial.as_dict(), step_latency_ms=[], engine="graph")
-        first_stamp, first_est = self._first_estimate(trial)
+        first_stamp, first_est = self._first_estimate(trial, fault)
         # The planner must hold this scene's outline (stamped with its reference frame, the
         # frame of the first estimate) before the goal: with the previous scene's outline it
         # would plan, or declare the goal reached, for the wrong object.
@@ -209,7 +231,9 @@ class GraphRunner:
         n_push, n_exec, n_status = (len(self.rec.pushes), len(self.rec.executed),
                                     len(self.rec.status))
         goal_text = self._client().publish_goal(goal)
-        status = self._wait_end(goal_text, n_status, trial)
+        episode = Episode(trial, n_push, n_exec, n_status, np.asarray(goal, dtype=float),
+                          np.asarray(trial.goal_offset(), dtype=float), goal_text)
+        status = self._wait_end(episode, fault)
         self._wait_recorded(status, n_push, n_exec)
         pushes = self.rec.pushes[n_push:]
         executed = [e for e in self.rec.executed[n_exec:] if e[1] >= first_stamp]
@@ -236,10 +260,12 @@ class GraphRunner:
 
         polyline = load_object(trial.object).polyline()
         order = symmetry_order_of_polygon(polyline)
-        rec.update(end_score(polyline, end_true, pose0_true + trial.goal_offset(),
+        rec.update(end_score(polyline, end_true, pose0_true + episode.offset,
                              trial.tolerances))
         rec["com_error"] = self._com_error(pose0_true, end_true, order)
-        rec["goal"] = goal.tolist()
+        rec["goal"] = episode.goal.tolist()
+        if fault.name != "none":
+            rec.update(fault.record(self, episode))
         rec["com_true"] = None if self._com_true is None else self._com_true.tolist()
         rec["com_true_episode"] = (None if self._c_true_episode is None
                                    else self._c_true_episode.tolist())
@@ -247,13 +273,9 @@ class GraphRunner:
         rec["wall_s"] = time.perf_counter() - t_start
         return rec
 
-    def _setup_episode(self, trial: Trial) -> None:
-        kw = trial.planner_kwargs()
-        self.set_parameters("planner_node", {
-            "method": kw["method"], "direct": bool(kw["direct"]), "k": int(kw["k"]),
-            "goal_tolerance.xy": float(kw["tolerance_xy"]),
-            "goal_tolerance.theta": float(kw["tolerance_theta"]),
-            "max_steps": int(trial.max_steps), "seed": int(kw["seed"])})
+    def _setup_episode(self, trial: Trial, fault: Fault) -> None:
+        self.set_parameters("planner_node", {**planner_episode_params(trial),
+                                             "after_goal": "report", **fault.planner_params()})
         # Perception first: it stops re-publishing the old scene, so the estimator's reset is
         # not followed by an old observation (the estimator drops those too).
         for name in ("segmentation_node", "ekf_node", "planner_node"):
@@ -266,18 +288,19 @@ class GraphRunner:
             "object": str(world["object"]), "initial_pose.x": float(x),
             "initial_pose.y": float(y), "initial_pose.theta": math.remainder(theta, 2 * math.pi),
             "com_offset": [] if com is None else [float(v) for v in com],
-            "seed": int(world["seed"]), "randomize": bool(world["randomize"])})
+            "seed": int(world["seed"]), "randomize": bool(world["randomize"]),
+            **NO_BRIDGE_FAULTS, **fault.bridge_params(trial)})
         message = self.reset("sim_bridge_node")
         match = _COM_RE.search(message)
         self._com_true = (np.array([float(match.group(1)), float(match.group(2))])
                           if match else None)
 
-    def _first_estimate(self, trial: Trial) -> tuple[float, np.ndarray]:
+    def _first_estimate(self, trial: Trial, fault: Fault) -> tuple[float, np.ndarray]:
         """Set the episode up and wait for the first estimate of the new scene. The estimator
         publishes one estimate per new frame; should it be lost, the set-up (resets, a new
         scene with new frames) is repeated."""
         for attempt in range(1, FIRST_ESTIMATE_ATTEMPTS + 1):
-            self._setup_episode(trial)
+            self._setup_episode(trial, fault)
             after = self._last_stamp
 
             def first(after: float = after) -> tuple[float, np.ndarray] | None:
@@ -312,23 +335,26 @@ class GraphRunner:
         first = later[0][0]
         return [p for s, p in later if s == first][-1]
 
-    def _wait_end(self, goal_text: str, n_status: int, trial: Trial) -> dict[str, str]:
-        """Wait for ``goal reached`` / ``failed`` for this goal; fail after STEP_TIMEOUT s
-        without progress."""
+    def _wait_end(self, episode: Episode, fault: Fault) -> dict[str, str]:
+        """Wait for ``goal reached`` / ``failed`` for the episode's goal (that ``fault``
+        accepts); fail after STEP_TIMEOUT s without progress."""
         progress = [None, time.monotonic()]
+        trial = episode.trial
 
         def done() -> dict[str, str] | None:
-            mine = [s for s in self.rec.status[n_status:] if _same_goal(s.get("goal", ""),
-                                                                        goal_text)]
+            fault.poll(self, episode)
+            mine = [(i, s) for i, s in enumerate(self.rec.status[episode.n_status:],
+                                                 episode.n_status)
+                    if _same_goal(s.get("goal", ""), episode.goal_text)]
             key = (len(self.rec.pushes), len(self.rec.executed), len(mine))
             if key != progress[0]:
                 progress[0], progress[1] = key, time.monotonic()
-            end = next((s for s in reversed(mine) if s.get("state") in ("reached", "failed")),
-                       None)
+            end = next((s for i, s in reversed(mine) if s.get("state") in ("reached", "failed")
+                        and fault.accepts_end(self, i)), None)
             if end is not None:
                 return end
             if time.monotonic() - progress[1] > STEP_TIMEOUT:
-                last = mine[-1]["_message"] if mine else "no status for this goal"
+                last = mine[-1][1]["_message"] if mine else "no status for this goal"
                 raise GraphError(f"no progress for {STEP_TIMEOUT:.0f} s (planner: {last!r}); "
                                  f"node logs in {self.log_dir}")
             return None
@@ -371,6 +397,16 @@ class GraphRunner:
         c_true = rot2(theta0 - shift) @ self._com_true
         self._c_true_episode = c_true
         return float(math.hypot(*(self.rec.com[-1][1] - c_true)))
+
+
+def planner_episode_params(trial: Trial) -> dict[str, Any]:
+    """``planner_node``'s episode parameters for ``trial`` (set before every episode; also
+    the start-up parameters of a planner restarted mid-episode)."""
+    kw = trial.planner_kwargs()
+    return {"method": kw["method"], "direct": bool(kw["direct"]), "k": int(kw["k"]),
+            "goal_tolerance.xy": float(kw["tolerance_xy"]),
+            "goal_tolerance.theta": float(kw["tolerance_theta"]),
+            "max_steps": int(trial.max_steps), "seed": int(kw["seed"])}
 
 
 def _same_goal(a: str, b: str) -> bool:

@@ -64,25 +64,41 @@ class GraphNodes:
 
     def start(self) -> None:
         self.log_dir.mkdir(parents=True, exist_ok=True)
+        for name in NODES:
+            self._start_one(name)
+
+    def _start_one(self, name: str, extra: Sequence[str] = ()) -> None:
+        """Start one node process (``extra``: more ``name:=value`` start-up parameters)."""
         env = dict(os.environ, PYTHONUNBUFFERED="1")
         apply_default_profile(env)
         exe = Path(sys.executable).parent / "pushbot"
         base = [str(exe)] if exe.exists() else [sys.executable, "-m", "pushbot.cli"]
-        for name in NODES:
-            params = ["-p", "use_sim_time:=true"] if name != "sim_bridge_node" else []
-            if name == "planner_node":
-                # A protocol episode ends at "goal reached" (as in-process): the planner only
-                # reports it if the object leaves the region afterwards, it pushes no more.
-                params += ["-p", f"push_timeout:={PUSH_TIMEOUT}", "-p", "after_goal:=report"]
-            for value in self.node_args[name]:
-                params += ["-p", value]
-            with open(self.log_dir / f"{name}.log", "ab") as log:  # a restart appends
-                log.write(f"=== pushbot run {name}, started {time.ctime()} ===\n".encode())
-                log.flush()
-                self.procs[name] = subprocess.Popen(
-                    [*base, "run", name, "--ros-args", *params], stdout=log,
-                    stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env,
-                    start_new_session=True, preexec_fn=_parent_death_signal)
+        params = ["-p", "use_sim_time:=true"] if name != "sim_bridge_node" else []
+        if name == "planner_node":
+            # A protocol episode ends at "goal reached" (as in-process): the planner only
+            # reports it if the object leaves the region afterwards, it pushes no more.
+            params += ["-p", f"push_timeout:={PUSH_TIMEOUT}", "-p", "after_goal:=report"]
+        for value in [*self.node_args[name], *extra]:
+            params += ["-p", value]
+        with open(self.log_dir / f"{name}.log", "ab") as log:  # a restart appends
+            log.write(f"=== pushbot run {name}, started {time.ctime()} ===\n".encode())
+            log.flush()
+            self.procs[name] = subprocess.Popen(
+                [*base, "run", name, "--ros-args", *params], stdout=log,
+                stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env,
+                start_new_session=True, preexec_fn=_parent_death_signal)
+
+    def kill_and_restart(self, name: str, extra: Sequence[str] = ()) -> None:
+        """SIGKILL the process group of node ``name`` (a crash: no clean shutdown), wait for
+        it, and start the node again with its start-up parameters plus ``extra``
+        (``name:=value``; e.g. the episode's parameters, as a launch file's YAML would give)."""
+        proc = self.procs[name]
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        proc.wait(timeout=30.0)
+        self._start_one(name, extra)
 
     def log_tail(self, name: str, chars: int = 1500) -> str:
         try:
