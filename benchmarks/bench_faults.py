@@ -53,6 +53,7 @@ def run_scenario(graph, name: str, n: int) -> list[dict]:
     from pushbot.protocol import Trial
 
     records = []
+    before = dict(getattr(graph, "_bench_counts", {}))
     for i in range(n):
         trial = Trial(object="butter", task="mixed", method="ana", k=3, state="filter",
                       com="random", index=i, seed=0)
@@ -65,6 +66,12 @@ def run_scenario(graph, name: str, n: int) -> list[dict]:
             rec.update(fault="error", fault_injected=fault.injected, pushes_sent=None)
             graph.restart()
         rec["wall_s"] = time.monotonic() - t0
+        # The bridge's counters are cumulative over its process (reset by a graph restart).
+        counts = rec.get("bridge_counts") or {}
+        rec["bridge_events"] = {k: v - before.get(k, 0) if v >= before.get(k, 0) else v
+                                for k, v in counts.items()}
+        before = counts or before
+        graph._bench_counts = before
         records.append(rec)
         err = rec.get("end_error_xy")
         print(f"{name} #{i}: {rec['reason'][:200]}, success {rec['success']}, "
@@ -94,6 +101,18 @@ def summary_row(name: str, records: list[dict]) -> str:
         key = r["reason"] if not r["reason"].startswith("graph error") else "graph error"
         reasons[key] = reasons.get(key, 0) + 1
     extra = []
+    events: dict[str, int] = {}
+    for r in records:
+        for k, v in (r.get("bridge_events") or {}).items():
+            events[k] = events.get(k, 0) + v
+    shown = {"frame-drop": "frames_dropped", "frame-delay": "frames_delayed",
+             "push-refusal": "pushes_refused_fault", "knock": "knocks"}
+    if name in shown:
+        extra.append(f"{shown[name]} {events.get(shown[name], 0)} (of "
+                     f"{events.get('pushes_executed', 0)} pushes executed)")
+    if name == "kill-segmentation":
+        extra.append(f"re-anchored {sum(r.get('perception_anchored', 0) >= 1 for r in records)}"
+                     f"/{n}")
     if name == "second-goal":
         extra.append(f"goal switch noted {sum(r.get('goal_switches', 0) >= 1 for r in records)}"
                      f"/{n}")

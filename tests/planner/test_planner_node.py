@@ -612,3 +612,34 @@ def test_an_exception_in_a_callback_is_counted_and_the_node_keeps_working(
     planner.plan = original
     h.publish_estimate((0.0, 0.0, 0.0), stamp=2.0)
     assert h.spin_until(lambda: len(h.pushes) == 1)
+
+
+def test_a_restarted_planner_resumes_from_the_latched_goal_and_estimate(
+        ros_context: Any, wait_for: Callable[..., bool], harness: Harness) -> None:
+    # Issue 15: goal senders publish latched (push_ros.qos.GOAL_QOS) and the planner reads
+    # goal_pose volatile *and* transient local, so a planner started after the goal still gets
+    # it; a sample of a latched sender arrives on both readers and is taken once.
+    from push_ros.qos import GOAL_QOS
+
+    h = harness
+    latched_goal = h.client.create_publisher(PoseStamped, "goal_pose", GOAL_QOS)
+    assert h.spin_until(lambda: latched_goal.get_subscription_count() > 0)
+    h.publish_outline(*rect1_outline())
+    h.publish_estimate((0.0, 0.0, 0.0), stamp=10.0)
+    msg = PoseStamped()
+    msg.header.frame_id = "world"
+    msg.pose.position.x, msg.pose.orientation.w = 0.1, 1.0
+    latched_goal.publish(msg)
+    assert h.spin_until(lambda: len(h.pushes) == 1)
+    h.spin_until(lambda: False, timeout=0.5)  # the second reader's copy has arrived meanwhile
+    assert len(h.pushes) == 1 and h.count("goal_switches") == 0 and h.count("step") == 1
+    # The planner process dies; a new one starts (same name) and continues from latched data.
+    h.executor.remove_node(h.node)
+    h.node.destroy_node()
+    h.node = PlannerNode(context=ros_context, parameter_overrides=[Parameter("k", value=1)])
+    h.executor.add_node(h.node)
+    assert h.spin_until(lambda: len(h.pushes) == 2, timeout=20.0), [s.message for s in h.status]
+    check_push(h.pushes[-1], (0.0, 0.0, 0.0))
+    assert h.spin_until(lambda: h.values().get("goal") == "0.1000 0.0000 0.0000"
+                        and h.count("step") == 1)
+    assert h.count("goal_switches") == 0

@@ -94,6 +94,7 @@ class BridgeClient:
         sub(Path, "pusher/executed", self.got.executed.append, RELIABLE)
         sub(DiagnosticArray, "/diagnostics", self._on_diagnostics, RELIABLE)
         self.push_pub = self.node.create_publisher(Path, "planner/push", RELIABLE)
+        self.knock_pub = self.node.create_publisher(PoseStamped, "sim/knock", RELIABLE)
         self.reset_client = self.node.create_client(Trigger, f"/{BRIDGE}/reset")
         self.param_client = self.node.create_client(SetParameters, f"/{BRIDGE}/set_parameters")
 
@@ -212,9 +213,11 @@ def bridge(module_processes: ProcessManager) -> Iterator[BridgeClient]:
 
 @pytest.fixture
 def fresh(bridge: BridgeClient) -> BridgeClient:
-    """The bridge reset to rect1 (a 9 cm square) at the origin with default physics."""
+    """The bridge reset to rect1 (a 9 cm square) at the origin with default physics, no fault
+    injection."""
     response = bridge.reset(object="rect1", initial_pose__x=0.0, initial_pose__y=0.0,
-                            initial_pose__theta=0.0)
+                            initial_pose__theta=0.0, faults__frame_drop=0.0,
+                            faults__frame_delay=0.0, faults__push_refusal=0.0)
     assert response.success, response.message
     return bridge
 
@@ -536,6 +539,66 @@ def test_malformed_push_is_rejected_and_the_node_keeps_running(
     # The node is still alive and accepts the next valid push.
     executed_push(fresh, THROUGH_CENTRE)
     assert fresh.object_pose()[0] > before[0] + 0.02
+
+
+# --------------------------------------------------------------------------------------------
+# Knock and fault injection (issue 15)
+# --------------------------------------------------------------------------------------------
+def _knock(bridge: BridgeClient, delta: tuple[float, float, float],
+           frame_id: str = "world") -> None:
+    from push_ros.poses import pose_stamped_msg
+    from push_ros.stamps import stamp_from_seconds
+
+    msg = pose_stamped_msg(np.zeros(3), stamp_from_seconds(0.0), frame_id)
+    msg.pose.position.x, msg.pose.position.y = float(delta[0]), float(delta[1])  # NaN too
+    msg.pose.orientation.z, msg.pose.orientation.w = math.sin(delta[2] / 2), math.cos(delta[2] / 2)
+    bridge.knock_pub.publish(msg)
+
+
+def test_a_knock_displaces_the_object_at_rest(fresh: BridgeClient) -> None:
+    before, t_before = fresh.object_pose(), fresh.pose_stamp()
+    n_executed = len(fresh.got.executed)
+    fresh.spin_until(lambda: fresh.knock_pub.get_subscription_count() > 0, 10.0, "sim/knock")
+    _knock(fresh, (0.02, -0.01, 0.3))
+    fresh.spin_until(lambda: np.linalg.norm(fresh.object_pose()[:2] - before[:2]) > 0.01,
+                     PUSH_TIMEOUT, "the knocked pose")
+    after = fresh.object_pose()
+    np.testing.assert_allclose(after - before, [0.02, -0.01, 0.3], atol=1e-3)
+    assert fresh.pose_stamp() > t_before  # a fresh frame of the knocked scene (sim time ran)
+    fresh.frame_after(fresh.pose_stamp())
+    assert len(fresh.got.executed) == n_executed  # nothing the robot did
+    # Refused knocks change nothing and are counted.
+    n_diag = len(fresh.got.diagnostics)
+    for delta, frame_id, reason in (((0.2, 0.0, 0.0), "world", "larger than 0.1 m"),
+                                    ((0.01, 0.0, 0.0), "object", "expected 'world'"),
+                                    ((math.nan, 0.0, 0.0), "world", "finite")):
+        _knock(fresh, delta, frame_id)
+        fresh.spin_until(lambda r=reason: [d for d in fresh.diagnostics_since(n_diag)
+                                           if r in d["last_error"]], 10.0, reason)
+    np.testing.assert_allclose(fresh.object_pose(), after, atol=1e-6)
+    idle = fresh.spin_until(lambda: [d for d in fresh.diagnostics_since(n_diag)
+                                     if counter(d, "knocks_rejected") >= 3], 10.0, "counts")
+    assert counter(idle[-1], "knocks") >= 1
+
+
+def test_fault_injection_refuses_pushes_and_drops_frames(fresh: BridgeClient) -> None:
+    try:
+        assert fresh.reset(faults__push_refusal=1.0, faults__frame_drop=0.9,
+                           faults__seed=3).success
+        before, n_executed = fresh.object_pose(), len(fresh.got.executed)
+        n_diag = len(fresh.got.diagnostics)
+        fresh.send_push(THROUGH_CENTRE)
+        fresh.spin_until(lambda: [d for d in fresh.diagnostics_since(n_diag)
+                                  if counter(d, "pushes_refused_fault") >= 1], 10.0,
+                         "the refused push")
+        # Idle re-publications at 2 Hz, each dropped with probability 0.9: some are dropped.
+        fresh.spin_until(lambda: [d for d in fresh.diagnostics_since(n_diag)
+                                  if counter(d, "frames_dropped") >= 1], 20.0, "a dropped frame")
+        assert len(fresh.got.executed) == n_executed
+        np.testing.assert_allclose(fresh.object_pose(), before, atol=1e-6)
+    finally:
+        assert fresh.reset(faults__push_refusal=0.0, faults__frame_drop=0.0).success
+    executed_push(fresh, THROUGH_CENTRE)  # off again: pushes run
 
 
 # --------------------------------------------------------------------------------------------

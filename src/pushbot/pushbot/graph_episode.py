@@ -215,7 +215,7 @@ class GraphRunner:
         ``goal_switches``, ``left_goal``, ...) and is scored against the episode's last goal.
         """
         check_trial(trial)
-        fault = fault if fault is not None else Fault()
+        scenario, fault = fault is not None, fault if fault is not None else Fault()
         t_start = time.perf_counter()
         rec = new_record(trial.as_dict(), step_latency_ms=[], engine="graph")
         first_stamp, first_est = self._first_estimate(trial, fault)
@@ -264,7 +264,7 @@ class GraphRunner:
                              trial.tolerances))
         rec["com_error"] = self._com_error(pose0_true, end_true, order)
         rec["goal"] = episode.goal.tolist()
-        if fault.name != "none":
+        if scenario:
             rec.update(fault.record(self, episode))
         rec["com_true"] = None if self._com_true is None else self._com_true.tolist()
         rec["com_true_episode"] = (None if self._c_true_episode is None
