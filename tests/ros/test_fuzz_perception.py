@@ -37,22 +37,25 @@ pytestmark = [pytest.mark.ros]
 rclpy = pytest.importorskip("rclpy")
 hypothesis = pytest.importorskip("hypothesis")
 
-from geometry_msgs.msg import TransformStamped  # noqa: E402
+from builtin_interfaces.msg import Time  # noqa: E402
+from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped  # noqa: E402
 from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import (  # noqa: E402
     DurabilityPolicy,
     QoSProfile,
     ReliabilityPolicy,
     qos_profile_sensor_data,
 )
-from sensor_msgs.msg import CameraInfo, Image  # noqa: E402
+from sensor_msgs.msg import CameraInfo, Image, PointCloud2  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
 from push_perception.segmentation_node import SegmentationNode  # noqa: E402
 from push_ros.frames import CAMERA_FRAME, WORLD_FRAME  # noqa: E402
 from push_ros.images import camera_info_msg, depth_image_msg, rgb_image_msg  # noqa: E402
+from push_ros.outline import outline_cloud_msg  # noqa: E402
 from push_ros.poses import transform_msg, xytheta_from_pose  # noqa: E402
 from push_ros.stamps import stamp_from_seconds  # noqa: E402
 from pushbot.graph import spin_until  # noqa: E402
@@ -217,7 +220,10 @@ def rendered() -> dict[str, Any]:
 
 @pytest.fixture(scope="module")
 def node(context: Any, rendered: dict[str, Any]) -> Iterator[SegmentationNode]:
-    n = SegmentationNode(node_name="fuzz_segmentation_node", context=context)
+    # No re-anchoring wait after start-up: frames are processed from the first one on (the
+    # estimator topics' callbacks are fuzzed all the same).
+    n = SegmentationNode(node_name="fuzz_segmentation_node", context=context,
+                         parameter_overrides=[Parameter("anchor_timeout", value=0.0)])
     n.poses = Recorder(n._pub_pose.publish)  # type: ignore[attr-defined]
     n._pub_pose.publish = n.poses  # type: ignore[method-assign]
     good = transform_msg(rendered["a"].T_world_camera, stamp_from_seconds(1.0), WORLD_FRAME,
@@ -274,6 +280,97 @@ def test_fuzz_extrinsics(node: SegmentationNode, msg: TransformStamped,
     # Put the good transform back (a valid random one may have replaced it: that is allowed).
     node.on_extrinsics(transform_msg(rendered["a"].T_world_camera, stamp_from_seconds(1.0),
                                      WORLD_FRAME, CAMERA_FRAME))
+
+
+STAMPS = st.one_of(st.floats(0.0, 2.0**31 - 2.0).map(stamp_from_seconds),
+                   st.builds(Time, sec=st.integers(-(2**31), 2**31 - 1),
+                             nanosec=st.integers(0, 2**32 - 1)))
+
+
+def _feed_anchor(n: SegmentationNode, callback: Callable[[Any], Any], msg: Any) -> None:
+    """An estimator topic's callback: a rejected message keeps the anchor data as it was."""
+    before, rejected = (n._anchor_outline, n._anchor_estimate), n._counts["bad_input"]
+    _feed(n, callback, msg)
+    if n._counts["bad_input"] > rejected:
+        assert (n._anchor_outline, n._anchor_estimate) == before
+
+
+def hostile_clouds() -> st.SearchStrategy[PointCloud2]:
+    """``estimator/outline`` clouds: valid outlines of random size and scale in any frame,
+    with NaN / inf / huge points, broken fields, steps and data lengths."""
+
+    @st.composite
+    def build(draw: Callable) -> PointCloud2:
+        rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+        n = draw(st.sampled_from([0, 1, 2, 3, 8, 60, 60, 200, 1001, 5000]))
+        radius = draw(st.sampled_from([0.04, 0.04, 1e-9, 2.0, 1e30]))
+        angles = np.sort(rng.random(n)) * 2 * math.pi
+        pts = radius * np.column_stack([np.cos(angles), np.sin(angles)])
+        normals = np.column_stack([np.cos(angles), np.sin(angles)])
+        special = float(_special(rng, 1)[0]) if n and draw(st.booleans()) else None
+        if special is not None and math.isfinite(special):
+            pts.flat[rng.integers(0, pts.size)] = special
+            special = None
+        msg = outline_cloud_msg(pts, normals, draw(STAMPS))
+        if special is not None:  # NaN / inf: written into the bytes (the writer refuses them)
+            data = bytearray(msg.data)
+            at = int(rng.integers(0, n)) * msg.point_step + 4 * int(rng.integers(0, 2))
+            data[at:at + 4] = np.float32(special).tobytes()
+            msg.data = bytes(data)
+        msg.header.frame_id = draw(st.sampled_from(["object"] * 4 + ["world", "", "x" * 99]))
+        kind = draw(st.sampled_from(["ok"] * 4 + ["step", "width", "data", "fields"]))
+        if kind == "step":
+            msg.point_step = draw(st.sampled_from([0, 4, 23, 2**31]))
+        elif kind == "width":
+            msg.width = draw(st.sampled_from([0, n + 1, 2**32 - 1]))
+        elif kind == "data":
+            msg.data = bytes(msg.data)[:draw(st.integers(0, max(len(msg.data) - 1, 0)))]
+        elif kind == "fields":
+            msg.fields = msg.fields[:draw(st.integers(0, 5))]
+        return msg
+
+    return build()
+
+
+def hostile_estimates() -> st.SearchStrategy[PoseWithCovarianceStamped]:
+    """``estimator/object_pose``: any frame, stamp, position and (non-unit, tilted, NaN)
+    quaternion."""
+
+    @st.composite
+    def build(draw: Callable) -> PoseWithCovarianceStamped:
+        rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+        msg = PoseWithCovarianceStamped()
+        msg.header.frame_id = draw(st.sampled_from(["world"] * 4 + ["object", ""]))
+        msg.header.stamp = draw(STAMPS)
+        p = msg.pose.pose
+        p.position.x, p.position.y, p.position.z = (float(v) for v in _special(rng, 3))
+        yaw = float(rng.uniform(-10, 10))
+        q = draw(st.sampled_from(["yaw", "yaw", "scaled", "tilted", "special"]))
+        values = {"yaw": (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)),
+                  "scaled": (0.0, 0.0, 2 * math.sin(yaw / 2), 2 * math.cos(yaw / 2)),
+                  "tilted": (0.7071068, 0.0, 0.0, 0.7071068),
+                  "special": tuple(float(v) for v in _special(rng, 4))}[q]
+        o = p.orientation
+        o.x, o.y, o.z, o.w = values
+        return msg
+
+    return build()
+
+
+@FUZZ
+@given(msg=hostile_clouds())
+def test_fuzz_estimator_outline(node: SegmentationNode, msg: PointCloud2) -> None:
+    _feed_anchor(node, node.on_estimator_outline, msg)
+    if node._anchor_outline is not None:  # only a checked outline is kept
+        assert np.all(np.isfinite(node._anchor_outline[1]))
+
+
+@FUZZ
+@given(msg=hostile_estimates())
+def test_fuzz_estimator_pose(node: SegmentationNode, msg: PoseWithCovarianceStamped) -> None:
+    _feed_anchor(node, node.on_estimate, msg)
+    if node._anchor_estimate is not None:
+        assert all(math.isfinite(v) for v in node._anchor_estimate)
 
 
 def test_fuzz_complete_frames(node: SegmentationNode) -> None:

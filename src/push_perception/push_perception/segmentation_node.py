@@ -429,8 +429,6 @@ class SegmentationNode(Node):
 
     # ---- re-anchoring after a restart ----------------------------------------------------------
     def _on_estimator_outline(self, msg: PointCloud2) -> None:
-        if self._anchor_until is None:
-            return
         try:
             points, normals = outline_from_cloud(msg, OBJECT_FRAME, MAX_OUTLINE_POINTS)
             stamp = seconds_from_stamp(msg.header.stamp)
@@ -440,8 +438,6 @@ class SegmentationNode(Node):
         self._anchor_outline = (msg, points, normals, stamp)
 
     def _on_estimate(self, msg: PoseWithCovarianceStamped) -> None:
-        if self._anchor_until is None:
-            return
         try:
             check_frame(msg.header.frame_id, WORLD_FRAME)
             yaw = float(xytheta_from_pose(msg.pose.pose)[2])
