@@ -264,6 +264,53 @@ def test_fuzz_parameters(node: SimBridgeNode, files: dict[str, str]) -> None:
     node.set_parameters_atomically([*SMALL, Parameter("object", value=valid_object)])
 
 
+@st.composite
+def hostile_knocks(draw: Callable[..., Any]) -> PoseStamped:
+    """``sim/knock`` displacements: any frame, NaN / inf / huge / small positions, unit, scaled,
+    tilted and special quaternions."""
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    msg = PoseStamped()
+    msg.header.frame_id = draw(st.sampled_from(["world"] * 5 + ["object", "", "x" * 200]))
+    small = rng.uniform(-0.05, 0.05, 2)
+    xy = np.where(rng.random(2) < 0.6, small, rng.choice(SPECIAL, 2))
+    msg.pose.position.x, msg.pose.position.y = (float(v) for v in xy)
+    yaw = float(rng.uniform(-4.0, 4.0))
+    q = draw(st.sampled_from(["yaw", "yaw", "yaw", "scaled", "tilted", "special"]))
+    values = {"yaw": (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)),
+              "scaled": (0.0, 0.0, 3 * math.sin(yaw / 2), 3 * math.cos(yaw / 2)),
+              "tilted": (0.3826834, 0.0, 0.0, 0.9238795),
+              "special": tuple(float(v) for v in rng.choice(SPECIAL, 4))}[q]
+    o = msg.pose.orientation
+    o.x, o.y, o.z, o.w = values
+    return msg
+
+
+def test_fuzz_knocks(node: SimBridgeNode) -> None:
+    """2,000 hostile sim/knock messages through the subscribed callback (hypothesis inside)."""
+    from push_ros.poses import check_frame, xytheta_from_pose
+    from sim_bridge.sim_bridge_node import MAX_KNOCK_SHIFT
+
+    @FUZZ
+    @given(msg=hostile_knocks())
+    def one(msg: PoseStamped) -> None:
+        try:  # decided from the codec and the size rule, independently of the node
+            check_frame(msg.header.frame_id, "world")
+            acceptable = math.hypot(*xytheta_from_pose(msg)[:2]) <= MAX_KNOCK_SHIFT
+        except ValueError:
+            acceptable = False
+        before = _counts(node)
+        assert node.on_knock(msg) is None
+        after = _counts(node)
+        if not acceptable:
+            assert after["knocks_rejected"] > before["knocks_rejected"]
+        assert after["callback_errors"] == 0, node._last_error
+
+    one()
+    _wait_idle(node)
+    counts = _counts(node)
+    assert counts["knocks"] > 0 and counts["knocks_rejected"] > 0, counts
+
+
 def test_after_the_fuzz_the_bridge_executes_a_valid_push(node: SimBridgeNode) -> None:
     """Runs after the fuzz tests above (file order)."""
     _wait_idle(node)
