@@ -54,9 +54,10 @@ Subscriptions:
   on the workspace. Runs in the worker like a push (refused while busy, never queued): the
   object is placed, settles (``INITIAL_SETTLE_STEPS``), and a fresh frame and
   ``sim/object_pose`` are published (no ``pusher/executed``: nothing the robot did). Counted
-  as ``knocks`` / ``knocks_rejected``. Example: ``pushbot topic pub --once sim/knock
-  geometry_msgs/msg/PoseStamped "{header: {frame_id: world}, pose: {position: {x: 0.03},
-  orientation: {z: 0.0998, w: 0.995}}}"`` (3 cm along x, 0.2 rad).
+  as ``knocks`` / ``knocks_rejected``. Example (full ROS install; the README shows the same
+  from Python): ``ros2 topic pub --once /sim/knock geometry_msgs/msg/PoseStamped "{header:
+  {frame_id: world}, pose: {position: {x: 0.03}, orientation: {z: 0.0998, w: 0.995}}}"``
+  (3 cm along x, 0.2 rad).
 
 Services:
 
