@@ -113,8 +113,12 @@ def spin_until(
             executor.spin_once(timeout_sec=min(step, remaining))
 
 
-#: Seconds the graph must stay unchanged before a discovery wait ends (see
-#: :func:`wait_for_stable_graph`).
+#: The discovery rule of the graph commands (see :func:`wait_for_stable_graph`): at least
+#: MIN_DISCOVERY_TIME seconds, then until nothing changed for SETTLE_TIME seconds. Measured on
+#: the four-node graph of ``pushbot up`` under load (2 cores shared): a node's endpoints came
+#: up to 1.9 s after the previous change and the last node 2.5 s after start, so a single look
+#: or a 1 s quiet period missed some.
+MIN_DISCOVERY_TIME = 2.5
 SETTLE_TIME = 1.5
 
 
@@ -124,22 +128,27 @@ def wait_for_stable_graph(
     deadline: float,
     settle: float = SETTLE_TIME,
     ready: Callable[[Any], bool] | None = None,
+    min_time: float = MIN_DISCOVERY_TIME,
 ) -> Any:
-    """Spin until ``snapshot()`` has not changed for ``settle`` seconds, or until ``deadline``.
+    """Spin until ``snapshot()`` has not changed for ``settle`` seconds (and ``min_time``
+    seconds have passed), or until ``deadline``.
 
     The one discovery rule of the CLI's graph commands (``topic list|info``, ``node``,
-    ``service``): without a daemon, a fresh node learns the graph participant by participant
-    and endpoint by endpoint, so a single look after a fixed pause can miss endpoints (a
-    publisher seen 0.5 s after its topic's subscriber). ``snapshot`` returns a comparable view
-    of what the command prints (e.g. the sorted endpoints of a topic); the wait ends when it
-    is ``ready`` (default: always) and has been equal for ``settle`` seconds, at the latest at
-    ``deadline`` (``time.monotonic()``). Returns the last snapshot.
+    ``service list``): without a daemon, a fresh node learns the graph participant by
+    participant and endpoint by endpoint, so a single look after a fixed pause can miss
+    endpoints (the measured "0 publishers" of ``topic info``). ``snapshot`` returns a
+    comparable view of what the command prints (e.g. the sorted endpoints of a topic); the wait
+    ends when it is ``ready`` (default: always), at least ``min_time`` s passed and it has been
+    equal for ``settle`` seconds, at the latest at ``deadline`` (``time.monotonic()``).
+    Returns the last snapshot.
     """
+    start = time.monotonic()
     current = snapshot()
-    since = time.monotonic()
+    since = start
     while True:
         now = time.monotonic()
-        if now >= deadline or ((ready is None or ready(current)) and now - since >= settle):
+        if now >= deadline or ((ready is None or ready(current)) and now - since >= settle
+                               and now - start >= min_time):
             return current
         executor.spin_once(timeout_sec=min(0.05, max(deadline - now, 0.0)))
         latest = snapshot()
