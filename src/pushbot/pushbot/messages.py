@@ -217,7 +217,7 @@ def fill_message(msg: Any, data: Any, path: str = '') -> None:
     """
     type_name = _type_name(msg)
     if not isinstance(data, Mapping):
-        where = f"field '{path}'" if path else 'the message'
+        where = f"field '{path.rstrip('.')}'" if path else 'the message'
         raise MessageFieldError(f'{where} ({type_name}) takes a mapping of fields, got '
                                 f'{_describe(data)}')
     fields = msg.get_fields_and_field_types()
