@@ -4,7 +4,10 @@ Subcommands:
 
 - ``doctor``: check the install (versions, RMW, DDS settings, a two-process pub/sub round trip);
 - ``run <node> [args...]``: start a node as ``ros2 run`` would (``--list`` lists them);
-- ``topic list|echo|hz|info``: inspect the ROS graph (``ros2 topic`` is not on PyPI);
+- ``up``: the whole graph as separate processes until Ctrl-C (``ros2 launch`` is not on PyPI);
+- ``topic list|echo|hz|info|pub``, ``node list|info``, ``param list|get|set|dump``,
+  ``service list|call``: inspect and drive the ROS graph (``ros2cli`` is not on PyPI);
+- ``goal X Y YAW [--wait]``: send a goal to ``planner_node`` and follow it;
 - ``demo``: what ``make demo`` runs;
 - ``data <target>``, ``train <target>``, ``eval <target>``: data generation, training and
   evaluation of the learned and estimated parts (targets in :data:`TARGETS`).
@@ -13,7 +16,10 @@ Every subcommand runs with the project's Fast DDS profile (``pushbot.dds``) unle
 ``FASTRTPS_DEFAULT_PROFILES_FILE`` is already set.
 
 Heavy imports (rclpy, torch) happen inside the subcommands, so ``pushbot --help`` always works
-and missing dependencies are reported by ``pushbot doctor`` instead of a traceback.
+and missing dependencies are reported by ``pushbot doctor`` instead of a traceback. Help texts
+come from the modules' docstrings through :func:`plain_help` (reStructuredText markup
+removed). A closed output pipe (``pushbot topic echo X | head -3``) ends the command quietly
+with status 141, handled once here.
 """
 
 from __future__ import annotations
@@ -21,10 +27,16 @@ from __future__ import annotations
 import argparse
 import importlib
 import importlib.metadata
+import os
+import re
 import sys
 from collections.abc import Sequence
 
-from pushbot import dds, demo, doctor, nodes, topic
+from pushbot import dds, demo, doctor, goal, nodes, param, rosnode, service, topic, up
+
+#: Exit status after a closed output pipe: 128 + SIGPIPE, what a shell reports for a command
+#: killed by it.
+EXIT_BROKEN_PIPE = 141
 
 
 def _version() -> str:
@@ -67,6 +79,42 @@ TARGETS: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
 }
 
 
+_ROLE = re.compile(r':[a-z]+:`~?([^`<]*?)(?:\s*<[^>]*>)?`')
+_LITERAL = re.compile(r'``([^`]+)``')
+
+
+def plain_help(docstring: str | None) -> str | None:
+    """A module docstring as plain help text: reStructuredText roles and literals unmarked.
+
+    ``:mod:`pushbot.dds``` -> ``pushbot.dds``, ``:func:`~a.b``` -> ``b``, double backquotes
+    removed; everything else (paragraphs, lists, indentation) is kept for
+    ``RawDescriptionHelpFormatter``.
+    """
+    if docstring is None:
+        return None
+
+    def role(match: re.Match[str]) -> str:
+        text = match.group(1)
+        return text.rsplit('.', 1)[-1] if match.group(0).split('`')[1].startswith('~') else text
+
+    return _LITERAL.sub(r'\1', _ROLE.sub(role, docstring)).strip()
+
+
+def _group_doctor_options(parser: argparse.ArgumentParser) -> None:
+    """Show the doctor's options (added first by ``pushbot.demo``) after the demo's own, in a
+    group of their own; parsing is unchanged."""
+    probe = argparse.ArgumentParser(add_help=False)
+    doctor.add_arguments(probe)
+    doctor_dests = {action.dest for action in probe._actions}
+    group = parser.add_argument_group('doctor options (the check before the episode)')
+    optionals = parser._optionals._group_actions
+    for action in [a for a in optionals if a.dest in doctor_dests and a.dest != 'help']:
+        optionals.remove(action)
+        group._group_actions.append(action)
+        parser._actions.remove(action)  # the usage line lists them last too
+        parser._actions.append(action)
+
+
 def _add_targets(sub: argparse._SubParsersAction) -> None:
     for group, (summary, targets) in TARGETS.items():
         parser = sub.add_parser(group, help=summary, description=summary)
@@ -74,7 +122,8 @@ def _add_targets(sub: argparse._SubParsersAction) -> None:
         group_sub.required = True
         for target, (module_name, help_text) in targets.items():
             module = importlib.import_module(module_name)
-            p = group_sub.add_parser(target, help=help_text, description=module.__doc__,
+            p = group_sub.add_parser(target, help=help_text,
+                                     description=plain_help(module.__doc__),
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
             module.add_arguments(p)
             p.set_defaults(handler=module.run)
@@ -96,16 +145,28 @@ def build_parser() -> argparse.ArgumentParser:
         ('run', nodes, nodes.run_node,
          'start a node like `ros2 run` (arguments, --ros-args included, pass through)',
          {'usage': 'pushbot run [-h] [--list] [<pkg>] <node> [args ...]'}),
+        ('up', up, up.run_up,
+         'start the whole graph as separate processes until Ctrl-C (like `ros2 launch`)', {}),
         ('topic', topic, topic.run_topic,
-         'inspect topics: list, echo, hz, info (like `ros2 topic`)', {}),
+         'inspect and publish topics: list, echo, hz, info, pub (like `ros2 topic`)', {}),
+        ('node', rosnode, rosnode.run_rosnode,
+         'list the nodes, show their endpoints (like `ros2 node`)', {}),
+        ('param', param, param.run_param,
+         "list, get, set and dump a node's parameters (like `ros2 param`)", {}),
+        ('service', service, service.run_service,
+         'list and call services (like `ros2 service`)', {}),
+        ('goal', goal, goal.run_goal,
+         'send a goal pose to planner_node; --wait follows it to the end', {}),
         ('demo', demo, demo.run_demo,
          'what `make demo` runs: doctor, then one pushing episode through the ROS graph',
          {}),
     ):
-        p = sub.add_parser(name, help=summary, description=module.__doc__,
+        p = sub.add_parser(name, help=summary, description=plain_help(module.__doc__),
                            formatter_class=argparse.RawDescriptionHelpFormatter, **extra)
         module.add_arguments(p)
         p.set_defaults(handler=handler)
+        if name == 'demo':
+            _group_doctor_options(p)
     _add_targets(sub)
     return parser
 
@@ -118,6 +179,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     dds.apply_default_profile()
     try:
         return args.handler(args)
+    except BrokenPipeError:
+        return _closed_pipe()
     except KeyboardInterrupt:
         print('interrupted', file=sys.stderr)
         return 130
@@ -127,6 +190,18 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise
         print('interrupted', file=sys.stderr)
         return 130
+
+
+def _closed_pipe() -> int:
+    """The reader of stdout went away (``| head``): stop quietly. stdout is pointed at
+    /dev/null so the interpreter's final flush does not raise a second BrokenPipeError."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):
+        pass
+    return EXIT_BROKEN_PIPE
 
 
 if __name__ == '__main__':

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import importlib
 import os
+import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -40,6 +41,16 @@ def import_rclpy() -> Any:
             f'rclpy cannot be imported ({type(exc).__name__}: {exc}): run make venv'
         ) from exc
     return rclpy
+
+
+def run_graph_command(args: Any, handler: Callable[[Any], int], command: str) -> int:
+    """Run the handler of a graph command (``pushbot topic|node|service|param ...``); an
+    unusable rclpy or an unknown interface type becomes one line on stderr and status 1."""
+    try:
+        return handler(args)
+    except (RosUnavailableError, LookupError) as exc:
+        print(f'pushbot {command}: {exc}', file=sys.stderr)
+        return 1
 
 
 @contextmanager
@@ -100,6 +111,76 @@ def spin_until(
             time.sleep(min(step, remaining))
         else:
             executor.spin_once(timeout_sec=min(step, remaining))
+
+
+#: The discovery rule of the graph commands (see :func:`wait_for_stable_graph`): at least
+#: MIN_DISCOVERY_TIME seconds, then until nothing changed for SETTLE_TIME seconds. Measured on
+#: the four-node graph of ``pushbot up`` under load (2 cores shared): a node's endpoints came
+#: up to 1.9 s after the previous change and the last node 2.5 s after start, so a single look
+#: or a 1 s quiet period missed some.
+MIN_DISCOVERY_TIME = 2.5
+SETTLE_TIME = 1.5
+
+
+def wait_for_stable_graph(
+    executor: Executor,
+    snapshot: Callable[[], Any],
+    deadline: float,
+    settle: float = SETTLE_TIME,
+    ready: Callable[[Any], bool] | None = None,
+    min_time: float = MIN_DISCOVERY_TIME,
+) -> Any:
+    """Spin until ``snapshot()`` has not changed for ``settle`` seconds (and ``min_time``
+    seconds have passed), or until ``deadline``.
+
+    The one discovery rule of the CLI's graph commands (``topic list|info``, ``node``,
+    ``service list``): without a daemon, a fresh node learns the graph participant by
+    participant and endpoint by endpoint, so a single look after a fixed pause can miss
+    endpoints (the measured "0 publishers" of ``topic info``). ``snapshot`` returns a
+    comparable view of what the command prints (e.g. the sorted endpoints of a topic); the wait
+    ends when it is ``ready`` (default: always), at least ``min_time`` s passed and it has been
+    equal for ``settle`` seconds, at the latest at ``deadline`` (``time.monotonic()``).
+    Returns the last snapshot.
+    """
+    start = time.monotonic()
+    current = snapshot()
+    since = start
+    while True:
+        now = time.monotonic()
+        if now >= deadline or ((ready is None or ready(current)) and now - since >= settle
+                               and now - start >= min_time):
+            return current
+        executor.spin_once(timeout_sec=min(0.05, max(deadline - now, 0.0)))
+        latest = snapshot()
+        if latest != current:
+            current, since = latest, time.monotonic()
+
+
+def graph_snapshot(node: Node) -> tuple[tuple[str, ...], tuple[Any, ...], tuple[Any, ...]]:
+    """(other nodes' full names, topics with types, services with types), sorted: what the
+    graph commands wait on with :func:`wait_for_stable_graph` (``ready``: any other node).
+    Hidden services (a name part starting with ``_``, e.g. those of the CLI's own node) are
+    left out, as ``ros2 service list`` does."""
+    me = node.get_fully_qualified_name()
+    nodes = tuple(sorted(full_node_name(name, ns)
+                         for name, ns in node.get_node_names_and_namespaces()
+                         if full_node_name(name, ns) != me))
+    topics = tuple(sorted((n, tuple(t)) for n, t in node.get_topic_names_and_types()))
+    services = tuple(sorted((n, tuple(t)) for n, t in node.get_service_names_and_types()
+                            if not any(part.startswith('_') for part in n.split('/'))))
+    return nodes, topics, services
+
+
+def full_node_name(name: str, namespace: str) -> str:
+    """``/ns/name`` (``/name`` in the root namespace)."""
+    return f'{namespace.rstrip("/")}/{name}'
+
+
+def wait_for_graph(node: Node, executor: Executor, timeout: float) -> Any:
+    """:func:`graph_snapshot` once it is stable (some other node seen), at most ``timeout`` s."""
+    return wait_for_stable_graph(executor, lambda: graph_snapshot(node),
+                                 time.monotonic() + max(timeout, 0.0),
+                                 ready=lambda snap: bool(snap[0]))
 
 
 def topic_types(node: Node, topic: str) -> list[str]:

@@ -57,14 +57,18 @@ class GraphNodes:
         Extra ``-p name:=value`` strings per node name.
     """
 
-    def __init__(self, log_dir: Path, node_args: dict[str, Sequence[str]] | None = None) -> None:
+    def __init__(self, log_dir: Path, node_args: dict[str, Sequence[str]] | None = None,
+                 ros_args: dict[str, Sequence[str]] | None = None) -> None:
         self.log_dir = Path(log_dir)
         self.node_args = {n: list((node_args or {}).get(n, ())) for n in NODES}
+        #: ``pushbot up``: node -> its whole ``--ros-args`` (parameter files, remappings; the
+        #: launch file's choice), replacing the protocol's nodes and parameters.
+        self.ros_args = ros_args
         self.procs: dict[str, subprocess.Popen] = {}
 
     def start(self) -> None:
         self.log_dir.mkdir(parents=True, exist_ok=True)
-        for name in NODES:
+        for name in NODES if self.ros_args is None else self.ros_args:
             self._start_one(name)
 
     def _start_one(self, name: str, extra: Sequence[str] = ()) -> None:
@@ -80,6 +84,8 @@ class GraphNodes:
             params += ["-p", f"push_timeout:={PUSH_TIMEOUT}", "-p", "after_goal:=report"]
         for value in [*self.node_args[name], *extra]:
             params += ["-p", value]
+        if self.ros_args is not None:
+            params = list(self.ros_args[name])
         with open(self.log_dir / f"{name}.log", "ab") as log:  # a restart appends
             log.write(f"=== pushbot run {name}, started {time.ctime()} ===\n".encode())
             log.flush()

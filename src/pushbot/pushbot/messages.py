@@ -1,8 +1,16 @@
-"""Generic ROS message -> plain data -> YAML-ish text, for ``pushbot topic echo``.
+"""The CLI's one message codec: ROS message <-> plain data <-> YAML text.
 
-Works on any generated message class through ``get_fields_and_field_types()``, so it needs no
-``rosidl_runtime_py``. Long arrays (image data, point clouds) are replaced by a one-line
-summary so that echoing a camera topic stays readable.
+Works on any generated message (or service request/response) class through
+``get_fields_and_field_types()``, so it needs no ``rosidl_runtime_py`` (not on PyPI).
+
+- Out (``pushbot topic echo``, ``service call``'s response): :func:`message_to_dict` then
+  :func:`to_yaml`. Long arrays (image data, point clouds) are replaced by a one-line summary
+  so that echoing a camera topic stays readable.
+- In (``pushbot topic pub``, ``service call``'s request, ``pushbot goal``):
+  :func:`message_from_yaml` parses YAML as ``ros2 topic pub`` takes it (a flow mapping such as
+  ``"{header: {frame_id: world}, pose: {position: {x: 0.05}}}"``; fields left out keep their
+  defaults) and :func:`fill_message` sets the fields, refusing unknown fields and values of the
+  wrong type with a :class:`MessageFieldError` naming the field.
 """
 
 from __future__ import annotations
@@ -11,7 +19,10 @@ import array
 import json
 import math
 import re
+from collections.abc import Mapping
 from typing import Any
+
+import yaml
 
 DEFAULT_MAX_ARRAY = 32
 """Arrays longer than this are summarised instead of printed in full."""
@@ -151,3 +162,153 @@ def _inline(value: Any) -> str:
     if isinstance(value, list):
         return '[' + ', '.join(_scalar(v) for v in value) + ']'
     return _scalar(value)
+
+
+class MessageFieldError(ValueError):
+    """A YAML value does not fit the message: unknown field, wrong type, out of range."""
+
+
+#: Integer field types and their ranges (the generated setters check them only with
+#: ``ROS_PYTHON_CHECK_FIELDS``, so the codec does).
+_INTEGER_TYPES = {
+    'byte': (0, 255), 'octet': (0, 255), 'char': (0, 255), 'uint8': (0, 255),
+    'int8': (-2**7, 2**7 - 1), 'int16': (-2**15, 2**15 - 1), 'uint16': (0, 2**16 - 1),
+    'int32': (-2**31, 2**31 - 1), 'uint32': (0, 2**32 - 1), 'int64': (-2**63, 2**63 - 1),
+    'uint64': (0, 2**64 - 1),
+}
+_FLOAT32_MAX = 3.4028234663852886e38
+_FLOAT_TYPES = {'float', 'double', 'float32', 'float64', 'long double'}
+
+
+def message_from_yaml(message_class: type, text: str | None) -> Any:
+    """A new ``message_class`` instance with the fields given as YAML text.
+
+    Parameters
+    ----------
+    message_class
+        A generated message or service request class.
+    text
+        A YAML mapping of field names to values (nested messages as nested mappings, arrays
+        as lists); empty or ``None`` for the default message.
+
+    Raises
+    ------
+    MessageFieldError
+        Text that is not YAML, not a mapping, or does not fit the message (names the field).
+    """
+    try:
+        data = yaml.safe_load(text) if text and text.strip() else {}
+    except yaml.YAMLError as exc:
+        problem = getattr(exc, 'problem', None) or str(exc).splitlines()[0]
+        raise MessageFieldError(f'the values are not valid YAML ({problem})') from None
+    msg = message_class()
+    fill_message(msg, {} if data is None else data)
+    return msg
+
+
+def fill_message(msg: Any, data: Any, path: str = '') -> None:
+    """Set the fields of ``msg`` from ``data`` (a mapping); fields not in ``data`` are kept.
+
+    Raises
+    ------
+    MessageFieldError
+        ``data`` is not a mapping, names a field ``msg`` does not have, or holds a value of the
+        wrong type or out of the field's range; the message names the field (``pose.position.x``).
+    """
+    type_name = _type_name(msg)
+    if not isinstance(data, Mapping):
+        where = f"field '{path.rstrip('.')}'" if path else 'the message'
+        raise MessageFieldError(f'{where} ({type_name}) takes a mapping of fields, got '
+                                f'{_describe(data)}')
+    fields = msg.get_fields_and_field_types()
+    for key, value in data.items():
+        name = f'{path}{key}'
+        if key not in fields:
+            raise MessageFieldError(f"{type_name} has no field '{name}' (its fields: "
+                                    f"{', '.join(fields) or 'none'})")
+        field_type = fields[key]
+        current = getattr(msg, key)
+        if hasattr(current, 'get_fields_and_field_types'):
+            fill_message(current, value, f'{name}.')
+            continue
+        if _is_array(field_type):
+            converted: Any = _array_value(value, field_type, name)
+        else:
+            converted = _scalar_value(value, field_type, name)
+        try:
+            setattr(msg, key, converted)
+        except (AssertionError, TypeError, ValueError) as exc:
+            detail = str(exc).splitlines()[0] if str(exc) else 'out of range'
+            raise MessageFieldError(f"field '{name}' ({field_type}): cannot take "
+                                    f'{_describe(value)} ({detail})') from None
+
+
+def _type_name(msg: Any) -> str:
+    module = type(msg).__module__.split('.')
+    return f'{module[0]}/{module[1]}/{type(msg).__name__}' if len(module) > 1 \
+        else type(msg).__name__
+
+
+def _describe(value: Any) -> str:
+    text = repr(value)
+    return f'{type(value).__name__} {text if len(text) <= 60 else text[:57] + "..."}'
+
+
+def _is_array(field_type: str) -> bool:
+    return field_type.startswith('sequence<') or bool(re.search(r'\[\d*\]$', field_type))
+
+
+def _is_message_type(field_type: str) -> bool:
+    return '/' in field_type
+
+
+def _scalar_value(value: Any, field_type: str, name: str) -> Any:
+    """``value`` converted for a scalar field, or :class:`MessageFieldError`."""
+    if _is_message_type(field_type):
+        from pushbot.graph import import_message_class
+
+        nested = import_message_class(field_type)()
+        fill_message(nested, value, f'{name}.')
+        return nested
+    base = re.sub(r'<=\d+$', '', field_type)
+    wrong = MessageFieldError(f"field '{name}' ({field_type}) cannot take {_describe(value)}")
+    if base == 'boolean':
+        if not isinstance(value, bool):
+            raise wrong
+        return value
+    if base in _INTEGER_TYPES:
+        if isinstance(value, bool) or not isinstance(value, int):
+            if base in ('char', 'byte', 'octet') and isinstance(value, str) and len(value) == 1:
+                return ord(value) if base == 'char' else value.encode('latin-1')
+            raise wrong
+        low, high = _INTEGER_TYPES[base]
+        if not low <= value <= high:
+            raise MessageFieldError(f"field '{name}' ({field_type}): {value} is out of range "
+                                    f'[{low}, {high}]')
+        return value.to_bytes(1, 'little') if base in ('byte', 'octet') else value
+    if base in _FLOAT_TYPES:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise wrong
+        value = float(value)
+        if base in ('float', 'float32') and math.isfinite(value) \
+                and abs(value) > _FLOAT32_MAX:
+            raise MessageFieldError(f"field '{name}' ({field_type}): {value} is out of the "
+                                    'float32 range')
+        return value
+    if base in ('string', 'wstring'):
+        if isinstance(value, (dict, list)) or value is None:
+            raise wrong
+        # YAML reads an unquoted 1 or true as a number or a bool; a string field takes its text.
+        return value if isinstance(value, str) else _scalar(value)
+    raise wrong
+
+
+def _array_value(value: Any, field_type: str, name: str) -> list[Any]:
+    if not isinstance(value, list):
+        raise MessageFieldError(f"field '{name}' ({field_type}) takes a list, got "
+                                f'{_describe(value)}')
+    element = _element_type(field_type)
+    items = [_scalar_value(v, element, f'{name}[{i}]') for i, v in enumerate(value)]
+    if element in ('byte', 'octet'):
+        return [b if isinstance(b, bytes) else bytes([b]) for b in items]
+    return items

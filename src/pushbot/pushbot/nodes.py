@@ -5,13 +5,15 @@ colcon installs as ``lib/<pkg>/<node>``), found with :mod:`importlib.metadata`, 
 second table of nodes to keep in sync. ``pushbot run <node> [args...]`` (or, as with ``ros2
 run``, ``pushbot run <pkg> <node> [args...]``) replaces ``sys.argv`` with ``[<node>, args...]``
 and calls the node's ``main()`` in this process; ``--ros-args ...`` therefore reaches
-``rclpy.init()`` unchanged.
+``rclpy.init()`` unchanged. A ``--params-file`` that does not exist is reported in one line
+(exit status 2) before the node starts, instead of rcl's error and a traceback.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib.metadata
+import os
 import sys
 from dataclasses import dataclass
 
@@ -106,6 +108,20 @@ def resolve_node(
     return None, rest, f"unknown node '{first}'. Known nodes: {_known(nodes)}"
 
 
+def missing_params_file(node_args: list[str]) -> str | None:
+    """The first ``--params-file PATH`` after ``--ros-args`` whose file does not exist."""
+    in_ros_args = False
+    for i, word in enumerate(node_args):
+        if word == '--ros-args':
+            in_ros_args = True
+        elif word == '--':
+            in_ros_args = False
+        elif in_ros_args and word == '--params-file' and i + 1 < len(node_args):
+            if not os.path.isfile(node_args[i + 1]):
+                return node_args[i + 1]
+    return None
+
+
 def run_node(args: argparse.Namespace) -> int:
     """Handler of ``pushbot run``; returns the node's exit status."""
     nodes = discover_nodes()
@@ -123,6 +139,10 @@ def run_node(args: argparse.Namespace) -> int:
     node, node_args, error = resolve_node(nodes, [args.node, *args.node_args])
     if node is None:
         print(f'pushbot run: {error}', file=sys.stderr)
+        return EXIT_USAGE
+    missing_file = missing_params_file(node_args)
+    if missing_file is not None:
+        print(f'pushbot run: --params-file {missing_file}: no such file', file=sys.stderr)
         return EXIT_USAGE
     try:
         main = node.entry_point.load()

@@ -1,12 +1,16 @@
-"""``pushbot topic``: the project's replacement for ``ros2 topic`` (list, echo, hz, info).
+"""``pushbot topic``: the project's replacement for ``ros2 topic`` (list, echo, hz, info, pub).
 
 Built on rclpy graph introspection only (``get_topic_names_and_types``,
 ``get_publishers_info_by_topic``, ``get_subscriptions_info_by_topic``), since the PyPI install
 has no ``ros2`` CLI and no ``rosidl_runtime_py``. There is no daemon: each command starts a
-hidden node and gives discovery a moment.
+hidden node and waits until what it prints has stopped changing for 1.5 s, after at least
+2.5 s (``pushbot.graph.wait_for_stable_graph``, the rule of every graph command), bounded by
+its timeout. ``pub`` takes YAML as ``ros2 topic pub`` does (``pushbot.messages``, the CLI's one
+message codec) and waits for matching subscriptions before the first message.
 
 Exit codes: 0 success, 1 when the topic did not appear (or, with ``echo --count``, the messages
-did not arrive) within ``--timeout``, 2 for usage errors.
+did not arrive) within ``--timeout``, 2 for usage errors (unknown type, fields or values that do
+not fit the message).
 """
 
 from __future__ import annotations
@@ -22,14 +26,22 @@ from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any
 
 from pushbot.graph import (
-    RosUnavailableError,
     cli_node,
     compatible_qos,
     import_message_class,
+    run_graph_command,
     spin_until,
     topic_types,
+    wait_for_graph,
+    wait_for_stable_graph,
 )
-from pushbot.messages import DEFAULT_MAX_ARRAY, message_to_dict, to_yaml
+from pushbot.messages import (
+    DEFAULT_MAX_ARRAY,
+    MessageFieldError,
+    message_from_yaml,
+    message_to_dict,
+    to_yaml,
+)
 
 if TYPE_CHECKING:
     from rclpy.executors import Executor
@@ -37,20 +49,23 @@ if TYPE_CHECKING:
     from rclpy.topic_endpoint_info import TopicEndpointInfo
 
 DEFAULT_TIMEOUT = 10.0
-DEFAULT_SPIN_TIME = 3.0
-"""Seconds ``topic list`` waits: localhost discovery without a daemon can take ~3 s."""
+DEFAULT_SPIN_TIME = 6.0
+"""Longest ``topic list`` waits for the graph to settle (an empty graph takes all of it)."""
+EXIT_USAGE = 2
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Sub-subcommands of ``pushbot topic``."""
-    sub = parser.add_subparsers(dest='topic_command', metavar='{list,echo,hz,info}')
+    sub = parser.add_subparsers(dest='topic_command', metavar='{list,echo,hz,info,pub}')
     sub.required = True
 
     p = sub.add_parser('list', help='list the topics in the graph',
-                       description='List the topics seen in the graph after --spin-time.')
+                       description='List the topics of the graph once discovery has settled '
+                                   '(at least 2.5 s, then nothing new for 1.5 s; at most '
+                                   '--spin-time).')
     p.add_argument('-t', '--show-types', action='store_true', help='also print the types')
     p.add_argument('--spin-time', type=float, default=DEFAULT_SPIN_TIME,
-                   help='seconds to wait for discovery (default: %(default)s)')
+                   help='longest wait for discovery in seconds (default: %(default)s)')
     p.set_defaults(topic_handler=cmd_list)
 
     p = sub.add_parser(
@@ -83,23 +98,53 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.set_defaults(topic_handler=cmd_hz)
 
     p = sub.add_parser('info', help='type, publishers and subscribers of a topic with their QoS',
-                       description='Print the type of a topic and every endpoint with its QoS.')
+                       description='Print the type of a topic and every endpoint with its QoS, '
+                                   'once its endpoints have not changed for 1.5 s (after at '
+                                   'least 2.5 s).')
     p.add_argument('topic')
     p.add_argument('--timeout', type=float, default=5.0,
-                   help='seconds to wait for the topic to appear (default: %(default)s)')
+                   help='seconds to wait for the topic to appear and its endpoints to settle '
+                        '(default: %(default)s)')
     p.set_defaults(topic_handler=cmd_info)
+
+    p = sub.add_parser(
+        'pub', help='publish a message given as YAML',
+        description='Publish a message to a topic, like ros2 topic pub: the type as '
+                    'pkg/msg/Type or pkg/Type, the values as a YAML mapping (fields left out '
+                    'keep their defaults), e.g. pushbot topic pub goal_pose '
+                    'geometry_msgs/msg/PoseStamped "{header: {frame_id: world}, pose: '
+                    '{position: {x: 0.05}, orientation: {w: 1.0}}}" --once. Waits (at most '
+                    '--max-wait-time-secs) for --wait-matching-subscriptions subscriptions '
+                    'before the first message. The publisher is reliable and transient local, '
+                    'which matches every subscription (reliable or best effort, volatile or '
+                    'transient local).')
+    p.add_argument('topic')
+    p.add_argument('type', help='message type, e.g. geometry_msgs/msg/PoseStamped')
+    p.add_argument('values', nargs='?', default='',
+                   help='YAML mapping of the fields (default: the default message)')
+    times = p.add_mutually_exclusive_group()
+    times.add_argument('-1', '--once', action='store_true',
+                       help='publish one message and exit')
+    times.add_argument('-t', '--times', type=int, default=None,
+                       help='publish this many messages and exit (default: until Ctrl-C)')
+    p.add_argument('-r', '--rate', type=float, default=1.0,
+                   help='messages per second (default: %(default)s)')
+    p.add_argument('-w', '--wait-matching-subscriptions', type=int, default=1,
+                   help='matching subscriptions to wait for before the first message '
+                        '(default: %(default)s)')
+    p.add_argument('--max-wait-time-secs', type=float, default=DEFAULT_TIMEOUT,
+                   help='longest wait for them; then it publishes anyway, with a warning '
+                        '(default: %(default)s)')
+    p.add_argument('--keep-alive', type=float, default=2.0,
+                   help='seconds to wait after the last message until every subscription '
+                        'acknowledged it (default: %(default)s)')
+    p.add_argument('-q', '--quiet', action='store_true', help='do not print each message')
+    p.set_defaults(topic_handler=cmd_pub)
 
 
 def run_topic(args: argparse.Namespace) -> int:
     """Handler of ``pushbot topic``: dispatch to the sub-subcommand."""
-    try:
-        return args.topic_handler(args)
-    except RosUnavailableError as exc:
-        print(f'pushbot topic: {exc}', file=sys.stderr)
-        return 1
-    except LookupError as exc:
-        print(f'pushbot topic: {exc}', file=sys.stderr)
-        return 1
+    return run_graph_command(args, args.topic_handler, 'topic')
 
 
 @contextmanager
@@ -116,8 +161,7 @@ def _until_interrupted() -> Iterator[None]:
 def cmd_list(args: argparse.Namespace) -> int:
     """``pushbot topic list [-t]``."""
     with cli_node('topic_list') as (node, executor):
-        spin_until(executor, lambda: False, time.monotonic() + max(args.spin_time, 0.0))
-        topics = sorted(node.get_topic_names_and_types())
+        _, topics, _ = wait_for_graph(node, executor, args.spin_time)
     for name, types in topics:
         print(f'{name} [{", ".join(types)}]' if args.show_types else name)
     return 0
@@ -264,8 +308,9 @@ def cmd_info(args: argparse.Namespace) -> int:
             print(f'pushbot topic info: topic {topic} did not appear within '
                   f'{args.timeout:g} s', file=sys.stderr)
             return 1
-        # Give endpoint discovery a moment to complete after the first sighting.
-        spin_until(executor, lambda: False, min(time.monotonic() + 0.5, deadline))
+        # Endpoints arrive one by one after the first sighting (the measured "0 publishers"
+        # of a running ekf_node): wait until they stop changing.
+        wait_for_stable_graph(executor, lambda: _endpoints(node, topic), deadline)
         types = topic_types(node, topic)
         publishers = node.get_publishers_info_by_topic(topic)
         subscriptions = node.get_subscriptions_info_by_topic(topic)
@@ -278,4 +323,80 @@ def cmd_info(args: argparse.Namespace) -> int:
             print(f'  - node: {name}')
             print(f'    type: {info.topic_type}')
             print(f'    qos: {_qos_text(info)}')
+    return 0
+
+
+def _endpoints(node: Node, topic: str) -> tuple[list[tuple[str, str, str]], ...]:
+    """The publishers and subscriptions of ``topic`` as comparable (node, namespace, type)."""
+    def view(infos: list[TopicEndpointInfo]) -> list[tuple[str, str, str]]:
+        return sorted((i.node_name, i.node_namespace, i.topic_type) for i in infos)
+
+    return (view(node.get_publishers_info_by_topic(topic)),
+            view(node.get_subscriptions_info_by_topic(topic)))
+
+
+def publisher_qos(depth: int = 10) -> Any:
+    """Reliable + transient local: matches every subscription (a reliable writer serves
+    best-effort readers too, a transient-local writer volatile readers too), like
+    ``ros2 topic pub``'s default of matching the existing subscriptions."""
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
+                      reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def wait_for_subscriptions(node: Node, executor: Executor, publisher: Any, count: int,
+                           timeout: float, what: str) -> bool:
+    """Spin until ``publisher`` matches ``count`` subscriptions (at most ``timeout`` s); warn
+    on stderr when it does not (the caller publishes anyway, as ``ros2 topic pub`` does)."""
+    if count <= 0:
+        return True
+    matched = spin_until(executor, lambda: publisher.get_subscription_count() >= count,
+                         time.monotonic() + max(timeout, 0.0))
+    if not matched:
+        print(f'{what}: {publisher.get_subscription_count()} of {count} matching '
+              f'subscription(s) on {publisher.topic_name} after {timeout:g} s; publishing '
+              'anyway', file=sys.stderr)
+    return matched
+
+
+def cmd_pub(args: argparse.Namespace) -> int:
+    """``pushbot topic pub <topic> <type> [values] [--once | --times N] [--rate HZ]``."""
+    from rclpy.duration import Duration
+
+    if args.times is not None and args.times < 1:
+        print('pushbot topic pub: --times must be >= 1', file=sys.stderr)
+        return EXIT_USAGE
+    if not (args.rate > 0 and math.isfinite(args.rate)):
+        print('pushbot topic pub: --rate must be a positive number of messages per second',
+              file=sys.stderr)
+        return EXIT_USAGE
+    try:
+        message_class = import_message_class(args.type)
+        msg = message_from_yaml(message_class, args.values)
+    except (LookupError, MessageFieldError) as exc:
+        print(f'pushbot topic pub: {exc}', file=sys.stderr)
+        return EXIT_USAGE
+    total = 1 if args.once else args.times
+    with cli_node('topic_pub') as (node, executor), _until_interrupted():
+        try:
+            publisher = node.create_publisher(message_class, args.topic, publisher_qos())
+        except Exception as exc:  # rclpy's InvalidTopicNameException and kin
+            print(f'pushbot topic pub: {str(exc).splitlines()[0]}', file=sys.stderr)
+            return EXIT_USAGE
+        wait_for_subscriptions(node, executor, publisher, args.wait_matching_subscriptions,
+                               args.max_wait_time_secs, 'pushbot topic pub')
+        if not args.quiet:
+            print('publisher: beginning loop', flush=True)
+        sent = 0
+        next_time = time.monotonic()
+        while total is None or sent < total:
+            spin_until(executor, lambda: False, next_time)
+            publisher.publish(msg)
+            sent += 1
+            if not args.quiet:
+                print(f'publishing #{sent}: {msg!r}', flush=True)
+            next_time += 1.0 / args.rate
+        publisher.wait_for_all_acked(Duration(seconds=max(args.keep_alive, 0.0)))
     return 0

@@ -1,0 +1,255 @@
+"""``pushbot param``: the project's replacement for ``ros2 param`` (list, get, set, dump).
+
+Through the node's parameter services (rcl_interfaces ``ListParameters``, ``GetParameters``,
+``SetParameters``, ``DescribeParameters``; rclpy's ``AsyncParameterClient``):
+
+- ``param list NODE``: the parameter names, one per line (indented, as ``ros2 param list``);
+- ``param get NODE NAME``: ``<Type> value is: <value>`` (``--hide-type``: the value only);
+- ``param set NODE NAME VALUE``: the value is read as YAML, as ``ros2 param set`` does
+  (``3`` an integer, ``3.0`` a double, ``true`` a bool, ``[1.0, 2.0]`` a double array, anything
+  else a string); an integer for a double parameter is sent as a double. The node may refuse
+  (read-only, out of range, invalid configuration): its reason is printed and the status is 1;
+- ``param dump NODE``: every parameter as a parameter file (``/node: ros__parameters: ...``,
+  dotted names nested), usable as ``--params-file``.
+
+Exit codes: 0 success, 1 when the node's parameter services did not answer within
+``--timeout`` or the node refused, 2 for usage errors (unknown parameter, bad name).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from typing import TYPE_CHECKING, Any
+
+import yaml
+
+from pushbot.graph import cli_node, full_node_name, run_graph_command, spin_until
+from pushbot.rosnode import split_node_name
+
+if TYPE_CHECKING:
+    from rclpy.executors import Executor
+
+DEFAULT_TIMEOUT = 10.0
+EXIT_USAGE = 2
+
+
+class ParamError(RuntimeError):
+    """A parameter request failed; ``status`` is the exit code."""
+
+    def __init__(self, message: str, status: int = 1) -> None:
+        super().__init__(message)
+        self.status = status
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Sub-subcommands of ``pushbot param``."""
+    sub = parser.add_subparsers(dest='param_command', metavar='{list,get,set,dump}')
+    sub.required = True
+
+    def common(p: argparse.ArgumentParser) -> None:
+        p.add_argument('node', help='node name, e.g. /planner_node')
+        p.add_argument('--timeout', type=float, default=DEFAULT_TIMEOUT,
+                       help="seconds to wait for the node's parameter services and each "
+                            'answer (default: %(default)s)')
+
+    p = sub.add_parser('list', help="list a node's parameters",
+                       description='List the parameter names of a node.')
+    common(p)
+    p.add_argument('--param-type', action='store_true', help='also print each type')
+    p.set_defaults(param_handler=cmd_list)
+
+    p = sub.add_parser('get', help='print a parameter value',
+                       description='Print the value of one parameter of a node.')
+    common(p)
+    p.add_argument('name', help='parameter name, e.g. goal_tolerance.xy')
+    p.add_argument('--hide-type', action='store_true', help='print the value only')
+    p.set_defaults(param_handler=cmd_get)
+
+    p = sub.add_parser('set', help='set a parameter value',
+                       description='Set one parameter of a node; the value is read as YAML '
+                                   '(3 integer, 3.0 double, true bool, [1.0, 2.0] double '
+                                   'array, anything else a string).')
+    common(p)
+    p.add_argument('name', help='parameter name')
+    p.add_argument('value', help='new value (YAML)')
+    p.set_defaults(param_handler=cmd_set)
+
+    p = sub.add_parser('dump', help='print all parameters as a parameter file',
+                       description='Print every parameter of a node as a YAML parameter file '
+                                   '(usable as --ros-args --params-file).')
+    common(p)
+    p.set_defaults(param_handler=cmd_dump)
+
+
+def run_param(args: argparse.Namespace) -> int:
+    """Handler of ``pushbot param``: dispatch to the sub-subcommand."""
+    try:
+        split_node_name(args.node)
+    except ValueError as exc:
+        print(f'pushbot param {args.param_command}: {exc}', file=sys.stderr)
+        return EXIT_USAGE
+    try:
+        return run_graph_command(args, args.param_handler, 'param')
+    except ParamError as exc:
+        print(f'pushbot param {args.param_command}: {exc}', file=sys.stderr)
+        return exc.status
+
+
+class _Client:
+    """An ``AsyncParameterClient`` of ``node_name`` with deadlines on every wait."""
+
+    def __init__(self, node: Any, executor: Executor, node_name: str, timeout: float) -> None:
+        from rclpy.parameter_client import AsyncParameterClient
+
+        base, namespace = split_node_name(node_name)
+        self.name = full_node_name(base, namespace)
+        self.executor = executor
+        self.timeout = max(timeout, 0.0)
+        self.client = AsyncParameterClient(node, self.name)
+        if not spin_until(executor, self.client.services_are_ready,
+                          time.monotonic() + self.timeout):
+            raise ParamError(f'node {self.name} has no parameter services (waited '
+                             f'{self.timeout:g} s): is it running?')
+
+    def wait(self, future: Any, what: str) -> Any:
+        if not spin_until(self.executor, future.done, time.monotonic() + self.timeout):
+            raise ParamError(f'no answer from {self.name}/{what} within {self.timeout:g} s')
+        if future.exception() is not None:
+            raise ParamError(f'{self.name}/{what} failed: {future.exception()}')
+        return future.result()
+
+    def names(self) -> list[str]:
+        return sorted(self.wait(self.client.list_parameters(), 'list_parameters').result.names)
+
+    def describe(self, names: list[str]) -> list[Any]:
+        return list(self.wait(self.client.describe_parameters(names),
+                              'describe_parameters').descriptors)
+
+    def values(self, names: list[str]) -> list[Any]:
+        return list(self.wait(self.client.get_parameters(names), 'get_parameters').values)
+
+    def require(self, name: str) -> Any:
+        """The descriptor of ``name``; :class:`ParamError` (status 2) if it does not exist."""
+        from rcl_interfaces.msg import ParameterType
+
+        descriptor = self.describe([name])
+        if not descriptor or descriptor[0].type == ParameterType.PARAMETER_NOT_SET:
+            raise ParamError(f"node {self.name} has no parameter '{name}'", EXIT_USAGE)
+        return descriptor[0]
+
+
+def _type_names() -> dict[int, str]:
+    from rcl_interfaces.msg import ParameterType
+
+    return {ParameterType.PARAMETER_BOOL: 'Boolean', ParameterType.PARAMETER_INTEGER: 'Integer',
+            ParameterType.PARAMETER_DOUBLE: 'Double', ParameterType.PARAMETER_STRING: 'String',
+            ParameterType.PARAMETER_BYTE_ARRAY: 'Byte values',
+            ParameterType.PARAMETER_BOOL_ARRAY: 'Boolean values',
+            ParameterType.PARAMETER_INTEGER_ARRAY: 'Integer values',
+            ParameterType.PARAMETER_DOUBLE_ARRAY: 'Double values',
+            ParameterType.PARAMETER_STRING_ARRAY: 'String values',
+            ParameterType.PARAMETER_NOT_SET: 'Parameter not set'}
+
+
+def cmd_list(args: argparse.Namespace) -> int:
+    """``pushbot param list NODE [--param-type]``."""
+    with cli_node('param_list') as (node, executor):
+        client = _Client(node, executor, args.node, args.timeout)
+        names = client.names()
+        types = [d.type for d in client.describe(names)] if args.param_type and names else []
+    labels = _type_names()
+    for i, name in enumerate(names):
+        print(f'  {name}' + (f' (type: {labels.get(types[i], "?")})' if types else ''))
+    return 0
+
+
+def _format_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return 'True' if value else 'False'
+    return str(value)
+
+
+def cmd_get(args: argparse.Namespace) -> int:
+    """``pushbot param get NODE NAME [--hide-type]``."""
+    from rclpy.parameter import parameter_value_to_python
+
+    with cli_node('param_get') as (node, executor):
+        client = _Client(node, executor, args.node, args.timeout)
+        client.require(args.name)
+        value = client.values([args.name])[0]
+    python = parameter_value_to_python(value)
+    if args.hide_type:
+        print(_format_value(python))
+    else:
+        print(f'{_type_names().get(value.type, "Unknown")} value is: {_format_value(python)}')
+    return 0
+
+
+def parameter_value(text: str, declared_type: int) -> Any:
+    """The ``ParameterValue`` for ``text`` read as YAML (rclpy's rule, as ``ros2 param set``),
+    an integer (array) turned into a double (array) when the parameter is declared double."""
+    from rcl_interfaces.msg import ParameterType
+    from rclpy.parameter import get_parameter_value
+
+    value = get_parameter_value(text)
+    if declared_type == ParameterType.PARAMETER_DOUBLE \
+            and value.type == ParameterType.PARAMETER_INTEGER:
+        value.type, value.double_value = ParameterType.PARAMETER_DOUBLE, float(value.integer_value)
+    elif declared_type == ParameterType.PARAMETER_DOUBLE_ARRAY \
+            and value.type == ParameterType.PARAMETER_INTEGER_ARRAY:
+        value.type = ParameterType.PARAMETER_DOUBLE_ARRAY
+        value.double_array_value = [float(v) for v in value.integer_array_value]
+    return value
+
+
+def cmd_set(args: argparse.Namespace) -> int:
+    """``pushbot param set NODE NAME VALUE``."""
+    from rcl_interfaces.msg import Parameter
+
+    with cli_node('param_set') as (node, executor):
+        client = _Client(node, executor, args.node, args.timeout)
+        descriptor = client.require(args.name)
+        msg = Parameter(name=args.name, value=parameter_value(args.value, descriptor.type))
+        response = client.wait(client.client.set_parameters([msg]), 'set_parameters')
+    result = response.results[0] if response.results else None
+    if result is None or not result.successful:
+        reason = result.reason if result is not None else 'no result'
+        print(f'Setting parameter failed: {reason}', file=sys.stderr)
+        return 1
+    print('Set parameter successful')
+    return 0
+
+
+def nest(values: dict[str, Any]) -> dict[str, Any]:
+    """Dotted parameter names as nested mappings (``a.b: 1`` -> ``a: {b: 1}``), as parameter
+    files write them; names under a prefix that is itself a parameter stay dotted."""
+    out: dict[str, Any] = {}
+    for name in sorted(values):
+        parts = name.split('.')
+        if any('.'.join(parts[:i]) in values for i in range(1, len(parts))) or any(
+                other.startswith(name + '.') for other in values):
+            out[name] = values[name]
+            continue
+        level = out
+        for part in parts[:-1]:
+            level = level.setdefault(part, {})
+        level[parts[-1]] = values[name]
+    return out
+
+
+def cmd_dump(args: argparse.Namespace) -> int:
+    """``pushbot param dump NODE``."""
+    from rclpy.parameter import parameter_value_to_python
+
+    with cli_node('param_dump') as (node, executor):
+        client = _Client(node, executor, args.node, args.timeout)
+        names = client.names()
+        values = client.values(names) if names else []
+        full = client.name
+    data = {name: parameter_value_to_python(v) for name, v in zip(names, values, strict=True)
+            if v.type != 0}
+    print(yaml.safe_dump({full: {'ros__parameters': nest(data)}}, default_flow_style=False,
+                         sort_keys=True), end='')
+    return 0

@@ -1,0 +1,270 @@
+"""The operator CLI's pieces without a node graph: help text, the message YAML codec, argument
+checks (exit 2 and one line), ``pushbot up``'s node arguments, ``param dump``'s nesting, and
+``topic pub`` reaching an in-process subscriber over DDS (the session's domain).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from pushbot import cli, nodes, param, up
+from pushbot.messages import MessageFieldError, fill_message, message_from_yaml
+
+MARKUP = re.compile(r'``|:[a-z]+:`')
+
+
+def pushbot(*args: str, timeout: float = 60.0) -> subprocess.CompletedProcess:
+    exe = Path(sys.executable).parent / 'pushbot'
+    return subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=timeout,
+                          env=dict(os.environ), stdin=subprocess.DEVNULL)
+
+
+def _parsers(parser: argparse.ArgumentParser) -> list[tuple[str, argparse.ArgumentParser]]:
+    """Every parser below ``parser`` (subcommands at any depth) with its prog."""
+    found = [(parser.prog, parser)]
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for child in dict.fromkeys(action.choices.values()):
+                found += _parsers(child)
+    return found
+
+
+# --- help -----------------------------------------------------------------------------------
+
+def test_no_help_text_shows_restructuredtext_markup() -> None:
+    parsers = _parsers(cli.build_parser())
+    assert len(parsers) > 30  # every subcommand and target, not just the top level
+    for prog, parser in parsers:
+        text = parser.format_help()
+        assert not MARKUP.search(text), f'{prog} --help shows markup: ' \
+            f'{MARKUP.search(text).group(0)!r} in\n{text}'
+
+
+def test_plain_help_unmarks_roles_and_literals() -> None:
+    doc = ('Uses :mod:`pushbot.dds` and :func:`~push_core.planner.plan`, '
+           ':class:`Trial <pushbot.protocol.Trial>`; run ``pushbot demo``.\n\n- a list\n')
+    assert cli.plain_help(doc) == ('Uses pushbot.dds and plan, Trial; run pushbot demo.\n\n'
+                                   '- a list')
+
+
+def test_demo_help_puts_its_own_options_before_the_doctors() -> None:
+    text = cli.build_parser()._subparsers._group_actions[0].choices['demo'].format_help()
+    usage = text.split('\n\n')[0]
+    assert usage.index('--object') < usage.index('--timeout')
+    body = text[text.index('\noptions:'):]
+    assert body.index('--skip-doctor') < body.index('doctor options') < body.index('--count')
+
+
+# --- the message codec ----------------------------------------------------------------------
+
+def test_message_from_yaml_sets_nested_fields_and_keeps_defaults() -> None:
+    from geometry_msgs.msg import PoseStamped
+    from std_msgs.msg import Float64MultiArray
+
+    msg = message_from_yaml(
+        PoseStamped, '{header: {frame_id: world, stamp: {sec: 3}}, pose: {position: {x: 0.05, '
+                     'y: -1}, orientation: {z: 0.5, w: 0.8660254}}}')
+    assert msg.header.frame_id == 'world' and msg.header.stamp.sec == 3
+    assert (msg.pose.position.x, msg.pose.position.y, msg.pose.position.z) == (0.05, -1.0, 0.0)
+    assert isinstance(msg.pose.position.y, float)
+    assert msg.pose.orientation.w == pytest.approx(0.8660254)
+    array = message_from_yaml(Float64MultiArray,
+                              '{data: [1, 2.5], layout: {dim: [{label: state, size: 2}]}}')
+    assert list(array.data) == [1.0, 2.5]
+    assert (array.layout.dim[0].label, array.layout.dim[0].size) == ('state', 2)
+    assert message_from_yaml(PoseStamped, '') == PoseStamped()
+
+
+@pytest.mark.parametrize('text, error', [
+    ('{header: {frame_idx: world}}',
+     "std_msgs/msg/Header has no field 'header.frame_idx' (its fields: stamp, frame_id)"),
+    ('{pose: {position: {x: abc}}}', "field 'pose.position.x' (double) cannot take str 'abc'"),
+    ('{pose: {position: {x: true}}}', "field 'pose.position.x' (double) cannot take bool True"),
+    ('{header: {stamp: {sec: 2147483648}}}',
+     "field 'header.stamp.sec' (int32): 2147483648 is out of range [-2147483648, 2147483647]"),
+    ('{header: {stamp: {nanosec: -1}}}',
+     "field 'header.stamp.nanosec' (uint32): -1 is out of range [0, 4294967295]"),
+    ('{pose: 3}', "field 'pose' (geometry_msgs/msg/Pose) takes a mapping of fields, got int 3"),
+    ('[1, 2]', 'the message (geometry_msgs/msg/PoseStamped) takes a mapping of fields, got '
+               'list [1, 2]'),
+    ('{pose: [', "the values are not valid YAML (expected the node content, but found "
+                 "'<stream end>')"),
+])
+def test_message_from_yaml_names_the_bad_field(text: str, error: str) -> None:
+    from geometry_msgs.msg import PoseStamped
+
+    with pytest.raises(MessageFieldError) as info:
+        message_from_yaml(PoseStamped, text)
+    assert str(info.value) == error
+
+
+def test_fill_message_checks_arrays_element_by_element() -> None:
+    from std_msgs.msg import Float32MultiArray, String, UInt8MultiArray
+
+    msg = UInt8MultiArray()
+    fill_message(msg, {'data': [0, 255]})
+    assert list(msg.data) == [0, 255]
+    with pytest.raises(MessageFieldError, match=r"field 'data\[1\]' \(uint8\): 256 is out"):
+        fill_message(msg, {'data': [0, 256]})
+    with pytest.raises(MessageFieldError, match=r"field 'data' \(sequence<uint8>\) takes a list"):
+        fill_message(msg, {'data': 7})
+    with pytest.raises(MessageFieldError, match='float32 range'):
+        fill_message(Float32MultiArray(), {'data': [1e39]})
+    text = String()
+    fill_message(text, {'data': 12})  # YAML reads an unquoted 12 as a number
+    assert text.data == '12'
+
+
+# --- bad input: exit 2, one line, before any ROS work ---------------------------------------
+
+@pytest.mark.parametrize('argv, message', [
+    (['topic', 'pub', 'goal_pose', 'geometry_msgs/msg/PoseStamped', '{pose: {postion: {}}}',
+      '--once'], "pushbot topic pub: geometry_msgs/msg/Pose has no field 'pose.postion'"),
+    (['topic', 'pub', 'x', 'geometry_msgs/msg/NoSuchType', '--once'],
+     "pushbot topic pub: cannot decode 'geometry_msgs/msg/NoSuchType'"),
+    (['topic', 'pub', 'x', 'std_msgs/String', '--times', '0'],
+     'pushbot topic pub: --times must be >= 1'),
+    (['service', 'call', '/x/reset', 'std_srvs/srv/Trigger', '{force: true}'],
+     "pushbot service call: std_srvs/srv/Trigger_Request has no field 'force'"),
+    (['service', 'call', '/x/reset', 'std_msgs/msg/String'],
+     "pushbot service call: 'std_msgs/msg/String' is not a service type"),
+    (['goal', 'nan', '0', '0'], 'pushbot goal: X, Y and YAW must be finite numbers'),
+    (['goal', '0', '0', '0', '--frame', ' '], 'pushbot goal: --frame must not be empty'),
+    (['up', '--no-sim', '--object', 'rect1'], 'pushbot up: launch argument object:=rect1 needs '
+                                               'sim:=true'),
+    (['up', '--params-dir', '/no/such/dir'], 'pushbot up: --params-dir /no/such/dir: no such '
+                                              'directory'),
+    (['param', 'get', 'node/', 'x'], "pushbot param get: invalid node name 'node/'"),
+    (['run', 'planner_node', '--ros-args', '--params-file', '/no/such.yaml'],
+     'pushbot run: --params-file /no/such.yaml: no such file'),
+])
+def test_bad_input_exits_2_with_one_line(argv: list[str], message: str) -> None:
+    result = pushbot(*argv)
+    assert result.returncode == 2, result.stdout + result.stderr
+    assert result.stderr.startswith(message), result.stderr
+    assert result.stderr.count('\n') == 1 and 'Traceback' not in result.stderr
+
+
+def test_missing_params_file_only_looks_inside_ros_args(tmp_path: Path) -> None:
+    present = tmp_path / 'p.yaml'
+    present.write_text('{}')
+    assert nodes.missing_params_file(['--ros-args', '--params-file', str(present)]) is None
+    assert nodes.missing_params_file(['--params-file', 'gone.yaml']) is None  # a node option
+    assert nodes.missing_params_file(['--ros-args', '-p', 'a:=1', '--params-file', 'gone.yaml']) \
+        == 'gone.yaml'
+
+
+# --- pushbot up's arguments: what the launch file starts ------------------------------------
+
+def test_up_passes_the_launch_files_parameters_and_remappings() -> None:
+    from pushbot_bringup.graph import DEFAULT_CONFIG_DIR, graph_nodes
+
+    sim = up.ros_arguments(True, 'rect1')
+    assert list(sim) == [n.name for n in graph_nodes(True)]
+    assert sim['sim_bridge_node'] == [
+        '--params-file', str(Path(DEFAULT_CONFIG_DIR) / 'sim_bridge.yaml'),
+        '-p', 'use_sim_time:=false', '-p', "object:='rect1'"]
+    assert sim['planner_node'] == ['--params-file', str(Path(DEFAULT_CONFIG_DIR) /
+                                                        'push_planner.yaml'),
+                                   '-p', 'use_sim_time:=true']
+    real = up.ros_arguments(False)
+    assert list(real) == ['segmentation_node', 'ekf_node', 'planner_node']
+    assert '-p' in real['ekf_node'] and 'use_sim_time:=false' in real['ekf_node']
+    remaps = [real['segmentation_node'][i + 1] for i, a in enumerate(real['segmentation_node'])
+              if a == '-r']
+    assert remaps == [f'{a}:={b}' for a, b in graph_nodes(False)[0].remappings]
+
+
+def test_up_overrides_parameter_files_from_params_dir(tmp_path: Path) -> None:
+    (tmp_path / 'push_planner.yaml').write_text('planner_node:\n  ros__parameters: {k: 1}\n')
+    args = up.ros_arguments(True, config_dir=str(tmp_path))
+    assert args['planner_node'][:2] == ['--params-file', str(tmp_path / 'push_planner.yaml')]
+    assert 'config/push_estimator.yaml' in args['ekf_node'][1]
+
+
+def test_log_follower_prefixes_complete_lines(tmp_path: Path) -> None:
+    import io
+
+    out = io.StringIO()
+    follower = up.LogFollower(tmp_path, ['a_node', 'b_node'], out)
+    (tmp_path / 'a_node.log').write_text('one\ntw')
+    follower.poll()
+    assert out.getvalue() == '[a_node] one\n'
+    with open(tmp_path / 'a_node.log', 'a') as log:
+        log.write('o\nthree')
+    follower.finish()
+    assert out.getvalue() == '[a_node] one\n[a_node] two\n[a_node] three\n'
+
+
+# --- param dump ------------------------------------------------------------------------------
+
+def test_param_nest_writes_dotted_names_as_a_parameter_file_does() -> None:
+    nested = param.nest({'k': 3, 'goal_tolerance.xy': 0.0075, 'goal_tolerance.theta': 0.1,
+                         'a': 1, 'a.b': 2})
+    assert nested == {'k': 3, 'goal_tolerance': {'xy': 0.0075, 'theta': 0.1}, 'a': 1, 'a.b': 2}
+
+
+def test_param_value_reads_yaml_like_ros2_param_set() -> None:
+    from rcl_interfaces.msg import ParameterType
+
+    value = param.parameter_value('3', ParameterType.PARAMETER_DOUBLE)
+    assert (value.type, value.double_value) == (ParameterType.PARAMETER_DOUBLE, 3.0)
+    value = param.parameter_value('3', ParameterType.PARAMETER_INTEGER)
+    assert (value.type, value.integer_value) == (ParameterType.PARAMETER_INTEGER, 3)
+    value = param.parameter_value('[1, 2]', ParameterType.PARAMETER_DOUBLE_ARRAY)
+    assert list(value.double_array_value) == [1.0, 2.0]
+    assert param.parameter_value('butter', ParameterType.PARAMETER_STRING).string_value \
+        == 'butter'
+
+
+# --- topic pub over DDS -----------------------------------------------------------------------
+
+@pytest.mark.ros
+def test_topic_pub_reaches_a_subscriber_with_the_field_values(ros_context: Any,
+                                                              wait_for: Any) -> None:
+    from geometry_msgs.msg import PoseStamped
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+    node = Node('pub_test_subscriber', context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    received: list[PoseStamped] = []
+    topic = f'/pub_test_{os.getpid()}'
+    # A volatile, reliable subscriber like planner_node's goal_pose.
+    node.create_subscription(PoseStamped, topic, received.append,
+                             QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+    exe = Path(sys.executable).parent / 'pushbot'
+    proc = subprocess.Popen(
+        [str(exe), 'topic', 'pub', topic, 'geometry_msgs/PoseStamped',
+         '{header: {frame_id: world}, pose: {position: {x: 0.05, y: -0.02}, '
+         'orientation: {z: 0.25881905, w: 0.96592583}}}', '--times', '3', '--rate', '20'],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, stdin=subprocess.DEVNULL)
+    try:
+        # pub waits for this subscription before its first message: all three arrive.
+        assert wait_for(lambda: len(received) >= 3, timeout=30, executor=executor)
+        out, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        executor.shutdown()
+        node.destroy_node()
+    assert proc.returncode == 0, err
+    assert out.count('publishing #') == 3
+    msg = received[0]
+    assert msg.header.frame_id == 'world'
+    assert (msg.pose.position.x, msg.pose.position.y) == (0.05, -0.02)
+    assert 2 * math.atan2(msg.pose.orientation.z, msg.pose.orientation.w) == pytest.approx(
+        math.radians(30), abs=1e-6)
+    assert out.startswith('publisher: beginning loop\n')
