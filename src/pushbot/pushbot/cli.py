@@ -24,7 +24,7 @@ import importlib.metadata
 import sys
 from collections.abc import Sequence
 
-from pushbot import dds, demo, doctor, nodes, topic
+from pushbot import bag, dds, demo, doctor, nodes, topic
 
 
 def _version() -> str:
@@ -98,6 +98,8 @@ def build_parser() -> argparse.ArgumentParser:
          {'usage': 'pushbot run [-h] [--list] [<pkg>] <node> [args ...]'}),
         ('topic', topic, topic.run_topic,
          'inspect topics: list, echo, hz, info (like `ros2 topic`)', {}),
+        ('bag', bag, bag.run_bag,
+         'record, inspect and play rosbag2 (MCAP) folders (like `ros2 bag`)', {}),
         ('demo', demo, demo.run_demo,
          'what `make demo` runs: doctor, then one pushing episode through the ROS graph',
          {}),
