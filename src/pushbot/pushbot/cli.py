@@ -24,7 +24,7 @@ import importlib.metadata
 import sys
 from collections.abc import Sequence
 
-from pushbot import bag, dds, demo, doctor, nodes, topic
+from pushbot import bag, dds, demo, doctor, nodes, replay, topic
 
 
 def _version() -> str:
@@ -100,6 +100,8 @@ def build_parser() -> argparse.ArgumentParser:
          'inspect topics: list, echo, hz, info (like `ros2 topic`)', {}),
         ('bag', bag, bag.run_bag,
          'record, inspect and play rosbag2 (MCAP) folders (like `ros2 bag`)', {}),
+        ('replay', replay, replay.run_replay,
+         'render a recorded episode bag to an MP4 (and GIF) with overlays and a legend', {}),
         ('demo', demo, demo.run_demo,
          'what `make demo` runs: doctor, then one pushing episode through the ROS graph',
          {}),
