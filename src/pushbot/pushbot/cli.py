@@ -24,7 +24,7 @@ import importlib.metadata
 import sys
 from collections.abc import Sequence
 
-from pushbot import bag, dds, demo, doctor, nodes, replay, topic
+from pushbot import bag, dds, demo, doctor, nodes, replay, topic, view
 
 
 def _version() -> str:
@@ -102,6 +102,8 @@ def build_parser() -> argparse.ArgumentParser:
          'record, inspect and play rosbag2 (MCAP) folders (like `ros2 bag`)', {}),
         ('replay', replay, replay.run_replay,
          'render a recorded episode bag to an MP4 (and GIF) with overlays and a legend', {}),
+        ('view', view, view.run_view,
+         'serve the live topics to Foxglove over its WebSocket protocol', {}),
         ('demo', demo, demo.run_demo,
          'what `make demo` runs: doctor, then one pushing episode through the ROS graph',
          {}),
