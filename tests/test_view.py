@@ -117,3 +117,66 @@ def test_view_bad_options(capsys) -> None:
     assert '--port must be in [0, 65535]' in capsys.readouterr().err
     assert cli.main(['view', '--exclude', '(']) == 2
     assert 'is not a regular expression' in capsys.readouterr().err
+
+
+# ---- the RViz config for full-install users ---------------------------------------------------
+REPO = Path(__file__).resolve().parents[1]
+RVIZ = REPO / 'ros_ws' / 'config' / 'pushbot.rviz'
+
+
+def _readme_topics() -> dict[str, str]:
+    """Absolute topic name -> type of the README topic table."""
+    topics = {}
+    for line in (REPO / 'README.md').read_text().splitlines():
+        row = re.match(r'\| `([^`]+)` \| ([\w/]+)', line)
+        if row:
+            name = row.group(1)
+            topics[name if name.startswith('/') else '/' + name] = row.group(2)
+    return topics
+
+
+def _topic_values(node: object) -> list[str]:
+    if isinstance(node, dict):
+        found = [node['Topic']['Value']] if isinstance(node.get('Topic'), dict) else []
+        return found + [t for v in node.values() for t in _topic_values(v)]
+    if isinstance(node, list):
+        return [t for v in node for t in _topic_values(v)]
+    return []
+
+
+def test_rviz_config_shows_the_graph_topics() -> None:
+    import yaml
+
+    config = yaml.safe_load(RVIZ.read_text())
+    manager = config['Visualization Manager']
+    assert manager['Global Options']['Fixed Frame'] == 'world'
+    table = _readme_topics()
+    assert len(table) > 10  # the table was parsed
+    displays: dict[str, dict] = {}
+    for d in manager['Displays']:  # the first display of each class
+        displays.setdefault(d['Class'], d)
+    wanted = {
+        'rviz_default_plugins/Image': ('/camera/color/image_raw', 'sensor_msgs/Image'),
+        'rviz_default_plugins/PointCloud2': ('/perception/outline', 'sensor_msgs/PointCloud2'),
+        'rviz_default_plugins/PoseWithCovariance': (
+            '/estimator/object_pose', 'geometry_msgs/PoseWithCovarianceStamped'),
+        'rviz_default_plugins/Pose': ('/goal_pose', 'geometry_msgs/PoseStamped'),
+        'rviz_default_plugins/Path': ('/planner/push', 'nav_msgs/Path'),
+        'rviz_default_plugins/MarkerArray': ('/planner/affordances',
+                                             'visualization_msgs/MarkerArray'),
+    }
+    for cls, (topic, msgtype) in wanted.items():
+        assert displays[cls]['Topic']['Value'] == topic, cls
+        assert table[topic] == msgtype, (topic, table.get(topic))
+    assert 'rviz_default_plugins/TF' in displays
+    # Every topic the config names (displays and the goal tool) is in the graph's table, with
+    # the QoS of the table: sensor = best effort, latched = transient local.
+    for topic in _topic_values(config):
+        assert topic in table, f'{topic} is not in the README topic table'
+    for d in manager['Displays']:
+        if isinstance(d.get('Topic'), dict):
+            qos = d['Topic']
+            if d['Topic']['Value'] in ('/camera/color/image_raw', '/perception/mask'):
+                assert qos['Reliability Policy'] == 'Best Effort'
+            if d['Topic']['Value'] in ('/perception/outline', '/estimator/object_pose'):
+                assert qos['Durability Policy'] == 'Transient Local'
