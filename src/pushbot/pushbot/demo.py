@@ -169,8 +169,10 @@ def run_demo(args: argparse.Namespace) -> int:
     if not args.no_record:
         files.append(bag_dir)
         try:
+            # From the episode's first frame (the recording may start with the old scene).
+            start = min(record['frame_stamps'], default=-math.inf)
             done = render_bag(bag_dir, out / 'episode.mp4', gif=out / 'episode.gif',
-                              plot=out / 'episode_estimate.png')
+                              plot=out / 'episode_estimate.png', start=start)
             files += [done.video, done.gif, done.plot]
             outline = load_episode(bag_dir).outline
             print(f'rendered {done.frames} camera frames', flush=True)

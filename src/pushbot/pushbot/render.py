@@ -118,8 +118,13 @@ def _affordance_points(msg: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return pts, np.clip(255.0 * cols, 0, 255).astype(np.uint8), cand
 
 
-def load_episode(bag: Path) -> Episode:
-    """Read every topic except the images (and depth) of ``bag`` (one pass)."""
+def load_episode(bag: Path, start: float = -math.inf) -> Episode:
+    """Read every topic except the images (and depth) of ``bag``.
+
+    Camera frames, ground truth and estimates with a header stamp before ``start`` (s) are
+    left out of ``frame_times``, ``truth`` and ``estimate_stamps`` (e.g. the previous scene's
+    frames before the episode's reset).
+    """
     from push_ros.images import camera_matrix_from_info
     from push_ros.outline import outline_from_cloud
     from push_ros.paths import push_points_from_path
@@ -143,7 +148,8 @@ def load_episode(bag: Path) -> Episode:
     def on_estimate(m: Any, t: float) -> None:
         est = pose_with_covariance_from_msg(m)
         ep.estimates.append((t, est.pose))
-        ep.estimate_stamps.append((est.stamp, est.pose, est.covariance))
+        if est.stamp >= start:
+            ep.estimate_stamps.append((est.stamp, est.pose, est.covariance))
 
     handlers[ESTIMATE] = on_estimate
     with open_reader(bag) as reader:
@@ -160,10 +166,10 @@ def load_episode(bag: Path) -> Episode:
                 stamp = _image_stamp(data, conn.msgtype)
             except ValueError:
                 continue
-            if stamp not in seen:
+            if stamp not in seen and stamp >= start:
                 seen.add(stamp)
                 ep.frame_times.append((stamp, t_ns / 1e9))
-    ep.truth.sort(key=lambda x: x[0])
+    ep.truth = sorted((x for x in ep.truth if x[0] >= start), key=lambda x: x[0])
     ep.estimate_stamps.sort(key=lambda x: x[0])
     return ep
 
@@ -174,9 +180,11 @@ def _image_stamp(data: bytes, msgtype: str) -> float:
     return seconds_from_stamp(_decode(data, msgtype).header.stamp)
 
 
-def iter_frames(bag: Path) -> Iterator[tuple[float, float, np.ndarray, np.ndarray | None]]:
-    """``(stamp, receive time, rgb, mask or None)`` of every distinct camera frame, in bag
-    order. Masks are kept bit-packed until their frame comes (bounded memory per frame)."""
+def iter_frames(bag: Path, start: float = -math.inf
+                ) -> Iterator[tuple[float, float, np.ndarray, np.ndarray | None]]:
+    """``(stamp, receive time, rgb, mask or None)`` of every distinct camera frame stamped at
+    or after ``start`` (s), in bag order. Masks are kept bit-packed until their frame comes
+    (bounded memory per frame)."""
     from push_ros.images import image_to_array
     from push_ros.stamps import seconds_from_stamp
 
@@ -196,7 +204,7 @@ def iter_frames(bag: Path) -> Iterator[tuple[float, float, np.ndarray, np.ndarra
             try:
                 msg = _decode(data, conn.msgtype)
                 stamp = seconds_from_stamp(msg.header.stamp)
-                if stamp in seen:
+                if stamp in seen or stamp < start:
                     continue
                 rgb = image_to_array(msg)
             except ValueError:
@@ -385,8 +393,10 @@ class Rendered:
 
 
 def render_bag(bag: Path, video: Path, *, gif: Path | None = None, plot: Path | None = None,
-               fps: float = DEFAULT_FPS) -> Rendered:
+               fps: float = DEFAULT_FPS, start: float = -math.inf) -> Rendered:
     """Render the episode in ``bag`` to ``video`` (MP4), optionally ``gif`` and ``plot``.
+
+    Camera frames stamped before ``start`` (s; default: none) are left out.
 
     Raises
     ------
@@ -396,9 +406,10 @@ def render_bag(bag: Path, video: Path, *, gif: Path | None = None, plot: Path | 
         The bag cannot be read.
     """
     imageio = _imageio()
-    ep = load_episode(bag)
+    ep = load_episode(bag, start)
     if not ep.frame_times:
-        raise RenderError(f'{bag} has no {IMAGE} messages: nothing to render')
+        raise RenderError(f'{bag} has no {IMAGE} messages (at or after the start): nothing '
+                          'to render')
     if ep.camera_matrix is None or ep.t_world_camera is None:
         raise RenderError(f'{bag} lacks {CAMERA_INFO} or {EXTRINSICS}: cannot draw the '
                           'overlays (record them too)')
@@ -414,7 +425,7 @@ def render_bag(bag: Path, video: Path, *, gif: Path | None = None, plot: Path | 
     writer = imageio.get_writer(video, format='FFMPEG', mode='I', fps=fps, codec='libx264',
                                 quality=7, macro_block_size=16, pixelformat='yuv420p')
     try:
-        for i, (stamp, _, rgb, mask) in enumerate(iter_frames(bag)):
+        for i, (stamp, _, rgb, mask) in enumerate(iter_frames(bag, start)):
             if i == 0:
                 box = crop_box(ep, (rgb.shape[1], rgb.shape[0]))
             t_end = until.get(stamp, math.inf)
