@@ -32,7 +32,21 @@ import re
 import sys
 from collections.abc import Sequence
 
-from pushbot import dds, demo, doctor, goal, nodes, param, rosnode, service, topic, up
+from pushbot import (
+    bag,
+    dds,
+    demo,
+    doctor,
+    goal,
+    nodes,
+    param,
+    replay,
+    rosnode,
+    service,
+    topic,
+    up,
+    view,
+)
 
 #: Exit status after a closed output pipe: 128 + SIGPIPE, what a shell reports for a command
 #: killed by it.
@@ -157,6 +171,12 @@ def build_parser() -> argparse.ArgumentParser:
          'list and call services (like `ros2 service`)', {}),
         ('goal', goal, goal.run_goal,
          'send a goal pose to planner_node; --wait follows it to the end', {}),
+        ('bag', bag, bag.run_bag,
+         'record, inspect and play rosbag2 (MCAP) folders (like `ros2 bag`)', {}),
+        ('replay', replay, replay.run_replay,
+         'render a recorded episode bag to an MP4 (and GIF) with overlays and a legend', {}),
+        ('view', view, view.run_view,
+         'serve the live topics to Foxglove over its WebSocket protocol', {}),
         ('demo', demo, demo.run_demo,
          'what `make demo` runs: doctor, then one pushing episode through the ROS graph',
          {}),

@@ -12,11 +12,16 @@
    ``planner/status`` says ``goal reached`` or ``failed``.
 4. A summary from ground truth: steps, the true end-pose error against the goal region,
    the estimated centre of mass next to the true one, wall times.
-5. Under ``--out`` (default ``out/demo``): ``episode.gif`` (the camera frame before the first
-   push and after every push, with the perception mask, the perceived outline at the estimated
-   pose, the goal outline and the next push overlaid), ``trajectory.png`` (true and estimated
-   poses, goal, pushes; top view), ``episode.json`` (the episode record of
-   docs/ARCHITECTURE.md) and the node logs (``graph_logs/``).
+5. Under ``--out`` (default ``out/demo``): ``episode_bag/`` (a rosbag2 folder in MCAP
+   storage, :mod:`pushbot.bag`, of every topic of the graph from just before the episode to
+   its end, except the raw depth images: 1.2 MB each, ``--record-depth`` keeps
+   them), ``episode.mp4`` (every camera frame of the recording with the perception mask, the
+   perceived outline at the estimate, the affordance colouring, the chosen push, the goal and
+   a legend: :mod:`pushbot.render`, the renderer of ``pushbot replay``), ``episode.gif`` (the
+   same, at most 60 frames, smaller), ``episode_estimate.png`` (estimate vs ground truth over
+   time), ``trajectory.png`` (true and estimated poses, goal, pushes; top view),
+   ``episode.json`` (the episode record of docs/ARCHITECTURE.md) and the node logs
+   (``graph_logs/``). ``--no-record`` skips the recording and the video.
 
 Ctrl-C (or SIGTERM) stops every node process (SIGINT, then SIGTERM, then SIGKILL to each
 process group) and exits with status 130.
@@ -28,29 +33,49 @@ import argparse
 import faulthandler
 import json
 import math
+import re
+import shutil
 import signal
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from pushbot.bag import BagError, BagRecorder, TopicSelection
 from pushbot.doctor import add_arguments as add_doctor_arguments
 from pushbot.doctor import run_doctor
 from pushbot.protocol import METHODS, TASKS, Trial
+from pushbot.render import (
+    AFFORDANCES,
+    CAMERA_INFO,
+    DEPTH,
+    ESTIMATE,
+    EXTRINSICS,
+    GOAL,
+    IMAGE,
+    MASK,
+    OUTLINE,
+    PUSH,
+    STATUS,
+    TRUTH,
+    RenderError,
+    _ring,
+    _world,
+    load_episode,
+    render_bag,
+)
 
-#: Colours (RGB) of the overlays.
-MASK_RGB = (40, 200, 80)
-OUTLINE_RGB = (255, 220, 0)
-GOAL_RGB = (255, 40, 200)
-PUSH_RGB = (0, 200, 255)
 EXIT_INTERRUPTED = 130
+#: Seconds the recording waits for the graph's topics before the episode starts.
+RECORD_START_TIMEOUT = 20.0
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Options of ``pushbot demo``."""
-    add_doctor_arguments(parser)
+    """Options of ``pushbot demo`` (its own first, then the doctor's)."""
     parser.add_argument('--object', default='butter',
                         help='library object name or object specification file (default butter)')
     parser.add_argument('--task', default='mixed', choices=sorted(TASKS),
@@ -75,6 +100,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--pause', type=float, default=0.0,
                         help='seconds to wait with the graph up before the episode, e.g. to '
                         'attach a viewer to the topics; Ctrl-C works meanwhile (default 0)')
+    parser.add_argument('--no-record', action='store_true',
+                        help='do not record the episode bag nor render the video')
+    parser.add_argument('--record-depth', action='store_true',
+                        help='also record the raw depth images (about 1.2 MB per frame)')
+    doctor = parser.add_argument_group('doctor options (the check run before the demo)')
+    add_doctor_arguments(doctor)
 
 
 def run_demo(args: argparse.Namespace) -> int:
@@ -110,9 +141,9 @@ def run_demo(args: argparse.Namespace) -> int:
           f'{trial.method}, k = {trial.k}, seed {trial.seed}, index {trial.index}; starting '
           f'sim_bridge_node, segmentation_node, ekf_node and planner_node (logs in '
           f'{out / "graph_logs"})', flush=True)
+    bag_dir = out / 'episode_bag'
     try:
-        with sigterm_as_keyboard_interrupt(), GraphRunner(log_dir=out / 'graph_logs',
-                                                           record_frames=True) as graph:
+        with sigterm_as_keyboard_interrupt(), GraphRunner(log_dir=out / 'graph_logs') as graph:
             t_ready = time.monotonic()
             if args.pause > 0.0:
                 print(f'graph up after {t_ready - started:.1f} s; pausing {args.pause:g} s '
@@ -122,22 +153,63 @@ def run_demo(args: argparse.Namespace) -> int:
             else:
                 print(f'graph up after {t_ready - started:.1f} s; running the episode',
                       flush=True)
-            record = graph.run(trial)
-            recorded = graph.rec
+            with _recording(None if args.no_record else bag_dir, args.record_depth):
+                record = graph.run(trial)
     except KeyboardInterrupt:
         print('\npushbot demo: interrupted; every node process was stopped', file=sys.stderr)
         return EXIT_INTERRUPTED
-    except GraphError as exc:
+    except (GraphError, BagError) as exc:
         print(f'pushbot demo: {exc}', file=sys.stderr)
         return 1
     wall = time.monotonic() - started
     record['demo_wall_s'] = wall
     (out / 'episode.json').write_text(json.dumps(record, indent=1))
-    gif = _write_gif(record, recorded, out / 'episode.gif')
+    files: list[Path | None] = [out / 'episode.json']
+    outline = None
+    if not args.no_record:
+        files.append(bag_dir)
+        try:
+            # From the episode's first frame (the recording may start with the old scene).
+            start = min(record['frame_stamps'], default=-math.inf)
+            done = render_bag(bag_dir, out / 'episode.mp4', gif=out / 'episode.gif',
+                              plot=out / 'episode_estimate.png', start=start)
+            files += [done.video, done.gif, done.plot]
+            outline = load_episode(bag_dir).outline
+            print(f'rendered {done.frames} camera frames', flush=True)
+        except (BagError, RenderError) as exc:
+            print(f'pushbot demo: no video: {exc}', file=sys.stderr)
     plot = out / 'trajectory.png'
-    _plot(record, recorded, spec, plot)
-    _summary(record, trial, wall, [out / 'episode.json', gif, plot])
+    _plot(record, outline, spec, plot)
+    _summary(record, trial, wall, [*files, plot])
     return 0
+
+
+#: Topics the demo's recording must have subscribed before the episode starts.
+RECORDED_TOPICS = (IMAGE, MASK, CAMERA_INFO, EXTRINSICS, OUTLINE, ESTIMATE, GOAL, PUSH,
+                   AFFORDANCES, STATUS, TRUTH)
+
+
+@contextmanager
+def _recording(bag_dir: Path | None, depth: bool) -> Iterator[None]:
+    """Record every topic of the graph (raw depth only with ``depth``) into ``bag_dir``
+    (replaced) while the block runs; ``None``: record nothing."""
+    if bag_dir is None:
+        yield
+        return
+    if bag_dir.exists():
+        shutil.rmtree(bag_dir)
+    exclude = None if depth else re.compile(re.escape(DEPTH))
+    with BagRecorder(bag_dir, TopicSelection(all_topics=True, exclude=exclude)) as recorder:
+        # perception/outline and estimator/* are latched: their last samples are recorded
+        # even though they were published before the recorder subscribed.
+        missing = recorder.wait_for_topics(RECORDED_TOPICS, RECORD_START_TIMEOUT)
+        if missing:
+            print(f'pushbot demo: recording without {", ".join(missing)} (no publisher '
+                  f'after {RECORD_START_TIMEOUT:g} s)', file=sys.stderr)
+        yield
+    counts = recorder.counts()
+    print(f'recorded {sum(counts.values())} messages on {len(counts)} topics to {bag_dir}',
+          flush=True)
 
 
 def _summary(rec: dict[str, Any], trial: Trial, wall: float, files: list[Path | None]) -> None:
@@ -162,127 +234,9 @@ def _summary(rec: dict[str, Any], trial: Trial, wall: float, files: list[Path | 
 
 
 # --------------------------------------------------------------------------------------------
-# Video and plot
+# Plot
 # --------------------------------------------------------------------------------------------
-def _ring(points: np.ndarray) -> np.ndarray:
-    return np.vstack([points, points[:1]])
-
-
-def _world(pose: Any, points: np.ndarray) -> np.ndarray:
-    from push_core.geometry import object_to_world
-
-    return np.asarray(object_to_world(np.asarray(pose, dtype=float), points))
-
-
-def _overlay(rgb: np.ndarray, mask: np.ndarray | None, outline: np.ndarray | None,
-             est: Any, goal: Any, push: np.ndarray | None, k: np.ndarray, t: np.ndarray
-             ) -> np.ndarray:
-    import cv2
-
-    from sim_bridge.camera import project
-
-    img = rgb.copy()
-    if mask is not None and mask.shape == img.shape[:2]:
-        tint = np.zeros_like(img)
-        tint[:] = MASK_RGB
-        img[mask] = (0.55 * img[mask] + 0.45 * tint[mask]).astype(np.uint8)
-
-    def poly(xy: np.ndarray, colour: tuple[int, int, int], thickness: int = 2) -> None:
-        uv = project(np.column_stack([xy, np.zeros(len(xy))]), k, t)
-        cv2.polylines(img, [np.round(uv).astype(np.int32)], False, colour, thickness,
-                      cv2.LINE_AA)
-
-    if outline is not None:
-        poly(_world(goal, _ring(outline)), GOAL_RGB)
-        poly(_world(est, _ring(outline)), OUTLINE_RGB)
-    if push is not None:
-        uv = project(np.column_stack([push, np.zeros(3)]), k, t)
-        a, c, e = (tuple(int(round(v)) for v in p) for p in uv)
-        cv2.arrowedLine(img, a, e, PUSH_RGB, 3, cv2.LINE_AA, tipLength=0.25)
-        cv2.circle(img, c, 5, PUSH_RGB, -1, cv2.LINE_AA)
-    return img
-
-
-def _label(img: np.ndarray, text: str) -> np.ndarray:
-    """``text`` in white on a dark bar along the top of ``img``."""
-    import cv2
-
-    img = np.array(img)  # a writable copy (arrays of PIL images are read-only)
-    img[:30] = (0.35 * img[:30]).astype(np.uint8)
-    cv2.putText(img, text, (8, 21), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (255, 255, 255), 1,
-                cv2.LINE_AA)
-    return img
-
-
-def _write_gif(rec: dict[str, Any], recorded: Any, path: Path) -> Path | None:
-    """Animated GIF of the frames the pipeline used, with overlays (Pillow)."""
-    from PIL import Image as PILImage
-
-    if recorded.camera_matrix is None or recorded.t_world_camera is None:
-        print('pushbot demo: no camera_info/extrinsics received; no video written',
-              file=sys.stderr)
-        return None
-    images, labels = [], []
-    pushes = rec['pushes']
-    for i, stamp in enumerate(rec['frame_stamps']):
-        rgb = recorded.frames.get(stamp)
-        if rgb is None:  # a frame lost in transport (best effort): skip it
-            continue
-        push = np.asarray(pushes[i]) if i < len(pushes) else None
-        true_err = _true_error_text(rec, i)
-        label = (f'step {i}/{rec["steps"]}' + (f'  true error {true_err}' if true_err else '')
-                 + ('  next push' if push is not None else f'  {rec["reason"]}'))
-        img = _overlay(rgb, recorded.masks.get(stamp), recorded.outline, rec['poses_est'][i],
-                       rec['goal'], push, recorded.camera_matrix, recorded.t_world_camera)
-        images.append(PILImage.fromarray(img))
-        labels.append(label)
-    if not images:
-        print('pushbot demo: no camera frame received; no video written', file=sys.stderr)
-        return None
-    images = [PILImage.fromarray(_label(np.asarray(im), text))
-              for im, text in zip(_crop(images, rec, recorded), labels, strict=True)]
-    durations = [900] * (len(images) - 1) + [2500]
-    images[0].save(path, save_all=True, append_images=images[1:], duration=durations, loop=0,
-                   disposal=2,
-                   optimize=False)
-    return path
-
-
-def _crop(images: list[Any], rec: dict[str, Any], recorded: Any) -> list[Any]:
-    """The same window of every frame around the poses, goal and pushes, scaled up to at
-    least 480 px wide (the object covers a small part of the 640 x 480 view)."""
-    from PIL import Image as PILImage
-
-    from sim_bridge.camera import project
-
-    xy = [np.asarray(p)[:2] for p in rec['poses_true']] + [np.asarray(rec['goal'])[:2]]
-    xy += [p for push in rec['pushes'] for p in np.asarray(push)]
-    xy = np.asarray(xy)
-    lo, hi = xy.min(axis=0) - 0.08, xy.max(axis=0) + 0.08  # object size + margin, metres
-    corners = np.array([[lo[0], lo[1], 0], [lo[0], hi[1], 0], [hi[0], lo[1], 0],
-                        [hi[0], hi[1], 0]])
-    uv = project(corners, recorded.camera_matrix, recorded.t_world_camera)
-    width, height = images[0].size
-    left, top = (max(0, int(v)) for v in uv.min(axis=0))
-    right, bottom = int(min(width, uv[:, 0].max())), int(min(height, uv[:, 1].max()))
-    if right - left < 64 or bottom - top < 48:
-        return images
-    box = (left, top, right, bottom)
-    scale = max(1.0, 480.0 / (right - left))
-    size = (int((right - left) * scale), int((bottom - top) * scale))
-    return [im.crop(box).resize(size, PILImage.Resampling.LANCZOS) for im in images]
-
-
-def _true_error_text(rec: dict[str, Any], i: int) -> str:
-    trial = Trial(**rec['trial'])
-    pose0 = np.asarray(rec['poses_true'][0])
-    goal = pose0 + trial.goal_offset()
-    pose = np.asarray(rec['poses_true'][i])
-    dxy = 1e3 * math.hypot(*(goal[:2] - pose[:2]))
-    return f'{dxy:.0f} mm'
-
-
-def _plot(rec: dict[str, Any], recorded: Any, spec: Any, path: Path) -> None:
+def _plot(rec: dict[str, Any], outline: np.ndarray | None, spec: Any, path: Path) -> None:
     import matplotlib
 
     matplotlib.use('Agg')
@@ -298,8 +252,8 @@ def _plot(rec: dict[str, Any], recorded: Any, spec: Any, path: Path) -> None:
         ax.plot(*_world(pose, lib).T, color=plt.cm.viridis(j / max(1, len(true) - 1)), lw=1,
                 label='true outline (after each push)' if j == 0 else None)
     ax.plot(*_world(goal_true, lib).T, color='m', lw=2, ls='--', label='goal (true frame)')
-    if recorded.outline is not None:
-        ax.plot(*_world(est[-1], _ring(recorded.outline)).T, color='orange', lw=1.5,
+    if outline is not None:
+        ax.plot(*_world(est[-1], _ring(outline)).T, color='orange', lw=1.5,
                 label='perceived outline at the final estimate')
     ax.plot(true[:, 0], true[:, 1], 'k.-', label='true position')
     ax.plot(est[:, 0], est[:, 1], 'x--', color='tab:red', label='estimated position')

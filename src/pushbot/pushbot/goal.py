@@ -1,7 +1,7 @@
 """``pushbot goal X Y YAW``: send a goal to ``planner_node`` and, with ``--wait``, follow it.
 
 The goal goes out once on ``goal_pose`` (geometry_msgs/PoseStamped, built by
-``push_ros.poses.pose_stamped_msg``; QoS ``push_ros.qos.LATCHED_QOS``, reliable + transient
+``push_ros.poses.pose_stamped_msg``; QoS ``push_ros.qos.GOAL_QOS``, reliable + transient
 local, which matches the planner's subscription whether it is volatile or transient local) in
 ``--frame`` (default ``world``). X and Y are the goal position in metres in that frame; YAW is
 the rotation in radians wanted since the episode's first camera frame (ARCHITECTURE, "Goal
@@ -100,7 +100,7 @@ def _send(args: argparse.Namespace, goal: tuple[float, float, float]) -> int:
     from rclpy.duration import Duration
 
     from push_ros.poses import pose_stamped_msg, xytheta_from_pose
-    from push_ros.qos import LATCHED_QOS, latched_reader_qos
+    from push_ros.qos import GOAL_QOS, latched_reader_qos
 
     deadline = time.monotonic() + args.timeout
     statuses: list[Any] = []
@@ -113,7 +113,7 @@ def _send(args: argparse.Namespace, goal: tuple[float, float, float]) -> int:
             pass  # not a planar pose: no distance shown
 
     with cli_node('goal') as (node, executor):
-        publisher = node.create_publisher(PoseStamped, 'goal_pose', LATCHED_QOS)
+        publisher = node.create_publisher(PoseStamped, 'goal_pose', GOAL_QOS)
         node.create_subscription(DiagnosticStatus, 'planner/status', statuses.append,
                                  latched_reader_qos(100))
         node.create_subscription(PoseWithCovarianceStamped, 'estimator/object_pose',

@@ -1,0 +1,196 @@
+"""``pushbot bag record|info|play`` on real DDS messages (issue 14, item 4).
+
+A publisher in this process, ``pushbot bag record`` / ``bag play`` as child processes (the
+way a user runs them): record until Ctrl-C, read the bag back with ``rosbags`` (counts, a
+decoded field, metadata.yaml as rosbag2 Jazzy writes it), ``bag info``, then play it back into
+a subscriber here. Reliable publishers wait for their matched reader and for every sample to
+be acknowledged, so the counts are exact.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+
+from pushbot import cli
+
+pytestmark = pytest.mark.ros
+
+N_MESSAGES = 5
+
+
+def _latched_qos():
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+    return QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def _acked(publisher, seconds: float = 10.0) -> bool:
+    from rclpy.duration import Duration
+
+    return publisher.wait_for_all_acked(Duration(seconds=seconds))
+
+
+PUSHBOT = str(Path(sys.executable).parent / 'pushbot')
+
+
+@pytest.fixture(scope='module')
+def recorded_bag(tmp_path_factory, module_processes) -> tuple[Path, str]:
+    """A bag of ``chatter`` (N_MESSAGES Strings) and ``latched`` (one PoseStamped published
+    before the recorder started) recorded by ``pushbot bag record`` and ended with SIGINT;
+    shared by the module's tests (one recording)."""
+    import rclpy
+    from geometry_msgs.msg import PoseStamped
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from std_msgs.msg import String
+
+    from pushbot.graph import spin_until
+
+    context = Context()
+    rclpy.init(args=[], context=context)
+    node = rclpy.create_node('bag_test_talker', context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    try:
+        chatter = node.create_publisher(String, 'chatter', 10)
+        latched = node.create_publisher(PoseStamped, 'latched', _latched_qos())
+        pose = PoseStamped()
+        pose.header.frame_id = 'world'
+        pose.pose.position.x = 1.25
+        pose.pose.orientation.w = 1.0
+        latched.publish(pose)
+        bag = tmp_path_factory.mktemp('bags') / 'bag'
+        proc = module_processes.start([PUSHBOT, 'bag', 'record', '-o', str(bag), 'chatter',
+                                       '/latched'], name='record')
+        assert spin_until(executor, lambda: chatter.get_subscription_count() > 0
+                          and latched.get_subscription_count() > 0, time.monotonic() + 30.0), \
+            module_processes.output(proc)
+        for i in range(N_MESSAGES):
+            chatter.publish(String(data=f'message {i}'))
+        assert _acked(chatter) and _acked(latched)
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=20) == 0, module_processes.output(proc)
+        return bag, module_processes.output(proc)
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def test_record_reads_back_with_rosbags(recorded_bag: tuple[Path, str]) -> None:
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import Stores, get_typestore
+
+    bag, output = recorded_bag
+    assert f'/chatter [std_msgs/msg/String]: {N_MESSAGES}' in output
+    assert '/latched [geometry_msgs/msg/PoseStamped]: 1' in output
+    store = get_typestore(Stores.ROS2_JAZZY)
+    with Reader(bag) as reader:
+        topics = {c.topic: (c.msgtype, c.msgcount) for c in reader.connections}
+        assert topics == {'/chatter': ('std_msgs/msg/String', N_MESSAGES),
+                          '/latched': ('geometry_msgs/msg/PoseStamped', 1)}
+        decoded = {c.topic: [] for c in reader.connections}
+        for conn, _, data in reader.messages():
+            decoded[conn.topic].append(store.deserialize_cdr(data, conn.msgtype))
+    assert [m.data for m in decoded['/chatter']] == [f'message {i}' for i in range(N_MESSAGES)]
+    assert decoded['/latched'][0].pose.position.x == 1.25
+    assert decoded['/latched'][0].header.frame_id == 'world'
+
+
+def test_metadata_is_what_rosbag2_jazzy_writes(recorded_bag: tuple[Path, str]) -> None:
+    bag, _ = recorded_bag
+    info = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    assert info['version'] == 9
+    assert info['storage_identifier'] == 'mcap'
+    assert info['relative_file_paths'] == ['bag.mcap'] and (bag / 'bag.mcap').is_file()
+    assert info['message_count'] == N_MESSAGES + 1
+    assert info['compression_mode'] == '' and info['compression_format'] == ''
+    assert info['files'][0]['path'] == 'bag.mcap'
+    assert info['duration']['nanoseconds'] >= 0
+    assert info['starting_time']['nanoseconds_since_epoch'] > 0
+    by_name = {t['topic_metadata']['name']: t for t in info['topics_with_message_count']}
+    latched = by_name['/latched']['topic_metadata']
+    assert latched['type'] == 'geometry_msgs/msg/PoseStamped'
+    assert latched['serialization_format'] == 'cdr'
+    assert latched['type_description_hash'].startswith('RIHS01_')
+    # Version 9: the offered QoS profiles are a YAML list of mappings (not a string).
+    (qos,) = latched['offered_qos_profiles']
+    assert qos['durability'] == 'transient_local' and qos['reliability'] == 'reliable'
+    assert set(qos) >= {'history', 'depth', 'deadline', 'lifespan', 'liveliness',
+                        'liveliness_lease_duration', 'avoid_ros_namespace_conventions'}
+    # The MCAP file: ros2 profile, one ros2msg schema with the full definition per type.
+    head = (bag / 'bag.mcap').read_bytes()[:64]
+    assert head.startswith(b'\x89MCAP0\r\n') and b'ros2' in head
+
+
+def test_info_and_play_round_trip(recorded_bag: tuple[Path, str], ros_context, wait_for,
+                                  processes, capsys) -> None:
+    import rclpy
+    from geometry_msgs.msg import PoseStamped
+    from std_msgs.msg import String
+
+    bag, _ = recorded_bag
+    assert cli.main(['bag', 'info', str(bag)]) == 0
+    out = capsys.readouterr().out
+    assert 'Storage id:        mcap' in out and f'Messages:          {N_MESSAGES + 1}' in out
+    assert f'Topic: /chatter | Type: std_msgs/msg/String | Count: {N_MESSAGES}' in out
+
+    node = rclpy.create_node('bag_test_listener', context=ros_context)
+    executor = rclpy.executors.SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    got: list[str] = []
+    poses: list[float] = []
+    try:
+        node.create_subscription(String, 'chatter', lambda m: got.append(m.data), 10)
+        node.create_subscription(PoseStamped, 'latched',
+                                 lambda m: poses.append(m.pose.position.x), _latched_qos())
+        proc = processes.start([PUSHBOT, 'bag', 'play', str(bag),
+                                '--rate', '4', '--wait-for-subscribers', '30'], name='play')
+        assert wait_for(lambda: len(got) == N_MESSAGES and poses, 30.0, executor), \
+            processes.output(proc)
+        assert proc.wait(timeout=30) == 0, processes.output(proc)
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+    assert got == [f'message {i}' for i in range(N_MESSAGES)]
+    assert poses == [1.25]
+    assert f'published {N_MESSAGES + 1} messages' in processes.output(proc)
+
+
+@pytest.mark.parametrize('argv, message', [
+    (['bag', 'record'], 'name the topics to record or give --all'),
+    (['bag', 'record', '--all', '--exclude', '('], 'is not a regular expression'),
+    (['bag', 'record', 'x', '--duration', '-1'], '--duration must be a positive'),
+    (['bag', 'info', '.'], 'has no metadata.yaml'),
+    (['bag', 'play', '/nonexistent/bag'], 'is not a bag folder'),
+])
+def test_bad_input_is_one_line_and_exit_2(argv: list[str], message: str, capsys) -> None:
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count('\n') == 1 and 'Traceback' not in err
+
+
+def test_play_rejects_a_bad_rate_and_unknown_topics(recorded_bag, capsys) -> None:
+    bag, _ = recorded_bag
+    assert cli.main(['bag', 'play', str(bag), '--rate', '0']) == 2
+    assert '--rate must be a positive number' in capsys.readouterr().err
+    assert cli.main(['bag', 'play', str(bag), '--topics', 'nope']) == 2
+    assert 'topics not in the bag: /nope' in capsys.readouterr().err
+
+
+def test_a_truncated_bag_is_reported_not_raised(recorded_bag, tmp_path: Path, capsys) -> None:
+    bag, _ = recorded_bag
+    broken = tmp_path / 'broken'
+    broken.mkdir()
+    (broken / 'metadata.yaml').write_text((bag / 'metadata.yaml').read_text())
+    (broken / 'bag.mcap').write_bytes((bag / 'bag.mcap').read_bytes()[:40])
+    assert cli.main(['bag', 'info', str(broken)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith('pushbot bag: cannot read bag') and 'Traceback' not in err
