@@ -16,7 +16,7 @@ Scenarios (:data:`SCENARIOS`, ``benchmarks/bench_faults.py`` runs them; docs/ARC
   would give them). The episode must still end at the goal by ground truth.
 - ``frame-drop`` / ``frame-delay`` / ``push-refusal`` (:class:`BridgeFaults`): the bridge's
   seeded ``faults.frame_drop`` (20 %), ``faults.frame_delay`` (30 %: a frame held back and
-  published after the next one) or ``faults.push_refusal`` (20 %) for the whole episode.
+  published right after the next newer one) or ``faults.push_refusal`` (20 %) for the whole episode.
 - ``knock`` (:class:`Knock`): once the planner says ``goal reached``, the object is displaced on
   ``sim/knock``; the planner (``after_goal: resume`` for this episode) must see it leave the
   region, push again and reach the goal again.
@@ -42,8 +42,8 @@ __all__ = ["SCENARIOS", "BridgeFaults", "Episode", "Fault", "KillRestart", "Knoc
 #: The knock of the ``knock`` scenario: (dx, dy) m and dyaw rad, far outside every goal region.
 KNOCK = (0.03, -0.02, 0.25)
 #: The bridge's ``/diagnostics`` counters a record keeps.
-BRIDGE_COUNTERS = ("frames_dropped", "frames_delayed", "pushes_refused_fault", "knocks",
-                   "pushes_executed")
+BRIDGE_COUNTERS = ("frames_dropped", "frames_delayed", "frames_reordered",
+                   "pushes_refused_fault", "knocks", "pushes_executed")
 #: The second goal of ``second-goal``: offset from the first goal (dx, dy m, dtheta rad).
 SECOND_GOAL_SHIFT = (-0.04, 0.03, -0.2)
 
