@@ -178,7 +178,10 @@ def main() -> int:
         `frame-delay` (30 % held back and published right after the next newer frame: late and
         out of order), `push-refusal` (20 % of valid pushes refused by the
         bridge), `knock` (object displaced by (30, -20) mm and 0.25 rad on `sim/knock` after
-        `goal reached`; the episode must reach the goal again), `second-goal` (another, volatile
+        `goal reached`; the episode must reach the goal again), `foreign-push` (after `goal
+        reached` another client sends a push on `planner/push` through the object, from 2 cm
+        outside its circumscribed circle to 2 cm past its origin; the same end rule; pushes sent
+        include it), `second-goal` (another, volatile
         client sends a goal shifted by (-40, 30) mm and -0.2 rad after the first push). Event
         counts are the bridge's and the perception's /diagnostics counters at the end of each
         episode (1 Hz: approximate).""".split()),
