@@ -1,13 +1,15 @@
 """Fault scenarios in graph mode, repeated (issue 15, item 5).
 
-Every scenario of :data:`pushbot.graph_faults.SCENARIOS` runs protocol trials (butter, mixed
-task, random COM, ana, k = 3, state ``filter``, trial indices 0, 1, 2, ...: seeded scenes, goals
-and planner seeds; the bridge's fault draws seeded from the trial) through the real graph
+Every scenario of :data:`pushbot.graph_faults.SCENARIOS` runs protocol trials (each object of
+``--objects``, default butter; mixed task, random COM, ana, k = 3, state ``filter``, trial
+indices 0, 1, 2, ...: seeded scenes, goals and planner seeds; the bridge's fault draws seeded
+from the trial) through the real graph
 (:class:`pushbot.graph_episode.GraphRunner`: four node processes over DDS, one graph for the
 whole run, restarted after a trial that broke it). Per scenario: runs, success by ground truth
 (the true end pose against the true initial pose + the goal offset, the task's 0.75 cm / 5 deg
 region), true end errors, pushes sent, how many runs the fault was injected in, and
-scenario-specific counts (goal switches noted by the planner, goal left after a knock).
+scenario-specific counts (goal switches noted by the planner, goal left after a knock, the
+bridge's dropped / delayed / reordered frames and refused pushes, re-anchored perceptions).
 Scenarios are described in :mod:`pushbot.graph_faults`.
 
 Writes the ``faults`` section of ``docs/RESULTS.md`` (``--no-write`` to only print). The
@@ -16,7 +18,8 @@ machine is shared (2 cores): the load average is recorded with the figures.
 Usage::
 
     .venv/bin/python benchmarks/bench_faults.py [--runs N] [--frame-drop-runs N]
-                                                [--scenarios a,b,...] [--no-write]
+                                                [--objects a,b] [--scenarios a,b,...]
+                                                [--json FILE] [--no-write]
 """
 
 from __future__ import annotations
@@ -45,8 +48,8 @@ def wilson(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
     return max(0.0, centre - half), min(1.0, centre + half)
 
 
-def run_scenario(graph, name: str, n: int) -> list[dict]:
-    """``n`` trials of scenario ``name`` on ``graph``; one record each."""
+def run_scenario(graph, name: str, n: int, obj: str) -> list[dict]:
+    """``n`` trials of scenario ``name`` with object ``obj`` on ``graph``; one record each."""
     from push_core.episode import new_record
     from pushbot.graph_episode import GraphError
     from pushbot.graph_faults import make_fault
@@ -55,7 +58,7 @@ def run_scenario(graph, name: str, n: int) -> list[dict]:
     records = []
     before = dict(getattr(graph, "_bench_counts", {}))
     for i in range(n):
-        trial = Trial(object="butter", task="mixed", method="ana", k=3, state="filter",
+        trial = Trial(object=obj, task="mixed", method="ana", k=3, state="filter",
                       com="random", index=i, seed=0)
         fault = make_fault(name)
         t0 = time.monotonic()
@@ -74,7 +77,7 @@ def run_scenario(graph, name: str, n: int) -> list[dict]:
         graph._bench_counts = before
         records.append(rec)
         err = rec.get("end_error_xy")
-        print(f"{name} #{i}: {rec['reason'][:200]}, success {rec['success']}, "
+        print(f"{name} {obj} #{i}: {rec['reason'][:200]}, success {rec['success']}, "
               + (f"end {1e3 * err:.1f} mm / {math.degrees(rec['end_error_theta']):.1f} deg, "
                  if err is not None else "")
               + f"pushes {rec.get('pushes_sent')}, injected {rec.get('fault_injected')}, "
@@ -82,7 +85,7 @@ def run_scenario(graph, name: str, n: int) -> list[dict]:
     return records
 
 
-def summary_row(name: str, records: list[dict]) -> str:
+def summary_row(name: str, obj: str, records: list[dict]) -> str:
     n = len(records)
     ok = sum(bool(r["success"]) for r in records)
     lo, hi = wilson(ok, n)
@@ -110,6 +113,8 @@ def summary_row(name: str, records: list[dict]) -> str:
     if name in shown:
         extra.append(f"{shown[name]} {events.get(shown[name], 0)} (of "
                      f"{events.get('pushes_executed', 0)} pushes executed)")
+    if name == "frame-delay":
+        extra.append(f"frames_reordered {events.get('frames_reordered', 0)}")
     if name == "kill-segmentation":
         extra.append(f"re-anchored {sum(r.get('perception_anchored', 0) >= 1 for r in records)}"
                      f"/{n}")
@@ -120,8 +125,9 @@ def summary_row(name: str, records: list[dict]) -> str:
         extra.append(f"left the goal seen {sum(r.get('left_goal', 0) >= 1 for r in records)}"
                      f"/{n}")
     ends = ", ".join(f"{k} {v}" for k, v in sorted(reasons.items()))
-    return (f"| {name} | {n} | {injected}/{n} | {ok}/{n} = {ok / n:.2f} [{lo:.2f}, {hi:.2f}] | "
-            f"{err} | {push_text} | {ends}{'; ' + '; '.join(extra) if extra else ''} |")
+    return (f"| {name} | {obj} | {n} | {injected}/{n} | {ok}/{n} = {ok / n:.2f} "
+            f"[{lo:.2f}, {hi:.2f}] | {err} | {push_text} | "
+            f"{'; '.join([ends, *extra])} |")
 
 
 def main() -> int:
@@ -136,6 +142,8 @@ def main() -> int:
                         help="runs of the frame-drop scenario (default 20)")
     parser.add_argument("--scenarios", default=",".join(SCENARIOS),
                         help="comma-separated scenarios (default: all)")
+    parser.add_argument("--objects", default="butter",
+                        help="comma-separated objects, each runs every scenario (default butter)")
     parser.add_argument("--json", type=Path, help="also write every record to this file")
     parser.add_argument("--no-write", action="store_true", help="do not update docs/RESULTS.md")
     args = parser.parse_args()
@@ -145,34 +153,42 @@ def main() -> int:
         parser.error(f"unknown scenarios {unknown}; known: {', '.join(SCENARIOS)}")
     load_before = os.getloadavg()
     t0 = time.monotonic()
-    results: dict[str, list[dict]] = {}
+    results: dict[tuple[str, str], list[dict]] = {}
+    objects = [o for o in args.objects.split(",") if o]
     with tempfile.TemporaryDirectory(prefix="bench_faults_") as tmp, \
             sigterm_as_keyboard_interrupt(), GraphRunner(log_dir=Path(tmp)) as graph:
-        for name in names:
-            n = args.frame_drop_runs if name == "frame-drop" else args.runs
-            results[name] = run_scenario(graph, name, n)
+        for obj in objects:
+            for name in names:
+                n = args.frame_drop_runs if name == "frame-drop" else args.runs
+                results[name, obj] = run_scenario(graph, name, n, obj)
     wall = time.monotonic() - t0
     load_after = os.getloadavg()
     if args.json:
-        args.json.write_text(json.dumps(results, indent=1, default=str))
-    rows = [summary_row(name, recs) for name, recs in results.items()]
+        args.json.write_text(json.dumps({f"{k[0]} {k[1]}": v for k, v in results.items()},
+                                        indent=1, default=str))
+    rows = [summary_row(name, obj, recs) for (name, obj), recs in results.items()]
     body = [
-        "Fault scenarios through the real graph (four node processes over DDS, "
-        "`pushbot.graph_faults`): butter, mixed task (10 cm, 0.35 rad), random COM, ana, "
-        "k = 3, perception + EKF, trial indices 0..n-1 (seeded scenes, goals, planner seeds and "
-        "fault draws). Success = the true end pose within 0.75 cm / 5 deg of the true initial "
-        "pose + the goal offset (for `second-goal`: the second goal's), 95 % Wilson interval. "
-        "Scenarios: `none` (no fault), `kill-<node>` (SIGKILL after the first executed push, "
-        "started again), `frame-drop` (20 % of camera frame publications dropped), "
-        "`frame-delay` (30 % held back and published after the next one: late and reordered), "
-        "`push-refusal` (20 % of valid pushes refused by the bridge), `knock` (object displaced "
-        "by (30, -20) mm and 0.25 rad on `sim/knock` after `goal reached`; the episode must "
-        "reach the goal again), `second-goal` (another, volatile client sends a goal shifted by "
-        "(-40, 30) mm and -0.2 rad after the first push).",
+        " ".join(f"""Fault scenarios through the real graph (four node processes over DDS,
+        `pushbot.graph_faults`): {', '.join(objects)}, mixed task (10 cm, 0.35 rad), random COM,
+        ana, k = 3, perception + EKF, trial indices 0..n-1 (seeded scenes, goals, planner seeds
+        and fault draws). Success = the true end pose within 0.75 cm / 5 deg of the true
+        initial pose + the goal offset (for `second-goal`: the second goal's), 95 % Wilson
+        interval. Scenarios: `none` (no fault), `kill-<node>` (SIGKILL after the first executed
+        push, started again), `frame-drop` (20 % of camera frame publications dropped),
+        `frame-delay` (30 % held back and published right after the next newer frame: late and
+        out of order), `push-refusal` (20 % of valid pushes refused by the
+        bridge), `knock` (object displaced by (30, -20) mm and 0.25 rad on `sim/knock` after
+        `goal reached`; the episode must reach the goal again), `foreign-push` (after `goal
+        reached` another client sends a push on `planner/push` through the object, from 2 cm
+        outside its circumscribed circle to 2 cm past its origin; the same end rule; pushes sent
+        include it), `second-goal` (another, volatile
+        client sends a goal shifted by (-40, 30) mm and -0.2 rad after the first push). Event
+        counts are the bridge's and the perception's /diagnostics counters at the end of each
+        episode (1 Hz: approximate).""".split()),
         "",
-        "| scenario | runs | fault injected | success (ground truth) | median end error "
-        "(max) | pushes sent, median (range) | ends |",
-        "|---|---|---|---|---|---|---|",
+        "| scenario | object | runs | fault injected | success (ground truth) | median end "
+        "error (max) | pushes sent, median (range) | ends |",
+        "|---|---|---|---|---|---|---|---|",
         *rows,
         "",
         f"Wall time {wall / 60:.1f} min; load average {load_before[0]:.1f} before, "

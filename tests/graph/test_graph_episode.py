@@ -141,7 +141,7 @@ def test_a_killed_planner_is_restarted_and_reaches_the_goal(graph: GraphRunner) 
     rec = graph.run(FAULT_TRIAL, KillRestart("planner_node"))
     assert rec["fault_injected"] and rec["killed_after_pushes"] >= 1, rec
     _assert_reached_by_ground_truth(rec)
-    assert rec["pushes_sent"] > rec["killed_after_pushes"]  # the new process pushed on
+    assert rec["pushes_sent"] > rec["killed_after_pushes"]  # the episode went on
 
 
 def test_an_object_knocked_after_the_goal_is_pushed_back(graph: GraphRunner) -> None:

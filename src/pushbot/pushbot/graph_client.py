@@ -134,6 +134,7 @@ class GraphClient:
             PoseStamped, "goal_pose", reliable, event_callbacks=PublisherEventCallbacks(
                 incompatible_qos=lambda event: None))  # planner_node's latched goal reader
         self._pub_knock = node.create_publisher(PoseStamped, "sim/knock", reliable)
+        self._pub_push = node.create_publisher(PathMsg, "planner/push", reliable)
         from rcl_interfaces.srv import SetParameters
         from std_srvs.srv import Trigger
 
@@ -334,7 +335,15 @@ class GraphClient:
         self._pub_knock.publish(pose_stamped_msg(np.asarray(delta, dtype=float),
                                                  stamp_from_seconds(0.0)))
 
+    def publish_push(self, points: np.ndarray) -> None:
+        """Send a push (approach, contact, end: (3, 2) m in ``world``) on ``planner/push``, as
+        another client would (``push_ros.paths.push_path``, 0.02 m/s)."""
+        from push_ros.paths import push_path
+
+        a, c, e = (np.asarray(p, dtype=float) for p in points)
+        self._pub_push.publish(push_path(a, c, e, stamp_seconds=0.0, speed=0.02))
+
     def matched(self) -> bool:
-        """Whether the second goal sender and the knock publisher have their subscribers."""
-        return (self._pub_other_goal.get_subscription_count() > 0
-                and self._pub_knock.get_subscription_count() > 0)
+        """Whether the fault publishers (second goal sender, knock, push) have subscribers."""
+        return all(p.get_subscription_count() > 0
+                   for p in (self._pub_other_goal, self._pub_knock, self._pub_push))

@@ -171,6 +171,11 @@ class GraphRunner:
         """Displace the object by ``delta`` (dx, dy m, dyaw rad) on ``sim/knock``."""
         self._client().publish_knock(delta)
 
+    def foreign_push(self, points: np.ndarray) -> None:
+        """Send a push (approach, contact, end; (3, 2) m) on ``planner/push`` as another
+        client."""
+        self._client().publish_push(points)
+
     def send_goal(self, goal: np.ndarray, other: bool = False) -> str:
         """Send a goal (``other``: from the second, volatile sender); its status text."""
         return self._client().publish_goal(goal, other=other)

@@ -16,10 +16,14 @@ Scenarios (:data:`SCENARIOS`, ``benchmarks/bench_faults.py`` runs them; docs/ARC
   would give them). The episode must still end at the goal by ground truth.
 - ``frame-drop`` / ``frame-delay`` / ``push-refusal`` (:class:`BridgeFaults`): the bridge's
   seeded ``faults.frame_drop`` (20 %), ``faults.frame_delay`` (30 %: a frame held back and
-  published after the next one) or ``faults.push_refusal`` (20 %) for the whole episode.
+  published right after the next newer one) or ``faults.push_refusal`` (20 %) for the whole episode.
 - ``knock`` (:class:`Knock`): once the planner says ``goal reached``, the object is displaced on
   ``sim/knock``; the planner (``after_goal: resume`` for this episode) must see it leave the
   region, push again and reach the goal again.
+- ``foreign-push`` (:class:`ForeignPush`): once the planner says ``goal reached``, another
+  client sends a push on ``planner/push`` (along 0.5 rad in ``world``, from 2 cm outside the
+  object's circumscribed circle to 2 cm past its origin, at the true pose); the bridge
+  executes it and the planner must push the object back.
 - ``second-goal`` (:class:`SecondGoal`): after the first executed push another client (a
   volatile sender, like RViz) sends a different goal; the planner takes it, says so
   (``goal_switches``) and the episode is scored against that goal.
@@ -27,6 +31,7 @@ Scenarios (:data:`SCENARIOS`, ``benchmarks/bench_faults.py`` runs them; docs/ARC
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -36,14 +41,17 @@ if TYPE_CHECKING:
     from pushbot.graph_episode import GraphRunner
     from pushbot.protocol import Trial
 
-__all__ = ["SCENARIOS", "BridgeFaults", "Episode", "Fault", "KillRestart", "Knock",
-           "SecondGoal", "make_fault"]
+__all__ = ["SCENARIOS", "BridgeFaults", "Episode", "Fault", "ForeignPush", "KillRestart",
+           "Knock", "SecondGoal", "make_fault"]
 
 #: The knock of the ``knock`` scenario: (dx, dy) m and dyaw rad, far outside every goal region.
 KNOCK = (0.03, -0.02, 0.25)
 #: The bridge's ``/diagnostics`` counters a record keeps.
-BRIDGE_COUNTERS = ("frames_dropped", "frames_delayed", "pushes_refused_fault", "knocks",
-                   "pushes_executed")
+BRIDGE_COUNTERS = ("frames_dropped", "frames_delayed", "frames_reordered",
+                   "pushes_refused_fault", "knocks", "pushes_executed")
+#: Direction (rad, world) of the push another client sends in ``foreign-push`` and how far past
+#: the object's origin it ends (m): it starts 2 cm outside the circumscribed circle.
+FOREIGN_PUSH_DIRECTION, FOREIGN_PUSH_PAST_CENTRE = 0.5, 0.02
 #: The second goal of ``second-goal``: offset from the first goal (dx, dy m, dtheta rad).
 SECOND_GOAL_SHIFT = (-0.04, 0.03, -0.2)
 
@@ -194,6 +202,35 @@ class Knock(Fault):
         return int(runner.rec.status[index].get("left_goal", 0)) > self._left_before
 
 
+class ForeignPush(Knock):
+    """Another client sends a push on ``planner/push`` once the planner reports ``goal
+    reached`` (the issue's 28-34 mm case): the bridge executes it like any push and the
+    planner, watching after the goal, must see the object leave and push it back."""
+
+    name = "foreign-push"
+
+    def poll(self, runner: GraphRunner, episode: Episode) -> None:
+        if self.injected:
+            return
+        mine = runner.rec.status[episode.n_status:]
+        if not (any(s.get("state") == "reached" for s in mine) and runner.rec.true
+                and runner.client_matched()):
+            return
+        from push_core.objects import load_object
+
+        self._left_before = max((int(s.get("left_goal", 0)) for s in mine), default=0)
+        centre = runner.rec.true[-1][1][:2]
+        radius = float(np.max(np.linalg.norm(load_object(episode.trial.object).polyline(),
+                                             axis=1)))
+        d = np.array([math.cos(FOREIGN_PUSH_DIRECTION), math.sin(FOREIGN_PUSH_DIRECTION)])
+        approach = centre - d * (radius + 0.02)
+        contact = centre - d * radius
+        runner.foreign_push(np.array([approach, contact,
+                                      centre + d * FOREIGN_PUSH_PAST_CENTRE]))
+        self._mark(runner)
+        episode.notes["pushed_after_pushes"] = _executed(runner, episode)
+
+
 class SecondGoal(Fault):
     """Another client sends a different goal after ``after`` executed pushes."""
 
@@ -239,6 +276,7 @@ SCENARIOS = {
     "frame-delay": lambda: BridgeFaults("frame-delay", frame_delay=0.3),
     "push-refusal": lambda: BridgeFaults("push-refusal", push_refusal=0.2),
     "knock": Knock,
+    "foreign-push": ForeignPush,
     "second-goal": SecondGoal,
 }
 

@@ -68,11 +68,12 @@ Fault injection (``faults.*`` parameters, :class:`FaultConfig`, all off by defau
 start-up and ``~/reset``, draws re-seeded from ``faults.seed`` on every reset): each publication
 of a camera frame (colour, depth, camera_info together; also the idle re-publications) is
 dropped with probability ``faults.frame_drop``, or held back with probability
-``faults.frame_delay`` and published right after the next publication (late and after a newer
-frame: delayed and reordered delivery through DDS); a valid push is refused with probability
-``faults.push_refusal`` (``pushes_refused_fault``; the planner's ``push_timeout`` then counts
-it lost). Ground truth (``sim/object_pose``) is never dropped. Counters ``frames_dropped``,
-``frames_delayed`` on ``/diagnostics``.
+``faults.frame_delay`` and published right after the next publication of a newer frame (late
+and out of order: delayed and reordered delivery through DDS); a valid push is refused with
+probability ``faults.push_refusal`` (``pushes_refused_fault``; the planner's ``push_timeout``
+then counts it lost). Ground truth (``sim/object_pose``) is never dropped. Counters
+``frames_dropped``, ``frames_delayed``, ``frames_reordered`` (held frames released after a newer
+one) on ``/diagnostics``.
 
 Parameters (declared once below with descriptions and ranges; documented with defaults and
 units in ``pushbot_bringup/config/sim_bridge.yaml``): ``object``, ``initial_pose.{x,y,theta}``,
@@ -212,8 +213,8 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec("faults.frame_drop", 0.0, "Fault injection: probability that a camera frame "
               "publication (colour, depth, camera_info together) is dropped.", (0.0, 0.9)),
     ParamSpec("faults.frame_delay", 0.0, "Fault injection: probability that a camera frame "
-              "publication is held back and published after the next one (delayed and "
-              "reordered).", (0.0, 0.9)),
+              "publication is held back and published right after the next newer frame "
+              "(delayed and reordered).", (0.0, 0.9)),
     ParamSpec("faults.push_refusal", 0.0, "Fault injection: probability that a valid push is "
               "refused (as a robot refuses a command).", (0.0, 1.0)),
     ParamSpec("faults.seed", 0, "Seed of the fault injection draws (re-seeded on ~/reset).",
@@ -232,7 +233,8 @@ class FaultConfig:
         camera_info together) is dropped; ``sim/object_pose`` (ground truth) is never dropped.
     frame_delay : float
         Probability in [0, 0.9] that one publication of a camera frame is held back and
-        published right after the next publication (so it arrives late and after a newer frame).
+        published right after the next publication of a *newer* frame (so it arrives late and
+        out of order; the idle re-publications of its own frame still go out meanwhile).
     push_refusal : float
         Probability in [0, 1] that a valid push is refused (``pushes_refused_fault``).
     seed : int
@@ -469,7 +471,8 @@ class SimBridgeNode(Node):
         self._counts = {"pushes_executed": 0, "pushes_rejected_busy": 0,
                         "pushes_rejected_invalid": 0, "pushes_failed": 0, "resets": 0,
                         "callback_errors": 0, "knocks": 0, "knocks_rejected": 0,
-                        "pushes_refused_fault": 0, "frames_dropped": 0, "frames_delayed": 0}
+                        "pushes_refused_fault": 0, "frames_dropped": 0, "frames_delayed": 0,
+                        "frames_reordered": 0}
         # Fault injection (FaultConfig): its draws and the held-back frame; any thread.
         self._fault_lock = threading.Lock()
         self._fault_rng = np.random.default_rng(self._params.faults.seed)
@@ -695,8 +698,9 @@ class SimBridgeNode(Node):
 
     def _camera_faults(self, capture: _Capture) -> list[_Capture]:
         """The frames to publish now for one publication of ``capture``, in order
-        (:class:`FaultConfig`): none (dropped), ``capture``, or a held-back older frame after
-        it (delayed and reordered); ``capture`` itself may be held back for the next one."""
+        (:class:`FaultConfig`): none (dropped), ``capture``, and a held-back older frame after
+        it once ``capture`` is newer (delayed and reordered); ``capture`` itself may be held
+        back (one frame at a time)."""
         faults = self._params.faults
         if faults.frame_drop <= 0.0 and faults.frame_delay <= 0.0 and self._held is None:
             return [capture]
@@ -709,9 +713,10 @@ class SimBridgeNode(Node):
                     and self._fault_rng.random() < faults.frame_delay):
                 self._held, out = capture, []
                 self._count("frames_delayed")
-            elif self._held is not None:
-                out.append(self._held)
+            elif self._held is not None and self._held.time < capture.time:
+                out.append(self._held)  # an older frame right after a newer one
                 self._held = None
+                self._count("frames_reordered")
         return out
 
     def _count(self, counter: str) -> None:
