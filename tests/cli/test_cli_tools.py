@@ -268,3 +268,12 @@ def test_topic_pub_reaches_a_subscriber_with_the_field_values(ros_context: Any,
     assert 2 * math.atan2(msg.pose.orientation.z, msg.pose.orientation.w) == pytest.approx(
         math.radians(30), abs=1e-6)
     assert out.startswith('publisher: beginning loop\n')
+
+
+@pytest.mark.ros
+def test_goal_without_a_planner_exits_1_with_one_line() -> None:
+    result = pushbot('goal', '0.03', '0', '0', '--wait', '--timeout', '2')
+    assert result.returncode == 1
+    assert result.stderr.startswith('pushbot goal: no planner_node: nothing subscribes to '
+                                    'goal_pose'), result.stderr
+    assert result.stderr.count('\n') == 1

@@ -9,9 +9,9 @@ frame"), e.g.::
 
     pushbot goal 0.05 0.03 0.3 --wait
 
-It waits (at most ``--timeout``) for planner_node's subscription and its latched
-``planner/status`` first. With ``--wait`` it then follows ``planner/status`` and prints a line
-whenever it changes (step, state, and the distance and yaw left from the latest
+It waits (at most 20 s, or ``--timeout`` if shorter) for planner_node's subscription and its
+latched ``planner/status`` first. With ``--wait`` it then follows ``planner/status`` and prints
+a line whenever it changes (step, state, and the distance and yaw left from the latest
 ``estimator/object_pose``), until the status shows this goal ``goal reached`` (exit 0), or
 ``failed``, a refusal of the goal (e.g. off the workspace) or ``--timeout`` (exit 1). A new goal
 from another client ends the wait with exit 1 too.
@@ -32,6 +32,9 @@ from pushbot.graph import cli_node, run_graph_command, spin_until
 
 DEFAULT_TIMEOUT = 300.0
 """Seconds ``--wait`` follows the episode (30 pushes take about a minute in simulation)."""
+PLANNER_TIMEOUT = 20.0
+"""Longest wait for planner_node (its goal subscription and latched status), seconds: enough
+for a graph that ``pushbot up`` is still starting (the nodes import torch)."""
 EXIT_USAGE = 2
 
 
@@ -49,8 +52,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help='follow planner/status until the goal is reached (exit 0) or '
                              'failed (exit 1)')
     parser.add_argument('--timeout', type=float, default=DEFAULT_TIMEOUT,
-                        help='seconds to wait for planner_node and, with --wait, for the end '
-                             'of the episode (default: %(default)s)')
+                        help='seconds to wait, with --wait, for the end of the episode '
+                             '(default: %(default)s; planner_node itself is waited for at most '
+                             f'{PLANNER_TIMEOUT:g} s)')
 
 
 def status_values(msg: Any) -> dict[str, str]:
@@ -120,10 +124,11 @@ def _send(args: argparse.Namespace, goal: tuple[float, float, float]) -> int:
                                  on_estimate, latched_reader_qos(1))
         # Discovery first: the planner's goal subscription and its latched status (whose
         # refusal counter tells a refused goal from an older refusal).
+        wait = min(args.timeout, PLANNER_TIMEOUT)
         if not spin_until(executor, lambda: publisher.get_subscription_count() > 0 and statuses,
-                          deadline):
+                          time.monotonic() + wait):
             print('pushbot goal: no planner_node: nothing subscribes to goal_pose or publishes '
-                  f'planner/status (waited {args.timeout:g} s; is the graph up? pushbot up)',
+                  f'planner/status (waited {wait:g} s; is the graph up? pushbot up)',
                   file=sys.stderr)
             return 1
         refused_before = int(status_values(statuses[-1]).get('refused', 0) or 0)

@@ -25,11 +25,15 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
 import time
 from datetime import datetime
 from pathlib import Path
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
+
+if TYPE_CHECKING:
+    from pushbot.graph_nodes import GraphNodes
 
 EXIT_USAGE = 2
 POLL_INTERVAL = 0.1
@@ -151,7 +155,7 @@ def default_log_dir() -> Path:
 
 def run_up(args: argparse.Namespace) -> int:
     """Handler of ``pushbot up``."""
-    from pushbot.graph_nodes import GraphNodes, sigterm_as_keyboard_interrupt
+    from pushbot.graph_nodes import GraphNodes
 
     if args.params_dir is not None and not args.params_dir.is_dir():
         print(f'pushbot up: --params-dir {args.params_dir}: no such directory', file=sys.stderr)
@@ -168,6 +172,19 @@ def run_up(args: argparse.Namespace) -> int:
     log_dir = args.log_dir or default_log_dir()
     nodes = GraphNodes(log_dir, ros_args=node_args)
     follower = LogFollower(log_dir, list(node_args), sys.stdout)
+    # A shell starts background jobs with SIGINT ignored, and Python then installs no Ctrl-C
+    # handler: take SIGINT explicitly so `kill -INT` stops the graph in every case.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        return _supervise(nodes, follower, log_dir)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _supervise(nodes: GraphNodes, follower: LogFollower, log_dir: Path) -> int:
+    """Start the nodes, echo their logs until Ctrl-C/SIGTERM or a node's exit, stop them."""
+    from pushbot.graph_nodes import sigterm_as_keyboard_interrupt
+
     status = 0
     with sigterm_as_keyboard_interrupt():
         try:
