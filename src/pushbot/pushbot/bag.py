@@ -194,6 +194,9 @@ class BagRecorder:
     selection: TopicSelection
     topics: dict[str, _Topic] = field(default_factory=dict)
     skipped: dict[str, str] = field(default_factory=dict)
+    #: Callback failures (e.g. a full disk) per callback name: those messages are not in the
+    #: bag; :func:`cmd_record` reports them.
+    errors: dict[str, int] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self._writer: Any = None
@@ -236,9 +239,12 @@ class BagRecorder:
     def _spin(self) -> None:
         try:
             with cli_node('bag_record') as (node, executor):
+                from push_ros.node import ThrottledLog
+
                 self._node = node
+                self._log = ThrottledLog(node.get_logger(), 5.0)
                 self._discover()
-                node.create_timer(DISCOVERY_PERIOD, self._discover)
+                node.create_timer(DISCOVERY_PERIOD, self._guard(self._discover, 'discover'))
                 self._ready.set()
                 while not self._stop.is_set() and node.context.ok():
                     executor.spin_once(timeout_sec=0.05)
@@ -278,9 +284,18 @@ class BagRecorder:
                 name, msgtype, msgdef=msgdef, rihs01=rihs01, serialization_format='cdr',
                 offered_qos_profiles=offered_qos(publishers))
         entry = _Topic(name, msgtype, connection, None)
-        entry.subscription = self._node.create_subscription(
-            cls, name, lambda data, e=entry: self._write(e, data), qos, raw=True)
+        write = self._guard(lambda data, e=entry: self._write(e, data), f'write {name}')
+        entry.subscription = self._node.create_subscription(cls, name, write, qos, raw=True)
         self.topics[name] = entry
+
+    def _guard(self, callback: Any, name: str) -> Any:
+        """``callback`` that never raises (push_ros.node.guarded); failures are counted."""
+        from push_ros.node import guarded
+
+        def count(label: str, _message: str) -> None:
+            self.errors[label] = self.errors.get(label, 0) + 1
+
+        return guarded(callback, self._log, on_error=count, name=name)
 
     def _write(self, entry: _Topic, data: bytes) -> None:
         stamp = time.time_ns()
@@ -435,11 +450,14 @@ def cmd_record(args: argparse.Namespace) -> int:
     print(f'wrote {out}: {total} messages on {len(counts)} topics')
     for name, count in counts.items():
         print(f'  {name} [{recorder.topics[name].msgtype}]: {count}')
+    for label, n in sorted(recorder.errors.items()):
+        print(f'  {label} failed {n} times (see the errors above): those messages are not in '
+              'the bag', file=sys.stderr)
     for name in selection.topics:
         if name not in counts:
             print(f'  {name}: not recorded ({recorder.skipped.get(name, "no publisher seen")})',
                   file=sys.stderr)
-    return 0 if total else 1
+    return 0 if total and not recorder.errors else 1
 
 
 def _human_size(n: float) -> str:
