@@ -524,8 +524,14 @@ def _play_qos(offered: Sequence[Any]) -> Any:
         durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
 
 
-def _iter_messages(reader: Any, connections: Sequence[Any]) -> Iterator[tuple[Any, int, bytes]]:
-    yield from reader.messages(connections=connections)
+def read_messages(reader: Any, connections: Sequence[Any]) -> Iterator[tuple[Any, int, bytes]]:
+    """``(connection, receive time ns, CDR bytes)`` of ``connections`` in time order; a
+    damaged file raises :class:`BagError` (one line) instead of the reader's exception."""
+    try:
+        yield from reader.messages(connections=connections)
+    except Exception as exc:  # any reader error is a damaged bag
+        raise BagError(f'cannot read the messages of the bag: {type(exc).__name__}: {exc}'
+                       ) from exc
 
 
 def cmd_play(args: argparse.Namespace) -> int:
@@ -568,7 +574,7 @@ def cmd_play(args: argparse.Namespace) -> int:
             t0_bag, t0_wall = reader.start_time, time.monotonic()
             next_clock = 0.0
             try:
-                for conn, stamp, data in _iter_messages(reader, conns):
+                for conn, stamp, data in read_messages(reader, conns):
                     due = t0_wall + (stamp - t0_bag) / 1e9 / args.rate
                     while (now := time.monotonic()) < due:
                         if clock_pub is not None and now >= next_clock:
