@@ -312,6 +312,12 @@ class BagRecorder:
                    time.monotonic() + timeout)
         return [n for n in names if n not in self.topics]
 
+    @property
+    def running(self) -> bool:
+        """Whether the recording thread still spins (False after rclpy shut its context down,
+        e.g. on a SIGINT that rclpy's own signal handler took)."""
+        return self._thread is not None and self._thread.is_alive()
+
     def counts(self) -> dict[str, int]:
         """Messages written per recorded topic."""
         return {name: t.count for name, t in sorted(self.topics.items())}
@@ -439,7 +445,7 @@ def cmd_record(args: argparse.Namespace) -> int:
         with sigterm_as_keyboard_interrupt():
             recorder.start()
             try:
-                while time.monotonic() < deadline:
+                while time.monotonic() < deadline and recorder.running:
                     time.sleep(min(0.1, max(0.0, deadline - time.monotonic())))
             except KeyboardInterrupt:
                 pass
