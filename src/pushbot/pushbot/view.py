@@ -42,6 +42,8 @@ DEFAULT_PORT = 8765
 LOOPBACK = ('127.0.0.1', 'localhost', '::1')
 #: Seconds between two looks at the graph for new topics.
 DISCOVERY_PERIOD = 1.0
+#: Seconds after which named topics that have not appeared are reported (once).
+MISSING_NOTE_AFTER = 10.0
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -89,6 +91,8 @@ class LiveView:
         self.forwarded: dict[str, int] = {}
         self.latched: dict[str, bytes] = {}
         self.errors: dict[str, int] = {}
+        self._started = time.monotonic()
+        self._noted_missing = False
         from push_ros.node import ThrottledLog
 
         self._log = ThrottledLog(node.get_logger(), 5.0)
@@ -116,6 +120,12 @@ class LiveView:
             publishers = self.node.get_publishers_info_by_topic(name)
             if publishers:
                 self._add(name, types, publishers)
+        missing = [t for t in self.selection.topics if t not in self.channels]
+        if (missing and not self._noted_missing
+                and time.monotonic() - self._started > MISSING_NOTE_AFTER):
+            self._noted_missing = True
+            print(f'pushbot view: no publisher yet for {", ".join(missing)} (still '
+                  'waiting; same ROS_DOMAIN_ID?)', file=sys.stderr, flush=True)
 
     def _add(self, name: str, types: Sequence[str],
              publishers: Sequence[TopicEndpointInfo]) -> None:
