@@ -194,3 +194,44 @@ def test_a_truncated_bag_is_reported_not_raised(recorded_bag, tmp_path: Path, ca
     assert cli.main(['bag', 'info', str(broken)]) == 2
     err = capsys.readouterr().err
     assert err.startswith('pushbot bag: cannot read bag') and 'Traceback' not in err
+
+
+def test_a_failing_write_is_counted_not_silent(tmp_path: Path, ros_context, wait_for) -> None:
+    # The in-process recorder (as pushbot demo uses it): a write that raises (a full disk)
+    # drops that message, is counted per topic, and the recording goes on.
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rosbags.rosbag2 import Reader
+    from std_msgs.msg import String
+
+    from pushbot.bag import BagRecorder, TopicSelection
+
+    node = rclpy.create_node('bag_test_failing', context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    try:
+        pub = node.create_publisher(String, 'disk_full', 10)
+        recorder = BagRecorder(tmp_path / 'bag', TopicSelection(('/disk_full',)))
+        with recorder:
+            assert not recorder.wait_for_topics(['/disk_full'], 30.0)
+            assert wait_for(lambda: pub.get_subscription_count() > 0, 30.0, executor)
+            real_write, calls = recorder._writer.write, []
+
+            def write(connection, stamp, data):
+                calls.append(stamp)
+                if len(calls) == 1:
+                    raise OSError(28, 'No space left on device')
+                real_write(connection, stamp, data)
+
+            recorder._writer.write = write
+            for i in range(3):
+                pub.publish(String(data=f'm{i}'))
+            assert _acked(pub)
+            assert wait_for(lambda: len(calls) == 3, 30.0)
+        assert recorder.counts() == {'/disk_full': 2}
+        assert recorder.errors == {'write /disk_full': 1}
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+    with Reader(tmp_path / 'bag') as reader:
+        assert reader.message_count == 2

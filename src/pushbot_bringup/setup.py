@@ -15,6 +15,8 @@ setup(
         # launch file its parameter files next to it (share/pushbot_bringup/config).
         ('share/' + package_name + '/launch', sorted(glob('launch/*.launch.py'))),
         ('share/' + package_name + '/config', sorted(glob('config/*.yaml'))),
+        # The RViz config of the graph: rviz2 -d <share>/pushbot_bringup/rviz/pushbot.rviz
+        ('share/' + package_name + '/rviz', sorted(glob('rviz/*.rviz'))),
     ],
     # Runtime dependencies come from requirements.txt (pip) or package.xml (rosdep);
     # ament_python packages list only setuptools here.

@@ -194,6 +194,9 @@ class BagRecorder:
     selection: TopicSelection
     topics: dict[str, _Topic] = field(default_factory=dict)
     skipped: dict[str, str] = field(default_factory=dict)
+    #: Callback failures (e.g. a full disk) per callback name: those messages are not in the
+    #: bag; :func:`cmd_record` reports them.
+    errors: dict[str, int] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self._writer: Any = None
@@ -236,9 +239,12 @@ class BagRecorder:
     def _spin(self) -> None:
         try:
             with cli_node('bag_record') as (node, executor):
+                from push_ros.node import ThrottledLog
+
                 self._node = node
+                self._log = ThrottledLog(node.get_logger(), 5.0)
                 self._discover()
-                node.create_timer(DISCOVERY_PERIOD, self._discover)
+                node.create_timer(DISCOVERY_PERIOD, self._guard(self._discover, 'discover'))
                 self._ready.set()
                 while not self._stop.is_set() and node.context.ok():
                     executor.spin_once(timeout_sec=0.05)
@@ -278,9 +284,18 @@ class BagRecorder:
                 name, msgtype, msgdef=msgdef, rihs01=rihs01, serialization_format='cdr',
                 offered_qos_profiles=offered_qos(publishers))
         entry = _Topic(name, msgtype, connection, None)
-        entry.subscription = self._node.create_subscription(
-            cls, name, lambda data, e=entry: self._write(e, data), qos, raw=True)
+        write = self._guard(lambda data, e=entry: self._write(e, data), f'write {name}')
+        entry.subscription = self._node.create_subscription(cls, name, write, qos, raw=True)
         self.topics[name] = entry
+
+    def _guard(self, callback: Any, name: str) -> Any:
+        """``callback`` that never raises (push_ros.node.guarded); failures are counted."""
+        from push_ros.node import guarded
+
+        def count(label: str, _message: str) -> None:
+            self.errors[label] = self.errors.get(label, 0) + 1
+
+        return guarded(callback, self._log, on_error=count, name=name)
 
     def _write(self, entry: _Topic, data: bytes) -> None:
         stamp = time.time_ns()
@@ -296,6 +311,12 @@ class BagRecorder:
         spin_until(None, lambda: all(n in self.topics for n in names),
                    time.monotonic() + timeout)
         return [n for n in names if n not in self.topics]
+
+    @property
+    def running(self) -> bool:
+        """Whether the recording thread still spins (False after rclpy shut its context down,
+        e.g. on a SIGINT that rclpy's own signal handler took)."""
+        return self._thread is not None and self._thread.is_alive()
 
     def counts(self) -> dict[str, int]:
         """Messages written per recorded topic."""
@@ -424,7 +445,7 @@ def cmd_record(args: argparse.Namespace) -> int:
         with sigterm_as_keyboard_interrupt():
             recorder.start()
             try:
-                while time.monotonic() < deadline:
+                while time.monotonic() < deadline and recorder.running:
                     time.sleep(min(0.1, max(0.0, deadline - time.monotonic())))
             except KeyboardInterrupt:
                 pass
@@ -435,11 +456,14 @@ def cmd_record(args: argparse.Namespace) -> int:
     print(f'wrote {out}: {total} messages on {len(counts)} topics')
     for name, count in counts.items():
         print(f'  {name} [{recorder.topics[name].msgtype}]: {count}')
+    for label, n in sorted(recorder.errors.items()):
+        print(f'  {label} failed {n} times (see the errors above): those messages are not in '
+              'the bag', file=sys.stderr)
     for name in selection.topics:
         if name not in counts:
             print(f'  {name}: not recorded ({recorder.skipped.get(name, "no publisher seen")})',
                   file=sys.stderr)
-    return 0 if total else 1
+    return 0 if total and not recorder.errors else 1
 
 
 def _human_size(n: float) -> str:
@@ -506,8 +530,14 @@ def _play_qos(offered: Sequence[Any]) -> Any:
         durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
 
 
-def _iter_messages(reader: Any, connections: Sequence[Any]) -> Iterator[tuple[Any, int, bytes]]:
-    yield from reader.messages(connections=connections)
+def read_messages(reader: Any, connections: Sequence[Any]) -> Iterator[tuple[Any, int, bytes]]:
+    """``(connection, receive time ns, CDR bytes)`` of ``connections`` in time order; a
+    damaged file raises :class:`BagError` (one line) instead of the reader's exception."""
+    try:
+        yield from reader.messages(connections=connections)
+    except Exception as exc:  # any reader error is a damaged bag
+        raise BagError(f'cannot read the messages of the bag: {type(exc).__name__}: {exc}'
+                       ) from exc
 
 
 def cmd_play(args: argparse.Namespace) -> int:
@@ -550,7 +580,7 @@ def cmd_play(args: argparse.Namespace) -> int:
             t0_bag, t0_wall = reader.start_time, time.monotonic()
             next_clock = 0.0
             try:
-                for conn, stamp, data in _iter_messages(reader, conns):
+                for conn, stamp, data in read_messages(reader, conns):
                     due = t0_wall + (stamp - t0_bag) / 1e9 / args.rate
                     while (now := time.monotonic()) < due:
                         if clock_pub is not None and now >= next_clock:

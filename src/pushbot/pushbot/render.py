@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from pushbot.bag import BagError, open_reader
+from pushbot.bag import BagError, open_reader, read_messages
 
 IMAGE = '/camera/color/image_raw'
 DEPTH = '/camera/aligned_depth_to_color/image_raw'
@@ -154,14 +154,14 @@ def load_episode(bag: Path, start: float = -math.inf) -> Episode:
     handlers[ESTIMATE] = on_estimate
     with open_reader(bag) as reader:
         conns = [c for c in reader.connections if c.topic in handlers]
-        for conn, t_ns, data in reader.messages(connections=conns):
+        for conn, t_ns, data in read_messages(reader, conns):
             try:
                 handlers[conn.topic](_decode(data, conn.msgtype), t_ns / 1e9)
             except (ValueError, LookupError):  # a message the codecs refuse: count, go on
                 ep.skipped[conn.topic] = ep.skipped.get(conn.topic, 0) + 1
         images = [c for c in reader.connections if c.topic == IMAGE]
         seen: set[float] = set()
-        for conn, t_ns, data in reader.messages(connections=images):
+        for conn, t_ns, data in read_messages(reader, images):
             try:
                 stamp = _image_stamp(data, conn.msgtype)
             except ValueError:
@@ -191,7 +191,7 @@ def iter_frames(bag: Path, start: float = -math.inf
     masks: dict[float, tuple[np.ndarray, tuple[int, int]]] = {}
     with open_reader(bag) as reader:
         mask_conns = [c for c in reader.connections if c.topic == MASK]
-        for conn, _, data in reader.messages(connections=mask_conns):
+        for conn, _, data in read_messages(reader, mask_conns):
             try:
                 msg = _decode(data, conn.msgtype)
                 mask = image_to_array(msg) > 0
@@ -200,7 +200,7 @@ def iter_frames(bag: Path, start: float = -math.inf
             masks[seconds_from_stamp(msg.header.stamp)] = (np.packbits(mask), mask.shape)
         seen: set[float] = set()
         image_conns = [c for c in reader.connections if c.topic == IMAGE]
-        for conn, t_ns, data in reader.messages(connections=image_conns):
+        for conn, t_ns, data in read_messages(reader, image_conns):
             try:
                 msg = _decode(data, conn.msgtype)
                 stamp = seconds_from_stamp(msg.header.stamp)

@@ -42,6 +42,8 @@ DEFAULT_PORT = 8765
 LOOPBACK = ('127.0.0.1', 'localhost', '::1')
 #: Seconds between two looks at the graph for new topics.
 DISCOVERY_PERIOD = 1.0
+#: Seconds after which named topics that have not appeared are reported (once).
+MISSING_NOTE_AFTER = 10.0
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -88,6 +90,21 @@ class LiveView:
         self.skipped: dict[str, str] = {}
         self.forwarded: dict[str, int] = {}
         self.latched: dict[str, bytes] = {}
+        self.errors: dict[str, int] = {}
+        self._started = time.monotonic()
+        self._noted_missing = False
+        from push_ros.node import ThrottledLog
+
+        self._log = ThrottledLog(node.get_logger(), 5.0)
+
+    def guard(self, callback: Any, name: str) -> Any:
+        """``callback`` that never raises (push_ros.node.guarded); failures are counted."""
+        from push_ros.node import guarded
+
+        def count(label: str, _message: str) -> None:
+            self.errors[label] = self.errors.get(label, 0) + 1
+
+        return guarded(callback, self._log, on_error=count, name=name)
 
     def on_subscribe(self, client: Any, channel: Any) -> None:
         """foxglove ServerListener: send a latched topic's last sample to a new subscriber."""
@@ -103,6 +120,12 @@ class LiveView:
             publishers = self.node.get_publishers_info_by_topic(name)
             if publishers:
                 self._add(name, types, publishers)
+        missing = [t for t in self.selection.topics if t not in self.channels]
+        if (missing and not self._noted_missing
+                and time.monotonic() - self._started > MISSING_NOTE_AFTER):
+            self._noted_missing = True
+            print(f'pushbot view: no publisher yet for {", ".join(missing)} (still '
+                  'waiting; same ROS_DOMAIN_ID?)', file=sys.stderr, flush=True)
 
     def _add(self, name: str, types: Sequence[str],
              publishers: Sequence[TopicEndpointInfo]) -> None:
@@ -136,8 +159,8 @@ class LiveView:
                 channel.log(bytes(data), log_time=time.time_ns())
                 self.forwarded[name] += 1
 
-        self.subscriptions[name] = self.node.create_subscription(cls, name, forward, qos,
-                                                                 raw=True)
+        self.subscriptions[name] = self.node.create_subscription(
+            cls, name, self.guard(forward, f'forward {name}'), qos, raw=True)
         print(f'serving {name} [{types[0]}]', flush=True)
 
 
@@ -177,10 +200,11 @@ def _serve(host: str, port: int, selection: TopicSelection) -> int:
     context = foxglove.Context()
     with sigterm_as_keyboard_interrupt(), cli_node('view') as (node, executor):
         view = LiveView(node, selection, context)
+        resend = view.guard(view.on_subscribe, 'on_subscribe')
 
         class Listener(foxglove.websocket.ServerListener):  # the other callbacks: no-ops
             def on_subscribe(self, client: Any, channel: Any) -> None:
-                view.on_subscribe(client, channel)
+                resend(client, channel)
 
         try:
             server = foxglove.start_server(name='pushbot', host=host, port=port,
@@ -194,7 +218,7 @@ def _serve(host: str, port: int, selection: TopicSelection) -> int:
                   '(Foxglove: Open connection -> Foxglove WebSocket; Ctrl-C to stop)',
                   flush=True)
             view.discover()
-            node.create_timer(DISCOVERY_PERIOD, view.discover)
+            node.create_timer(DISCOVERY_PERIOD, view.guard(view.discover, 'discover'))
             try:
                 while node.context.ok():
                     executor.spin_once(timeout_sec=0.1)
