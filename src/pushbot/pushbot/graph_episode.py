@@ -30,6 +30,13 @@ this process drives the episodes only through the nodes' public interfaces:
    ``step_latency_ms`` holds, per step, the wall time from ``pusher/executed`` to the next
    ``planner/push`` as seen here (perception + estimation + planning + DDS).
 
+Fault scenarios (issue 15): ``GraphRunner.run(trial, fault)`` with a
+:class:`pushbot.graph_faults.Fault` adds its episode parameters (the bridge's ``faults.*``,
+the planner's ``after_goal``), lets it act on every spin of the end wait (kill and restart a
+node, knock the object, send a push or a second goal) and ends the episode only at an end
+status it accepts; the record is scored against the episode's last goal and carries the fault's
+fields. ``benchmarks/bench_faults.py`` repeats every scenario.
+
 Every wait has a deadline and names what it waited for; a node process that exits is reported
 with the tail of its log. Node processes run in their own process groups with a parent-death
 signal (SIGTERM); :meth:`GraphNodes.stop` sends SIGINT (what rclpy shuts down cleanly on),
