@@ -94,9 +94,9 @@ def reset_scene() -> None:
 
 
 def test_node_list_and_info(graph: tuple[subprocess.Popen, Path]) -> None:
-    listed = pushbot('node', 'list').stdout.split()
+    listed = pushbot('node', 'list', '--spin-time', '20').stdout.split()
     assert sorted(listed) == sorted(GRAPH)  # hidden CLI nodes are not listed
-    info = pushbot('node', 'info', 'planner_node')
+    info = pushbot('node', 'info', 'planner_node', '--spin-time', '20')
     assert info.returncode == 0, info.stderr
     sections = re.split(r'^  (\w[\w ]+):$', info.stdout, flags=re.MULTILINE)
     assert sections[0].strip() == '/planner_node'
@@ -111,14 +111,15 @@ def test_node_list_and_info(graph: tuple[subprocess.Popen, Path]) -> None:
 
 def test_topic_info_counts_the_running_publisher(graph: tuple[subprocess.Popen, Path]) -> None:
     # The measured bug: 0 publishers while ekf_node was running.
-    result = pushbot('topic', 'info', 'estimator/object_pose')
+    # The rule's bound (--timeout) is generous: it returns once discovery has settled.
+    result = pushbot('topic', 'info', 'estimator/object_pose', '--timeout', '20')
     assert result.returncode == 0, result.stderr
     assert 'Publisher count: 1' in result.stdout
     assert '  - node: /ekf_node' in result.stdout
 
 
 def test_service_list_shows_the_resets(graph: tuple[subprocess.Popen, Path]) -> None:
-    result = pushbot('service', 'list', '-t')
+    result = pushbot('service', 'list', '-t', '--spin-time', '20')
     assert result.returncode == 0, result.stderr
     lines = result.stdout.splitlines()
     for node in GRAPH:
@@ -261,7 +262,7 @@ def test_up_no_sim_stops_cleanly_on_sigint(tmp_path: Path) -> None:
         # Wall time and the RealSense topics, as the launch file's sim:=false.
         assert pushbot('param', 'get', 'planner_node', 'use_sim_time').stdout \
             == 'Boolean value is: False\n'
-        info = pushbot('node', 'info', 'segmentation_node').stdout
+        info = pushbot('node', 'info', 'segmentation_node', '--spin-time', '20').stdout
         assert '/camera/camera/color/image_raw: sensor_msgs/msg/Image' in info
         pids = _pids(out.read_text())
         proc.send_signal(signal.SIGINT)

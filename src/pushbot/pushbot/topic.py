@@ -3,8 +3,8 @@
 Built on rclpy graph introspection only (``get_topic_names_and_types``,
 ``get_publishers_info_by_topic``, ``get_subscriptions_info_by_topic``), since the PyPI install
 has no ``ros2`` CLI and no ``rosidl_runtime_py``. There is no daemon: each command starts a
-hidden node and waits until what it prints has stopped changing for 1.5 s, after at least
-2.5 s (``pushbot.graph.wait_for_stable_graph``, the rule of every graph command), bounded by
+hidden node and waits until what it prints has stopped changing for 2 s, after at least
+3 s (``pushbot.graph.wait_for_stable_graph``, the rule of every graph command), bounded by
 its timeout. ``pub`` takes YAML as ``ros2 topic pub`` does (``pushbot.messages``, the CLI's one
 message codec) and waits for matching subscriptions before the first message.
 
@@ -49,7 +49,7 @@ if TYPE_CHECKING:
     from rclpy.topic_endpoint_info import TopicEndpointInfo
 
 DEFAULT_TIMEOUT = 10.0
-DEFAULT_SPIN_TIME = 6.0
+DEFAULT_SPIN_TIME = 10.0
 """Longest ``topic list`` waits for the graph to settle (an empty graph takes all of it)."""
 EXIT_USAGE = 2
 
@@ -61,7 +61,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     p = sub.add_parser('list', help='list the topics in the graph',
                        description='List the topics of the graph once discovery has settled '
-                                   '(at least 2.5 s, then nothing new for 1.5 s; at most '
+                                   '(at least 3 s, then nothing new for 2 s; at most '
                                    '--spin-time).')
     p.add_argument('-t', '--show-types', action='store_true', help='also print the types')
     p.add_argument('--spin-time', type=float, default=DEFAULT_SPIN_TIME,
@@ -99,10 +99,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     p = sub.add_parser('info', help='type, publishers and subscribers of a topic with their QoS',
                        description='Print the type of a topic and every endpoint with its QoS, '
-                                   'once its endpoints have not changed for 1.5 s (after at '
-                                   'least 2.5 s).')
+                                   'once its endpoints have not changed for 2 s (after at '
+                                   'least 3 s).')
     p.add_argument('topic')
-    p.add_argument('--timeout', type=float, default=5.0,
+    p.add_argument('--timeout', type=float, default=10.0,
                    help='seconds to wait for the topic to appear and its endpoints to settle '
                         '(default: %(default)s)')
     p.set_defaults(topic_handler=cmd_info)
