@@ -26,7 +26,13 @@ from pushbot.graph import (
     spin_until,
     wait_for_graph,
 )
-from pushbot.messages import MessageFieldError, message_from_yaml, message_to_dict, to_yaml
+from pushbot.messages import (
+    MessageFieldError,
+    message_from_yaml,
+    message_to_dict,
+    to_yaml,
+    zero_time,
+)
 
 DEFAULT_TIMEOUT = 10.0
 DEFAULT_SPIN_TIME = 10.0
@@ -95,7 +101,7 @@ def cmd_call(args: argparse.Namespace) -> int:
     """``pushbot service call SERVICE TYPE [VALUES] [--timeout S]``."""
     try:
         service_class = import_service_class(args.type)
-        request = message_from_yaml(service_class.Request, args.values)
+        message_from_yaml(service_class.Request, args.values, now=zero_time)
     except (LookupError, MessageFieldError) as exc:
         print(f'pushbot service call: {exc}', file=sys.stderr)
         return EXIT_USAGE
@@ -106,6 +112,8 @@ def cmd_call(args: argparse.Namespace) -> int:
             print(f'pushbot service call: {str(exc).splitlines()[0]}', file=sys.stderr)
             return EXIT_USAGE
         name = client.srv_name
+        request = message_from_yaml(service_class.Request, args.values,
+                                    now=lambda: node.get_clock().now().to_msg())
         if not spin_until(executor, client.service_is_ready,
                           time.monotonic() + max(args.timeout, 0.0)):
             print(f'pushbot service call: service {name} is not available (waited '

@@ -41,6 +41,7 @@ from pushbot.messages import (
     message_from_yaml,
     message_to_dict,
     to_yaml,
+    zero_time,
 )
 
 if TYPE_CHECKING:
@@ -111,13 +112,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         'pub', help='publish a message given as YAML',
         description='Publish a message to a topic, like ros2 topic pub: the type as '
                     'pkg/msg/Type or pkg/Type, the values as a YAML mapping (fields left out '
-                    'keep their defaults), e.g. pushbot topic pub goal_pose '
-                    'geometry_msgs/msg/PoseStamped "{header: {frame_id: world}, pose: '
-                    '{position: {x: 0.05}, orientation: {w: 1.0}}}" --once. Waits (at most '
-                    '--max-wait-time-secs) for --wait-matching-subscriptions subscriptions '
-                    'before the first message. The publisher is reliable and transient local, '
-                    'which matches every subscription (reliable or best effort, volatile or '
-                    'transient local).')
+                    'keep their defaults; a time field may be now, a header auto), e.g. '
+                    'pushbot topic pub goal_pose geometry_msgs/msg/PoseStamped "{header: '
+                    '{frame_id: world, stamp: now}, pose: {position: {x: 0.05}}}" --once. '
+                    'Waits (at most --max-wait-time-secs) for --wait-matching-subscriptions '
+                    'subscriptions before the first message. The publisher is reliable and '
+                    'transient local, which matches every subscription (reliable or best '
+                    'effort, volatile or transient local).')
     p.add_argument('topic')
     p.add_argument('type', help='message type, e.g. geometry_msgs/msg/PoseStamped')
     p.add_argument('values', nargs='?', default='',
@@ -374,7 +375,9 @@ def cmd_pub(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     try:
         message_class = import_message_class(args.type)
-        msg = message_from_yaml(message_class, args.values)
+        # Checked once before any ROS work; built again per message below, so that ``now``
+        # and ``auto`` stamps are the time of each message.
+        message_from_yaml(message_class, args.values, now=zero_time)
     except (LookupError, MessageFieldError) as exc:
         print(f'pushbot topic pub: {exc}', file=sys.stderr)
         return EXIT_USAGE
@@ -393,6 +396,8 @@ def cmd_pub(args: argparse.Namespace) -> int:
         next_time = time.monotonic()
         while total is None or sent < total:
             spin_until(executor, lambda: False, next_time)
+            msg = message_from_yaml(message_class, args.values,
+                                    now=lambda: node.get_clock().now().to_msg())
             publisher.publish(msg)
             sent += 1
             if not args.quiet:
