@@ -277,3 +277,17 @@ def test_goal_without_a_planner_exits_1_with_one_line() -> None:
     assert result.stderr.startswith('pushbot goal: no planner_node: nothing subscribes to '
                                     'goal_pose'), result.stderr
     assert result.stderr.count('\n') == 1
+
+
+def test_a_closed_stdout_ends_quietly_with_141() -> None:
+    # The reader is gone before pushbot writes (what `| head` leads to): no traceback.
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        result = subprocess.run([str(Path(sys.executable).parent / 'pushbot'), 'run', '--list'],
+                                stdout=write_end, stderr=subprocess.PIPE, text=True, timeout=60,
+                                stdin=subprocess.DEVNULL)
+    finally:
+        os.close(write_end)
+    assert result.returncode == cli.EXIT_BROKEN_PIPE
+    assert result.stderr == ''

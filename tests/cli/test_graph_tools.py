@@ -14,8 +14,9 @@ import re
 import signal
 import subprocess
 import sys
+import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +29,7 @@ GRAPH = ('/ekf_node', '/planner_node', '/segmentation_node', '/sim_bridge_node')
 #: Close translation goal for rect1 at the origin (ARCHITECTURE "Goal frame": yaw since the
 #: episode's first frame).
 CLOSE_GOAL = ('0.03', '0.0', '0.0')
+Graph = tuple[subprocess.Popen, Callable[[], str]]
 
 
 def pushbot(*args: str, timeout: float = 120.0) -> subprocess.CompletedProcess:
@@ -49,39 +51,43 @@ def _alive(pid: int) -> bool:
     return True
 
 
-@pytest.fixture(scope='module')
-def graph(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[subprocess.Popen, Path]]:
-    """``pushbot up --object rect1``, once every node is in the graph; (process, output)."""
-    out = tmp_path_factory.mktemp('up') / 'up.out'
+def start_up(manager: Any, *args: str) -> tuple[subprocess.Popen, Callable[[], str]]:
+    """``pushbot up ARGS`` under a conftest ProcessManager; (process, its output so far)."""
     exe = Path(sys.executable).parent / 'pushbot'
-    with open(out, 'wb') as sink:
-        proc = subprocess.Popen([str(exe), 'up', '--object', 'rect1', '--log-dir',
-                                 str(out.parent / 'logs')], stdout=sink,
-                                stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                env={**os.environ, 'PYTHONUNBUFFERED': '1'})
+    log_dir = tempfile.mkdtemp(prefix='up_logs_', dir=manager.log_dir)
+    proc = manager.start([str(exe), 'up', *args, '--log-dir', log_dir], name='up')
+    return proc, lambda: manager.output(proc)
+
+
+def stop_up(manager: Any, proc: subprocess.Popen, output: Callable[[], str]) -> None:
+    """SIGINT with time for up's own orderly stop, then make sure no node is left."""
+    pids = _pids(output())
+    manager.stop(proc, grace=40)
+    for pid in pids.values():
+        try:
+            os.killpg(pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+
+
+def wait_for_nodes(proc: subprocess.Popen, output: Callable[[], str], names: Sequence[str]
+                   ) -> None:
+    deadline = time.monotonic() + 90
+    while time.monotonic() < deadline and proc.poll() is None:
+        if sorted(pushbot('node', 'list').stdout.split()) == sorted(names):
+            return
+    pytest.fail(f'pushbot up did not bring up {names}:\n{output()[-3000:]}')
+
+
+@pytest.fixture(scope='module')
+def graph(module_processes: Any) -> Iterator[tuple[subprocess.Popen, Callable[[], str]]]:
+    """``pushbot up --object rect1``, once every node is in the graph; (process, output)."""
+    proc, output = start_up(module_processes, '--object', 'rect1')
     try:
-        deadline = time.monotonic() + 90
-        while time.monotonic() < deadline and proc.poll() is None:
-            listed = pushbot('node', 'list').stdout.split()
-            if all(name in listed for name in GRAPH):
-                break
-        else:
-            pytest.fail(f'pushbot up did not bring up {GRAPH}:\n{out.read_text()[-3000:]}')
-        yield proc, out
+        wait_for_nodes(proc, output, GRAPH)
+        yield proc, output
     finally:
-        pids = _pids(out.read_text())
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGINT)
-            try:
-                proc.wait(timeout=40)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
-        for pid in pids.values():  # never leave a node behind, even after a failure
-            try:
-                os.killpg(pid, signal.SIGKILL)
-            except (ProcessLookupError, PermissionError):
-                pass
+        stop_up(module_processes, proc, output)
 
 
 def reset_scene() -> None:
@@ -93,10 +99,10 @@ def reset_scene() -> None:
             result.stdout
 
 
-def test_node_list_and_info(graph: tuple[subprocess.Popen, Path]) -> None:
-    listed = pushbot('node', 'list').stdout.split()
+def test_node_list_and_info(graph: Graph) -> None:
+    listed = pushbot('node', 'list', '--spin-time', '20').stdout.split()
     assert sorted(listed) == sorted(GRAPH)  # hidden CLI nodes are not listed
-    info = pushbot('node', 'info', 'planner_node')
+    info = pushbot('node', 'info', 'planner_node', '--spin-time', '20')
     assert info.returncode == 0, info.stderr
     sections = re.split(r'^  (\w[\w ]+):$', info.stdout, flags=re.MULTILINE)
     assert sections[0].strip() == '/planner_node'
@@ -109,16 +115,17 @@ def test_node_list_and_info(graph: tuple[subprocess.Popen, Path]) -> None:
     assert missing.stderr.count('\n') == 1 and 'no_such_node' in missing.stderr
 
 
-def test_topic_info_counts_the_running_publisher(graph: tuple[subprocess.Popen, Path]) -> None:
+def test_topic_info_counts_the_running_publisher(graph: Graph) -> None:
     # The measured bug: 0 publishers while ekf_node was running.
-    result = pushbot('topic', 'info', 'estimator/object_pose')
+    # The rule's bound (--timeout) is generous: it returns once discovery has settled.
+    result = pushbot('topic', 'info', 'estimator/object_pose', '--timeout', '20')
     assert result.returncode == 0, result.stderr
     assert 'Publisher count: 1' in result.stdout
     assert '  - node: /ekf_node' in result.stdout
 
 
-def test_service_list_shows_the_resets(graph: tuple[subprocess.Popen, Path]) -> None:
-    result = pushbot('service', 'list', '-t')
+def test_service_list_shows_the_resets(graph: Graph) -> None:
+    result = pushbot('service', 'list', '-t', '--spin-time', '20')
     assert result.returncode == 0, result.stderr
     lines = result.stdout.splitlines()
     for node in GRAPH:
@@ -126,7 +133,7 @@ def test_service_list_shows_the_resets(graph: tuple[subprocess.Popen, Path]) -> 
     assert not [line for line in lines if '/_' in line]  # hidden services stay hidden
 
 
-def test_param_list_get_dump(graph: tuple[subprocess.Popen, Path], tmp_path: Path,
+def test_param_list_get_dump(graph: Graph, tmp_path: Path,
                              processes: Any) -> None:
     got = pushbot('param', 'get', '/sim_bridge_node', 'object')
     assert (got.returncode, got.stdout) == (0, 'String value is: rect1\n'), got.stderr
@@ -152,7 +159,7 @@ def test_param_list_get_dump(graph: tuple[subprocess.Popen, Path], tmp_path: Pat
             break
     assert got.stdout == 'Integer value is: 7\n', got.stderr
 
-def test_param_set_then_reset_rebuilds_the_scene(graph: tuple[subprocess.Popen, Path]) -> None:
+def test_param_set_then_reset_rebuilds_the_scene(graph: Graph) -> None:
     try:
         result = pushbot('param', 'set', '/sim_bridge_node', 'object', 'butter')
         assert (result.returncode, result.stdout) == (0, 'Set parameter successful\n'), \
@@ -179,7 +186,7 @@ def test_param_set_then_reset_rebuilds_the_scene(graph: tuple[subprocess.Popen, 
 
 
 def test_goal_wait_reaches_a_close_goal_and_fails_off_the_workspace(
-        graph: tuple[subprocess.Popen, Path]) -> None:
+        graph: Graph) -> None:
     reset_scene()
     result = pushbot('goal', *CLOSE_GOAL, '--wait', '--timeout', '90')
     assert result.returncode == 0, result.stdout + result.stderr
@@ -193,7 +200,7 @@ def test_goal_wait_reaches_a_close_goal_and_fails_off_the_workspace(
 
 
 def test_topic_pub_of_a_goal_makes_the_planner_push(
-        graph: tuple[subprocess.Popen, Path]) -> None:
+        graph: Graph) -> None:
     reset_scene()
     pub = pushbot('topic', 'pub', '--once', 'goal_pose', 'geometry_msgs/PoseStamped',
                   '{header: {frame_id: world}, pose: {position: {x: 0.03, y: 0.01}}}')
@@ -212,7 +219,7 @@ def test_topic_pub_of_a_goal_makes_the_planner_push(
 
 
 def test_topic_echo_into_a_closed_pipe_ends_without_traceback(
-        graph: tuple[subprocess.Popen, Path]) -> None:
+        graph: Graph) -> None:
     exe = Path(sys.executable).parent / 'pushbot'
     proc = subprocess.Popen([str(exe), 'topic', 'echo', 'sim/object_pose'],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE,
@@ -231,46 +238,32 @@ def test_topic_echo_into_a_closed_pipe_ends_without_traceback(
 
 
 def test_up_reports_a_killed_node_and_stops_the_others(
-        graph: tuple[subprocess.Popen, Path]) -> None:
-    proc, out = graph
-    pids = _pids(out.read_text())
+        graph: Graph) -> None:
+    proc, output = graph
+    pids = _pids(output())
     assert sorted(f'/{name}' for name in pids) == sorted(GRAPH)
-    assert re.search(r'^\[planner_node\] ', out.read_text(), re.MULTILINE)  # prefixed logs
+    assert re.search(r'^\[planner_node\] ', output(), re.MULTILINE)  # prefixed logs
     os.kill(pids['planner_node'], signal.SIGKILL)
     assert proc.wait(timeout=60) == 1
-    text = out.read_text()
+    text = output()
     assert 'pushbot up: planner_node exited with status -9' in text
     assert not [name for name, pid in pids.items() if _alive(pid)]
 
 
-def test_up_no_sim_stops_cleanly_on_sigint(tmp_path: Path) -> None:
-    exe = Path(sys.executable).parent / 'pushbot'
-    out = tmp_path / 'up.out'
-    with open(out, 'wb') as sink:
-        proc = subprocess.Popen([str(exe), 'up', '--no-sim', '--log-dir', str(tmp_path / 'logs')],
-                                stdout=sink, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                env={**os.environ, 'PYTHONUNBUFFERED': '1'})
+def test_up_no_sim_stops_cleanly_on_sigint(processes: Any) -> None:
+    proc, output = start_up(processes, '--no-sim')
     try:
-        deadline = time.monotonic() + 90
-        expected = ['/ekf_node', '/planner_node', '/segmentation_node']
-        while time.monotonic() < deadline:
-            if pushbot('node', 'list').stdout.split() == expected:
-                break
-        else:
-            pytest.fail(f'pushbot up --no-sim did not start:\n{out.read_text()[-3000:]}')
+        wait_for_nodes(proc, output, ['/ekf_node', '/planner_node', '/segmentation_node'])
         # Wall time and the RealSense topics, as the launch file's sim:=false.
         assert pushbot('param', 'get', 'planner_node', 'use_sim_time').stdout \
             == 'Boolean value is: False\n'
-        info = pushbot('node', 'info', 'segmentation_node').stdout
+        info = pushbot('node', 'info', 'segmentation_node', '--spin-time', '20').stdout
         assert '/camera/camera/color/image_raw: sensor_msgs/msg/Image' in info
-        pids = _pids(out.read_text())
+        pids = _pids(output())
         proc.send_signal(signal.SIGINT)
         assert proc.wait(timeout=60) == 0
     finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+        stop_up(processes, proc, output)
     assert sorted(pids) == ['ekf_node', 'planner_node', 'segmentation_node']
     assert not [name for name, pid in pids.items() if _alive(pid)]
-    assert '[up] stopped: ' in out.read_text()
-
+    assert '[up] stopped: ' in output()

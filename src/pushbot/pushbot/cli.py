@@ -198,7 +198,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     # profile unless the user configured one (see pushbot.dds).
     dds.apply_default_profile()
     try:
-        return args.handler(args)
+        status = args.handler(args)
+        sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's final flush
+        return status
     except BrokenPipeError:
         return _closed_pipe()
     except KeyboardInterrupt:

@@ -114,12 +114,11 @@ def spin_until(
 
 
 #: The discovery rule of the graph commands (see :func:`wait_for_stable_graph`): at least
-#: MIN_DISCOVERY_TIME seconds, then until nothing changed for SETTLE_TIME seconds. Measured on
-#: the four-node graph of ``pushbot up`` under load (2 cores shared): a node's endpoints came
-#: up to 1.9 s after the previous change and the last node 2.5 s after start, so a single look
-#: or a 1 s quiet period missed some.
-MIN_DISCOVERY_TIME = 2.5
-SETTLE_TIME = 1.5
+#: MIN_DISCOVERY_TIME seconds, then until nothing changed for SETTLE_TIME seconds. Chosen from
+#: discovery timelines on the ``pushbot up`` graph (benchmarks/bench_cli.py, docs/RESULTS.md
+#: section ``cli``, where shorter rules are replayed on the same timelines).
+MIN_DISCOVERY_TIME = 3.0
+SETTLE_TIME = 2.0
 
 
 def wait_for_stable_graph(

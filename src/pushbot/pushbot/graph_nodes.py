@@ -55,14 +55,15 @@ class GraphNodes:
         One ``<node>.log`` per node (stdout and stderr).
     node_args : dict, optional
         Extra ``-p name:=value`` strings per node name.
+    ros_args : dict, optional
+        ``pushbot up``: the nodes to start, each with its whole ``--ros-args`` list, instead
+        of the protocol graph's four nodes and parameters.
     """
 
     def __init__(self, log_dir: Path, node_args: dict[str, Sequence[str]] | None = None,
                  ros_args: dict[str, Sequence[str]] | None = None) -> None:
         self.log_dir = Path(log_dir)
         self.node_args = {n: list((node_args or {}).get(n, ())) for n in NODES}
-        #: ``pushbot up``: node -> its whole ``--ros-args`` (parameter files, remappings; the
-        #: launch file's choice), replacing the protocol's nodes and parameters.
         self.ros_args = ros_args
         self.procs: dict[str, subprocess.Popen] = {}
 

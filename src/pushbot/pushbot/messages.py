@@ -19,7 +19,7 @@ import array
 import json
 import math
 import re
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import yaml
@@ -178,9 +178,12 @@ _INTEGER_TYPES = {
 }
 _FLOAT32_MAX = 3.4028234663852886e38
 _FLOAT_TYPES = {'float', 'double', 'float32', 'float64', 'long double'}
+#: The keywords of ``ros2 topic pub`` that take the clock, and the field types they fit.
+_CLOCKED = {'now': ('builtin_interfaces/Time',), 'auto': ('std_msgs/Header',)}
 
 
-def message_from_yaml(message_class: type, text: str | None) -> Any:
+def message_from_yaml(message_class: type, text: str | None,
+                      now: Callable[[], Any] | None = None) -> Any:
     """A new ``message_class`` instance with the fields given as YAML text.
 
     Parameters
@@ -189,7 +192,12 @@ def message_from_yaml(message_class: type, text: str | None) -> Any:
         A generated message or service request class.
     text
         A YAML mapping of field names to values (nested messages as nested mappings, arrays
-        as lists); empty or ``None`` for the default message.
+        as lists); empty or ``None`` for the default message. As with ``ros2 topic pub``, a
+        ``builtin_interfaces/Time`` field may be ``now`` and a ``std_msgs/Header`` field
+        ``auto`` (stamp now, empty frame), outside arrays.
+    now
+        Returns the current time as a ``builtin_interfaces/msg/Time`` (e.g. a node clock's
+        ``now().to_msg()``); without it ``now`` and ``auto`` are refused.
 
     Raises
     ------
@@ -202,11 +210,19 @@ def message_from_yaml(message_class: type, text: str | None) -> Any:
         problem = getattr(exc, 'problem', None) or str(exc).splitlines()[0]
         raise MessageFieldError(f'the values are not valid YAML ({problem})') from None
     msg = message_class()
-    fill_message(msg, {} if data is None else data)
+    fill_message(msg, {} if data is None else data, now=now)
     return msg
 
 
-def fill_message(msg: Any, data: Any, path: str = '') -> None:
+def zero_time() -> Any:
+    """``builtin_interfaces/msg/Time`` zero: the ``now`` of a check that needs no clock."""
+    from builtin_interfaces.msg import Time
+
+    return Time()
+
+
+def fill_message(msg: Any, data: Any, path: str = '',
+                 now: Callable[[], Any] | None = None) -> None:
     """Set the fields of ``msg`` from ``data`` (a mapping); fields not in ``data`` are kept.
 
     Raises
@@ -228,8 +244,15 @@ def fill_message(msg: Any, data: Any, path: str = '') -> None:
                                     f"{', '.join(fields) or 'none'})")
         field_type = fields[key]
         current = getattr(msg, key)
+        if value in ('now', 'auto') and field_type in _CLOCKED.get(value, ()):
+            if now is None:
+                raise MessageFieldError(f"field '{name}' ({field_type}): '{value}' needs a "
+                                        'clock here')
+            stamp = now()
+            setattr(msg, key, stamp if value == 'now' else type(current)(stamp=stamp))
+            continue
         if hasattr(current, 'get_fields_and_field_types'):
-            fill_message(current, value, f'{name}.')
+            fill_message(current, value, f'{name}.', now)
             continue
         if _is_array(field_type):
             converted: Any = _array_value(value, field_type, name)

@@ -1,7 +1,7 @@
 """``pushbot param``: the project's replacement for ``ros2 param`` (list, get, set, dump).
 
 Through the node's parameter services (rcl_interfaces ``ListParameters``, ``GetParameters``,
-``SetParameters``, ``DescribeParameters``; rclpy's ``AsyncParameterClient``):
+``SetParameters``, ``DescribeParameters``), waiting only for the ones a command calls:
 
 - ``param list NODE``: the parameter names, one per line (indented, as ``ros2 param list``);
 - ``param get NODE NAME``: ``<Type> value is: <value>`` (``--hide-type``: the value only);
@@ -98,37 +98,56 @@ def run_param(args: argparse.Namespace) -> int:
 
 
 class _Client:
-    """An ``AsyncParameterClient`` of ``node_name`` with deadlines on every wait."""
+    """Clients of ``node_name``'s parameter services, created and waited for (at most
+    ``timeout``) only when a command needs them: waiting for all six parameter services, as
+    ``AsyncParameterClient.wait_for_services`` does, costs seconds of discovery."""
 
     def __init__(self, node: Any, executor: Executor, node_name: str, timeout: float) -> None:
-        from rclpy.parameter_client import AsyncParameterClient
-
         base, namespace = split_node_name(node_name)
         self.name = full_node_name(base, namespace)
+        self.node = node
         self.executor = executor
         self.timeout = max(timeout, 0.0)
-        self.client = AsyncParameterClient(node, self.name)
-        if not spin_until(executor, self.client.services_are_ready,
-                          time.monotonic() + self.timeout):
-            raise ParamError(f'node {self.name} has no parameter services (waited '
-                             f'{self.timeout:g} s): is it running?')
+        self.clients: dict[str, Any] = {}
 
-    def wait(self, future: Any, what: str) -> Any:
+    def call(self, service: str, request: Any) -> Any:
+        """Call ``<node>/<service>`` with ``request``; its response or :class:`ParamError`."""
+        client = self.clients.get(service)
+        if client is None:
+            client = self.node.create_client(_service_types()[service],
+                                             f'{self.name}/{service}')
+            self.clients[service] = client
+        if not spin_until(self.executor, client.service_is_ready,
+                          time.monotonic() + self.timeout):
+            raise ParamError(f'node {self.name} has no parameter service {service} (waited '
+                             f'{self.timeout:g} s): is it running?')
+        future = client.call_async(request)
         if not spin_until(self.executor, future.done, time.monotonic() + self.timeout):
-            raise ParamError(f'no answer from {self.name}/{what} within {self.timeout:g} s')
+            raise ParamError(f'no answer from {self.name}/{service} within {self.timeout:g} s')
         if future.exception() is not None:
-            raise ParamError(f'{self.name}/{what} failed: {future.exception()}')
+            raise ParamError(f'{self.name}/{service} failed: {future.exception()}')
         return future.result()
 
     def names(self) -> list[str]:
-        return sorted(self.wait(self.client.list_parameters(), 'list_parameters').result.names)
+        from rcl_interfaces.srv import ListParameters
+
+        return sorted(self.call('list_parameters', ListParameters.Request()).result.names)
 
     def describe(self, names: list[str]) -> list[Any]:
-        return list(self.wait(self.client.describe_parameters(names),
-                              'describe_parameters').descriptors)
+        from rcl_interfaces.srv import DescribeParameters
+
+        return list(self.call('describe_parameters',
+                              DescribeParameters.Request(names=names)).descriptors)
 
     def values(self, names: list[str]) -> list[Any]:
-        return list(self.wait(self.client.get_parameters(names), 'get_parameters').values)
+        from rcl_interfaces.srv import GetParameters
+
+        return list(self.call('get_parameters', GetParameters.Request(names=names)).values)
+
+    def set(self, parameters: list[Any]) -> Any:
+        from rcl_interfaces.srv import SetParameters
+
+        return self.call('set_parameters', SetParameters.Request(parameters=parameters))
 
     def require(self, name: str) -> Any:
         """The descriptor of ``name``; :class:`ParamError` (status 2) if it does not exist."""
@@ -138,6 +157,18 @@ class _Client:
         if not descriptor or descriptor[0].type == ParameterType.PARAMETER_NOT_SET:
             raise ParamError(f"node {self.name} has no parameter '{name}'", EXIT_USAGE)
         return descriptor[0]
+
+
+def _service_types() -> dict[str, type]:
+    from rcl_interfaces.srv import (
+        DescribeParameters,
+        GetParameters,
+        ListParameters,
+        SetParameters,
+    )
+
+    return {'list_parameters': ListParameters, 'describe_parameters': DescribeParameters,
+            'get_parameters': GetParameters, 'set_parameters': SetParameters}
 
 
 def _type_names() -> dict[int, str]:
@@ -212,7 +243,7 @@ def cmd_set(args: argparse.Namespace) -> int:
         client = _Client(node, executor, args.node, args.timeout)
         descriptor = client.require(args.name)
         msg = Parameter(name=args.name, value=parameter_value(args.value, descriptor.type))
-        response = client.wait(client.client.set_parameters([msg]), 'set_parameters')
+        response = client.set([msg])
     result = response.results[0] if response.results else None
     if result is None or not result.successful:
         reason = result.reason if result is not None else 'no result'

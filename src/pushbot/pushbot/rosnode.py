@@ -3,8 +3,8 @@
 ``node list`` prints the fully qualified names of the nodes in the graph (hidden nodes, whose
 name starts with an underscore, such as the CLI's own, only with ``--all``); ``node info NODE``
 prints its subscribers, publishers, service servers and service clients with their types, as
-``ros2 node info`` does. Both wait until the graph has not changed for 1.5 s, after at least
-2.5 s (at most ``--spin-time``; ``pushbot.graph.wait_for_stable_graph``, the rule of every graph
+``ros2 node info`` does. Both wait until the graph has not changed for 2 s, after at least
+3 s (at most ``--spin-time``; ``pushbot.graph.wait_for_stable_graph``, the rule of every graph
 command).
 
 Exit codes: 0 success, 1 when the node is not in the graph, 2 for usage errors.
@@ -28,7 +28,7 @@ from pushbot.graph import (
 if TYPE_CHECKING:
     from rclpy.node import Node
 
-DEFAULT_SPIN_TIME = 6.0
+DEFAULT_SPIN_TIME = 10.0
 """Longest wait for discovery, seconds."""
 EXIT_USAGE = 2
 
@@ -39,8 +39,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     sub.required = True
     p = sub.add_parser('list', help='list the nodes in the graph',
                        description='List the fully qualified names of the nodes in the graph '
-                                   'once discovery has settled (at least 2.5 s, then nothing '
-                                   'new for 1.5 s).')
+                                   'once discovery has settled (at least 3 s, then nothing '
+                                   'new for 2 s).')
     p.add_argument('-a', '--all', action='store_true',
                    help='also hidden nodes (names starting with _), e.g. the CLI\'s own')
     p.add_argument('-c', '--count-nodes', action='store_true',

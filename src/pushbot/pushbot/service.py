@@ -1,7 +1,7 @@
 """``pushbot service``: the project's replacement for ``ros2 service`` (list, call).
 
 ``service list [-t]`` prints the services of the graph once discovery has settled (nothing new
-for 1.5 s after at least 2.5 s, ``pushbot.graph.wait_for_stable_graph``); ``service call
+for 2 s after at least 3 s, ``pushbot.graph.wait_for_stable_graph``); ``service call
 SERVICE TYPE [YAML]`` builds the request from YAML as ``ros2 service call`` does
 (``pushbot.messages``, the CLI's one message codec; type as ``pkg/srv/Type`` or ``pkg/Type``),
 waits for the server (at most ``--timeout``), calls it once and prints the response as YAML,
@@ -26,10 +26,16 @@ from pushbot.graph import (
     spin_until,
     wait_for_graph,
 )
-from pushbot.messages import MessageFieldError, message_from_yaml, message_to_dict, to_yaml
+from pushbot.messages import (
+    MessageFieldError,
+    message_from_yaml,
+    message_to_dict,
+    to_yaml,
+    zero_time,
+)
 
 DEFAULT_TIMEOUT = 10.0
-DEFAULT_SPIN_TIME = 6.0
+DEFAULT_SPIN_TIME = 10.0
 EXIT_USAGE = 2
 
 
@@ -39,7 +45,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     sub.required = True
     p = sub.add_parser('list', help='list the services in the graph',
                        description='List the services of the graph once discovery has '
-                                   'settled (at least 2.5 s, then nothing new for 1.5 s).')
+                                   'settled (at least 3 s, then nothing new for 2 s).')
     p.add_argument('-t', '--show-types', action='store_true', help='also print the types')
     p.add_argument('--spin-time', type=float, default=DEFAULT_SPIN_TIME,
                    help='longest wait for discovery in seconds (default: %(default)s)')
@@ -95,7 +101,7 @@ def cmd_call(args: argparse.Namespace) -> int:
     """``pushbot service call SERVICE TYPE [VALUES] [--timeout S]``."""
     try:
         service_class = import_service_class(args.type)
-        request = message_from_yaml(service_class.Request, args.values)
+        message_from_yaml(service_class.Request, args.values, now=zero_time)
     except (LookupError, MessageFieldError) as exc:
         print(f'pushbot service call: {exc}', file=sys.stderr)
         return EXIT_USAGE
@@ -106,6 +112,8 @@ def cmd_call(args: argparse.Namespace) -> int:
             print(f'pushbot service call: {str(exc).splitlines()[0]}', file=sys.stderr)
             return EXIT_USAGE
         name = client.srv_name
+        request = message_from_yaml(service_class.Request, args.values,
+                                    now=lambda: node.get_clock().now().to_msg())
         if not spin_until(executor, client.service_is_ready,
                           time.monotonic() + max(args.timeout, 0.0)):
             print(f'pushbot service call: service {name} is not available (waited '

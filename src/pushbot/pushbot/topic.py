@@ -3,8 +3,8 @@
 Built on rclpy graph introspection only (``get_topic_names_and_types``,
 ``get_publishers_info_by_topic``, ``get_subscriptions_info_by_topic``), since the PyPI install
 has no ``ros2`` CLI and no ``rosidl_runtime_py``. There is no daemon: each command starts a
-hidden node and waits until what it prints has stopped changing for 1.5 s, after at least
-2.5 s (``pushbot.graph.wait_for_stable_graph``, the rule of every graph command), bounded by
+hidden node and waits until what it prints has stopped changing for 2 s, after at least
+3 s (``pushbot.graph.wait_for_stable_graph``, the rule of every graph command), bounded by
 its timeout. ``pub`` takes YAML as ``ros2 topic pub`` does (``pushbot.messages``, the CLI's one
 message codec) and waits for matching subscriptions before the first message.
 
@@ -41,6 +41,7 @@ from pushbot.messages import (
     message_from_yaml,
     message_to_dict,
     to_yaml,
+    zero_time,
 )
 
 if TYPE_CHECKING:
@@ -49,7 +50,7 @@ if TYPE_CHECKING:
     from rclpy.topic_endpoint_info import TopicEndpointInfo
 
 DEFAULT_TIMEOUT = 10.0
-DEFAULT_SPIN_TIME = 6.0
+DEFAULT_SPIN_TIME = 10.0
 """Longest ``topic list`` waits for the graph to settle (an empty graph takes all of it)."""
 EXIT_USAGE = 2
 
@@ -61,7 +62,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     p = sub.add_parser('list', help='list the topics in the graph',
                        description='List the topics of the graph once discovery has settled '
-                                   '(at least 2.5 s, then nothing new for 1.5 s; at most '
+                                   '(at least 3 s, then nothing new for 2 s; at most '
                                    '--spin-time).')
     p.add_argument('-t', '--show-types', action='store_true', help='also print the types')
     p.add_argument('--spin-time', type=float, default=DEFAULT_SPIN_TIME,
@@ -99,10 +100,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     p = sub.add_parser('info', help='type, publishers and subscribers of a topic with their QoS',
                        description='Print the type of a topic and every endpoint with its QoS, '
-                                   'once its endpoints have not changed for 1.5 s (after at '
-                                   'least 2.5 s).')
+                                   'once its endpoints have not changed for 2 s (after at '
+                                   'least 3 s).')
     p.add_argument('topic')
-    p.add_argument('--timeout', type=float, default=5.0,
+    p.add_argument('--timeout', type=float, default=10.0,
                    help='seconds to wait for the topic to appear and its endpoints to settle '
                         '(default: %(default)s)')
     p.set_defaults(topic_handler=cmd_info)
@@ -111,13 +112,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         'pub', help='publish a message given as YAML',
         description='Publish a message to a topic, like ros2 topic pub: the type as '
                     'pkg/msg/Type or pkg/Type, the values as a YAML mapping (fields left out '
-                    'keep their defaults), e.g. pushbot topic pub goal_pose '
-                    'geometry_msgs/msg/PoseStamped "{header: {frame_id: world}, pose: '
-                    '{position: {x: 0.05}, orientation: {w: 1.0}}}" --once. Waits (at most '
-                    '--max-wait-time-secs) for --wait-matching-subscriptions subscriptions '
-                    'before the first message. The publisher is reliable and transient local, '
-                    'which matches every subscription (reliable or best effort, volatile or '
-                    'transient local).')
+                    'keep their defaults; a time field may be now, a header auto), e.g. '
+                    'pushbot topic pub goal_pose geometry_msgs/msg/PoseStamped "{header: '
+                    '{frame_id: world, stamp: now}, pose: {position: {x: 0.05}}}" --once. '
+                    'Waits (at most --max-wait-time-secs) for --wait-matching-subscriptions '
+                    'subscriptions before the first message. The publisher is reliable and '
+                    'transient local, which matches every subscription (reliable or best '
+                    'effort, volatile or transient local).')
     p.add_argument('topic')
     p.add_argument('type', help='message type, e.g. geometry_msgs/msg/PoseStamped')
     p.add_argument('values', nargs='?', default='',
@@ -374,7 +375,9 @@ def cmd_pub(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     try:
         message_class = import_message_class(args.type)
-        msg = message_from_yaml(message_class, args.values)
+        # Checked once before any ROS work; built again per message below, so that ``now``
+        # and ``auto`` stamps are the time of each message.
+        message_from_yaml(message_class, args.values, now=zero_time)
     except (LookupError, MessageFieldError) as exc:
         print(f'pushbot topic pub: {exc}', file=sys.stderr)
         return EXIT_USAGE
@@ -393,6 +396,8 @@ def cmd_pub(args: argparse.Namespace) -> int:
         next_time = time.monotonic()
         while total is None or sent < total:
             spin_until(executor, lambda: False, next_time)
+            msg = message_from_yaml(message_class, args.values,
+                                    now=lambda: node.get_clock().now().to_msg())
             publisher.publish(msg)
             sent += 1
             if not args.quiet:
