@@ -52,7 +52,6 @@ from pushbot.bag import BagError, open_reader, read_messages
 
 IMAGE = '/camera/color/image_raw'
 MONITOR = '/sim/monitor/image_raw'
-MONITOR_INFO = '/sim/monitor/camera_info'
 DEPTH = '/camera/aligned_depth_to_color/image_raw'
 MASK = '/perception/mask'
 CAMERA_INFO = '/camera/color/camera_info'
@@ -453,12 +452,15 @@ def _pad16(img: np.ndarray) -> np.ndarray:
 
 @dataclass
 class Rendered:
-    """What :func:`render_bag` wrote."""
+    """What :func:`render_bag` wrote: ``frames`` video frames (``monitor_frames`` of them from
+    the monitor), at ``fps``."""
 
     frames: int
     video: Path
     gif: Path | None
     plot: Path | None
+    monitor_frames: int = 0
+    fps: float = DEFAULT_FPS
 
 
 def render_bag(bag: Path, video: Path, *, gif: Path | None = None, plot: Path | None = None,
@@ -497,13 +499,14 @@ def render_bag(bag: Path, video: Path, *, gif: Path | None = None, plot: Path | 
     gif_frames: list[np.ndarray] = []
     stride = max(1, math.ceil(n_frames / GIF_MAX_FRAMES))
     box: tuple[int, int, int, int] | None = None
-    count = 0
+    count = monitored = 0
     writer = imageio.get_writer(video, format='FFMPEG', mode='I', fps=fps, codec='libx264',
                                 quality=7, macro_block_size=16, pixelformat='yuv420p')
     try:
         for i, (stamp, topic, rgb, mask) in enumerate(iter_frames(bag, schedule)):
             if topic == MONITOR:  # the camera's pose, intrinsics scaled: back to its size
                 rgb = _resize(rgb, size)
+                monitored += 1
             elif size is None or (rgb.shape[1], rgb.shape[0]) != size:
                 size = (rgb.shape[1], rgb.shape[0])
             if box is None and size is not None:
@@ -526,7 +529,7 @@ def render_bag(bag: Path, video: Path, *, gif: Path | None = None, plot: Path | 
         _write_gif(gif_frames, gif, 1000.0 * stride / fps)
     if plot is not None:
         plot = plot_estimate(ep, plot)
-    return Rendered(count, video, gif, plot)
+    return Rendered(count, video, gif, plot, monitored, fps)
 
 
 def _resize(rgb: np.ndarray, size: tuple[int, int] | None) -> np.ndarray:
