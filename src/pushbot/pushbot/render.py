@@ -80,7 +80,7 @@ MONITOR_SPEEDUP = 2.0
 #: the video waits for an earlier one (bounded memory); beyond it the awaited one is skipped.
 MAX_PENDING = 64
 #: Then the GIF's limits.
-GIF_MAX_FRAMES, GIF_WIDTH = 60, 360
+GIF_MAX_FRAMES, GIF_WIDTH, GIF_COLOURS = 60, 360, 96
 #: Extra space (m) around the poses, goal and pushes in the crop (an object's size).
 CROP_MARGIN = 0.08
 
@@ -489,7 +489,7 @@ def render_bag(bag: Path, video: Path, *, gif: Path | None = None, plot: Path | 
     schedule = ep.schedule()
     rate = ep.monitor_rate()
     if fps is None:
-        fps = DEFAULT_FPS if rate is None else min(120.0, MONITOR_SPEEDUP * rate)
+        fps = DEFAULT_FPS if rate is None else min(120.0, round(MONITOR_SPEEDUP * rate, 3))
     # What the graph had published before the next video frame came in is drawn on a frame.
     until = {(f[0], f[2]): max(f[1], nxt[1]) for f, nxt in itertools.pairwise(schedule)}
     n_frames = len(schedule)
@@ -553,6 +553,9 @@ def _imageio() -> Any:
 
 
 def _write_gif(frames: list[np.ndarray], path: Path, frame_ms: float) -> None:
+    """The GIF: frames scaled to :data:`GIF_WIDTH`, one palette of :data:`GIF_COLOURS` for all
+    (from a few frames spread over the episode), each frame stored as its change to the
+    previous one (``disposal=1``): consecutive monitor frames differ only where things move."""
     from PIL import Image
 
     images = []
@@ -561,9 +564,14 @@ def _write_gif(frames: list[np.ndarray], path: Path, frame_ms: float) -> None:
         scale = GIF_WIDTH / im.width
         images.append(im.resize((GIF_WIDTH, max(1, int(im.height * scale))),
                                 Image.Resampling.LANCZOS))
+    picks = np.unique(np.linspace(0, len(images) - 1, min(6, len(images))).round().astype(int))
+    sample = Image.fromarray(np.vstack([np.asarray(images[i]) for i in picks]))
+    palette = sample.quantize(colors=GIF_COLOURS, method=Image.Quantize.MEDIANCUT,
+                              dither=Image.Dither.NONE)
+    images = [im.quantize(palette=palette, dither=Image.Dither.NONE) for im in images]
     durations = [int(frame_ms)] * (len(images) - 1) + [2500]
     images[0].save(path, save_all=True, append_images=images[1:], duration=durations, loop=0,
-                   disposal=2)
+                   disposal=1)
 
 
 def plot_estimate(ep: Episode, path: Path) -> Path | None:
