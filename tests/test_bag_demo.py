@@ -118,3 +118,15 @@ def test_demo_bag_plays_back_to_topic_echo(demo_out) -> None:
     assert f'published {record["steps"]} messages' in play.stdout
     assert echo.returncode == 0, echoed
     assert echoed.count('frame_id: world') >= record['steps'], echoed
+
+
+@pytest.mark.parametrize('value', ['-1', 'nan', '61'])
+def test_demo_rejects_a_bad_monitor_rate_before_starting_anything(value: str,
+                                                                  tmp_path: Path) -> None:
+    result = subprocess.run([PUSHBOT, 'demo', '--skip-doctor', '--monitor-rate', value,
+                             '--out', str(tmp_path)], capture_output=True, text=True,
+                            timeout=60)
+    assert result.returncode == 2
+    assert '--monitor-rate must be in [0, 60] Hz' in result.stderr
+    assert result.stderr.count('\n') == 1
+    assert not (tmp_path / 'graph_logs').exists()  # no node was started
