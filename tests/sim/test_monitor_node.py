@@ -104,3 +104,35 @@ def test_the_bridge_publishes_monitor_frames_during_a_push(ros_context: Any) -> 
     # Over DDS (best effort): what arrived is what was sent.
     got = [seconds_from_stamp(m.header.stamp) for k, m in received if k == "monitor"]
     assert got and set(got) <= set(stamps.tolist())
+
+
+def test_a_failing_monitor_publish_does_not_stop_the_push(ros_context: Any) -> None:
+    """The monitor is a side stream: its publisher failing (here on every frame) is logged,
+    and the push still runs to its end, is counted and reported on pusher/executed."""
+    node = SimBridgeNode(node_name="monitor_fail_sim_bridge_node", context=ros_context,
+                         parameter_overrides=OVERRIDES)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    executed: list[Path] = []
+    attempts: list[Image] = []
+
+    def broken(msg: Image) -> None:
+        attempts.append(msg)
+        raise RuntimeError("publisher gone")
+
+    try:
+        node._pub_monitor.publish = broken
+        _spy(node._pub_executed, executed)
+        before = node._world.object_pose()
+        node.on_push(push_path((-HALF - 0.02, 0.0), (-HALF, 0.0), (-HALF + 0.03, 0.0),
+                               stamp_seconds=0.0, speed=0.02))
+        assert spin_until(executor, lambda: bool(executed), time.monotonic() + 60.0)
+        after = node._world.object_pose()
+        counts = dict(node._counts)
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+    assert len(attempts) > 10  # every frame was tried, none stopped the physics
+    assert counts["pushes_executed"] == 1 and counts["pushes_failed"] == 0
+    assert counts["callback_errors"] == 0
+    assert 0.02 < after[0] - before[0] < 0.045  # pushed: axis 30 mm past the face, + radius

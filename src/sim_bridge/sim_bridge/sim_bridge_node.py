@@ -748,12 +748,17 @@ class SimBridgeNode(Node):
         return out
 
     def _publish_monitor(self, frame: Frame) -> None:
-        """Publish one monitor frame (worker thread, during a push; module docstring)."""
-        stamp = stamp_from_seconds(self._epoch + float(frame.stamp))
-        height, width = frame.rgb.shape[:2]
-        self._publish_safely(self._pub_monitor, rgb_image_msg(frame.rgb, stamp))
-        self._publish_safely(self._pub_monitor_info,
-                             camera_info_msg(frame.camera_matrix, width, height, stamp))
+        """Publish one monitor frame (worker thread, during a push; module docstring). Never
+        raises: an exception here would stop the physics in the middle of the push."""
+        try:
+            stamp = stamp_from_seconds(self._epoch + float(frame.stamp))
+            height, width = frame.rgb.shape[:2]
+            self._publish_safely(self._pub_monitor, rgb_image_msg(frame.rgb, stamp))
+            self._publish_safely(self._pub_monitor_info,
+                                 camera_info_msg(frame.camera_matrix, width, height, stamp))
+        except Exception as exc:  # e.g. the context shut down meanwhile: the push goes on
+            self._log_limited("monitor", f"monitor frame not published: "
+                                         f"{type(exc).__name__}: {exc}", warning=True)
 
     def _count(self, counter: str) -> None:
         with self._lock:

@@ -459,7 +459,9 @@ class PushWorld:
             the monitor.
         on_frame : callable, optional
             Receives each monitor :class:`Frame` (rgb (h, w, 3) uint8, depth, mask, stamp,
-            the monitor's K; same ``T_world_camera``), in the worker's thread, in time order.
+            the monitor's K; same ``T_world_camera``), in the caller's thread, in time order.
+            It must not raise: an exception propagates out of the physics loop and leaves the
+            push unfinished (the pusher down), like any other exception there.
 
         Returns
         -------
