@@ -8,13 +8,20 @@ and the renderer's speed.
    once the recorder's subscriptions are matched and the recorder is stopped with SIGINT
    after the reliable stream is acknowledged. Reported: images recorded / published, poses
    recorded / published, bag size, the recorder's CPU time (user + system) per second.
-2. **Demo bag and renderer.** ``pushbot demo --skip-doctor`` once: the bag's size, messages
-   and topics, then ``pushbot.render.render_bag`` on it timed (ms per video frame), MP4 and GIF
-   sizes.
+2. **Demo bag and renderer.** ``pushbot demo --skip-doctor`` (the bridge's monitor on at the
+   demo's default 10 Hz of sim time): the bag's size, messages and topics, then
+   ``pushbot.render.render_bag`` on it timed (ms per video frame), MP4 and GIF sizes.
+3. **What the monitor costs.** The same demo with ``--monitor-rate 10`` (default) and
+   ``--monitor-rate 0`` (camera frames only), alternating, ``--demo-runs`` times each: the
+   demo process's wall time (start to exit: graph, episode, recording, rendering), the
+   episode's wall time (goal to end),
+   the MP4's frame count and duration (``imageio_ffmpeg.count_frames_and_secs``), the render
+   time and the MP4 / GIF sizes. The first monitored run is part 2's.
 
 Usage::
 
-    .venv/bin/python benchmarks/bench_record.py [--rates 5 15 30] [--seconds 10] [--no-write]
+    .venv/bin/python benchmarks/bench_record.py [--rates 5 15 30] [--seconds 10]
+        [--demo-runs 2] [--no-write]
 """
 
 from __future__ import annotations
@@ -23,6 +30,7 @@ import argparse
 import json
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -108,14 +116,20 @@ def record_rate(rate: float, seconds: float, tmp: Path) -> dict[str, float]:
             "mb": _dir_size(bag) / 1e6, "cpu_per_s": cpu / seconds}
 
 
-def demo_bag(tmp: Path) -> dict[str, float]:
-    """Run the demo once; measure its bag and the renderer."""
+def demo_bag(tmp: Path, monitor_rate: float = 10.0) -> dict[str, float]:
+    """Run the demo once; measure its bag, the renderer and the MP4."""
+    import imageio_ffmpeg
+
     from pushbot.bag import open_reader
     from pushbot.render import render_bag
 
-    out = tmp / "demo"
-    result = subprocess.run([PUSHBOT, "demo", "--skip-doctor", "--out", str(out)],
+    out = tmp / f"demo_{monitor_rate:g}"
+    shutil.rmtree(out, ignore_errors=True)
+    started = time.perf_counter()
+    result = subprocess.run([PUSHBOT, "demo", "--skip-doctor", "--out", str(out),
+                             "--monitor-rate", str(monitor_rate)],
                             capture_output=True, text=True, timeout=600)
+    demo_wall = time.perf_counter() - started
     if result.returncode != 0:
         raise RuntimeError(result.stdout[-2000:] + result.stderr[-2000:])
     bag = out / "episode_bag"
@@ -126,16 +140,22 @@ def demo_bag(tmp: Path) -> dict[str, float]:
     done = render_bag(bag, tmp / "r.mp4", gif=tmp / "r.gif", plot=tmp / "r.png",
                       start=min(record["frame_stamps"]))
     wall = time.perf_counter() - t
+    mp4_frames, mp4_s = imageio_ffmpeg.count_frames_and_secs(str(out / "episode.mp4"))
     return {"steps": record["steps"], "mb": _dir_size(bag) / 1e6, "messages": messages,
             "topics": topics, "frames": done.frames, "render_s": wall,
-            "mp4_kb": done.video.stat().st_size / 1e3, "gif_kb": done.gif.stat().st_size / 1e3}
+            "mp4_kb": done.video.stat().st_size / 1e3, "gif_kb": done.gif.stat().st_size / 1e3,
+            "monitor_rate": monitor_rate, "monitor_frames": done.monitor_frames,
+            "fps": done.fps, "demo_wall_s": demo_wall,
+            "episode_wall_s": record["wall_s"], "mp4_frames": mp4_frames, "mp4_s": mp4_s}
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rates", type=float, nargs="+", default=[5.0, 15.0, 30.0])
     parser.add_argument("--seconds", type=float, default=10.0)
-    parser.add_argument("--no-demo", action="store_true", help="skip part 2")
+    parser.add_argument("--no-demo", action="store_true", help="skip parts 2 and 3")
+    parser.add_argument("--demo-runs", type=int, default=2,
+                        help="demo runs with and without the monitor each (part 3)")
     parser.add_argument("--no-write", action="store_true", help="do not update docs/RESULTS.md")
     args = parser.parse_args(argv)
     from pushbot import dds
@@ -153,7 +173,9 @@ def main(argv: list[str] | None = None) -> int:
                         f"{r['poses_rec']} / {r['poses']} | {r['mb']:.1f} | "
                         f"{r['mb'] / args.seconds:.1f} | {r['cpu_per_s']:.2f} |")
             print(rows[-1], flush=True)
-        demo = None if args.no_demo else demo_bag(tmp)
+        runs = [] if args.no_demo else [demo_bag(tmp, rate) for _ in range(args.demo_runs)
+                                         for rate in (10.0, 0.0)]
+        demo = runs[0] if runs else None
     body = (f"Part 1: {args.seconds:g} s per row, random 640x480 rgb8 images (best effort) "
             "and a reliable 100 Hz PoseStamped stream from this process to `pushbot bag "
             "record` (own process, zstd-compressed MCAP chunks; random pixels are the worst case "
@@ -167,6 +189,20 @@ def main(argv: list[str] | None = None) -> int:
                 f"({1e3 * demo['render_s'] / max(1, demo['frames']):.0f} ms per frame, plot "
                 f"included); MP4 {demo['mp4_kb']:.0f} kB, GIF {demo['gif_kb']:.0f} kB.\n")
         body += line
+        body += ("\nPart 3: the monitor's cost, the same demo with the bridge's monitor at 10 Hz "
+                 "of sim time (320x240, the video shows the pushes) and off (camera frames "
+                 f"only), alternating, {args.demo_runs} runs each (machine shared; load "
+                 f"average {os.getloadavg()[0]:.1f} at the end).\n\n"
+                 "| monitor Hz | pushes | demo process wall s | episode wall s | video frames "
+                 "(camera + monitor) | MP4 frames | MP4 s (fps) | render s | MP4 kB | GIF kB |\n"
+                 "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n")
+        for r in sorted(runs, key=lambda r: -r["monitor_rate"]):
+            body += (f"| {r['monitor_rate']:g} | {r['steps']} | {r['demo_wall_s']:.1f} | "
+                     f"{r['episode_wall_s']:.1f} | {r['frames']} "
+                     f"({r['frames'] - r['monitor_frames']} + {r['monitor_frames']}) | "
+                     f"{r['mp4_frames']} | {r['mp4_s']:.1f} "
+                     f"({r['fps']:g}) | {r['render_s']:.1f} | {r['mp4_kb']:.0f} | "
+                     f"{r['gif_kb']:.0f} |\n")
     print(body)
     if not args.no_write:
         cmd = "python benchmarks/bench_record.py " + " ".join(sys.argv[1:] if argv is None

@@ -1,7 +1,9 @@
 """The demo's recording (issue 14 acceptance): ``pushbot demo`` writes an MCAP bag of its
 episode that reads back with ``rosbags`` (topics, types, counts consistent with the episode
-record), a video with one frame per camera frame of the episode, and ``pushbot bag play``
-republishes it so that ``pushbot topic echo`` sees it. One demo run (~15-20 s) for all.
+record), a video with one frame per camera frame of the episode and one per monitor frame of
+the bridge (on in the demo: rendered during the pushes, so the video has more frames than
+camera frames), and ``pushbot bag play`` republishes it so that ``pushbot topic echo`` sees
+it. One demo run (~15-20 s) for all.
 """
 
 from __future__ import annotations
@@ -32,6 +34,8 @@ EXPECTED = {
     '/pusher/executed': 'nav_msgs/msg/Path',
     '/sim/object_pose': 'geometry_msgs/msg/PoseStamped',
     '/clock': 'rosgraph_msgs/msg/Clock',
+    '/sim/monitor/image_raw': 'sensor_msgs/msg/Image',
+    '/sim/monitor/camera_info': 'sensor_msgs/msg/CameraInfo',
 }
 
 
@@ -69,7 +73,7 @@ def test_demo_bag_reads_back_with_rosbags(demo_out) -> None:
             pytest.approx(push[1], abs=1e-9)
 
 
-def test_demo_video_has_every_episode_frame(demo_out) -> None:
+def test_demo_video_has_every_episode_frame_and_the_pushes(demo_out) -> None:
     import imageio_ffmpeg
     from rclpy.serialization import deserialize_message
     from rosbags.rosbag2 import Reader
@@ -77,15 +81,21 @@ def test_demo_video_has_every_episode_frame(demo_out) -> None:
 
     out, record = demo_out
     start = min(record['frame_stamps'])
+    stamps: dict[str, set[float]] = {'/camera/color/image_raw': set(),
+                                     '/sim/monitor/image_raw': set()}
     with Reader(out / 'episode_bag') as reader:
-        conns = [c for c in reader.connections if c.topic == '/camera/color/image_raw']
-        stamps = set()
-        for _, _, data in reader.messages(conns):
+        conns = [c for c in reader.connections if c.topic in stamps]
+        for conn, _, data in reader.messages(conns):
             s = deserialize_message(bytes(data), Image).header.stamp
-            stamps.add(s.sec + 1e-9 * s.nanosec)
-    frames = sum(1 for s in stamps if s >= start - 1e-9)
-    assert frames >= record['steps'] - record['refused'] + 1
-    assert imageio_ffmpeg.count_frames_and_secs(str(out / 'episode.mp4'))[0] == frames
+            stamps[conn.topic].add(s.sec + 1e-9 * s.nanosec)
+    camera = {s for s in stamps['/camera/color/image_raw'] if s >= start - 1e-9}
+    monitor = {s for s in stamps['/sim/monitor/image_raw'] if s >= start - 1e-9} - camera
+    assert len(camera) >= record['steps'] - record['refused'] + 1
+    # The bridge's monitor frames come during the pushes (10 Hz of sim time; a push of a few
+    # cm at 20 mm/s lasts seconds): the video shows the pusher move the object.
+    assert monitor and min(monitor) > min(camera)
+    video_frames = imageio_ffmpeg.count_frames_and_secs(str(out / 'episode.mp4'))[0]
+    assert video_frames == len(camera) + len(monitor) > len(camera)
     assert (out / 'episode.gif').stat().st_size > 0
     assert (out / 'episode_estimate.png').stat().st_size > 10_000
 
@@ -108,3 +118,15 @@ def test_demo_bag_plays_back_to_topic_echo(demo_out) -> None:
     assert f'published {record["steps"]} messages' in play.stdout
     assert echo.returncode == 0, echoed
     assert echoed.count('frame_id: world') >= record['steps'], echoed
+
+
+@pytest.mark.parametrize('value', ['-1', 'nan', '61'])
+def test_demo_rejects_a_bad_monitor_rate_before_starting_anything(value: str,
+                                                                  tmp_path: Path) -> None:
+    result = subprocess.run([PUSHBOT, 'demo', '--skip-doctor', '--monitor-rate', value,
+                             '--out', str(tmp_path)], capture_output=True, text=True,
+                            timeout=60)
+    assert result.returncode == 2
+    assert '--monitor-rate must be in [0, 60] Hz' in result.stderr
+    assert result.stderr.count('\n') == 1
+    assert not (tmp_path / 'graph_logs').exists()  # no node was started

@@ -4,11 +4,14 @@ The bag holds real CDR (``rclpy.serialization`` of messages built with the ``pus
 codecs the nodes use), written with ``rosbags`` as ``pushbot bag record`` writes it: small
 160 x 120 camera frames (one repeated with the same stamp, as the bridge repeats idle frames),
 a mask per frame, camera info, extrinsics, the outline, estimates, ground truth, a goal, a push
-and affordance markers. No ROS graph is needed (the renderer only reads files).
+and affordance markers; optionally the simulator's monitor frames (80 x 60, dark blue, 4 Hz of
+sim time between the camera frames, one of them received late). No ROS graph is needed (the
+renderer only reads files).
 """
 
 from __future__ import annotations
 
+import itertools
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +22,10 @@ from pushbot.render import GOAL_RGB
 
 #: Distinct camera stamps (s); the second frame is published twice.
 STAMPS = (10.0, 11.0, 11.0, 12.5, 14.0)
+#: Monitor frames: every 0.25 s of sim time after each new camera frame up to the next one (the
+#: one at the next camera frame's stamp is left out of the video: the camera frame shows it).
+MONITOR_PERIOD = 0.25
+MONITOR_RGB = (30, 30, 120)
 
 
 def _square(half: float = 0.03) -> tuple[np.ndarray, np.ndarray]:
@@ -50,7 +57,15 @@ def _markers(pts_world: np.ndarray, stamp):
     return MarkerArray(markers=[outline, cand])
 
 
-def write_episode_bag(path: Path, *, with_extrinsics: bool = True) -> int:
+def monitor_stamps() -> list[float]:
+    """Stamps of the monitor frames of :func:`write_episode_bag` (``with_monitor``)."""
+    distinct = sorted(set(STAMPS))
+    return [float(a + MONITOR_PERIOD * m) for a, b in itertools.pairwise(distinct)
+            for m in range(1, round((b - a) / MONITOR_PERIOD) + 1)]
+
+
+def write_episode_bag(path: Path, *, with_extrinsics: bool = True,
+                      with_monitor: bool = False) -> int:
     """Write the synthetic episode; returns the number of distinct camera frames."""
     from rclpy.serialization import serialize_message
     from rosbags.rosbag2 import StoragePlugin, Writer
@@ -97,9 +112,21 @@ def write_episode_bag(path: Path, *, with_extrinsics: bool = True) -> int:
         messages.append(('/planner/push', push_path(world[5] - [0, 0.02], world[5],
                                                     world[5] + [0, 0.02], stamp_s, 0.05),
                          t + 0.2))
+        later = [m for m in monitor_stamps() if stamp_s < m <= stamp_s + 1.5] \
+            if with_monitor and stamp_s not in STAMPS[:i] else []
+        for j, m in enumerate(later):  # pushing: after the push, before the next frame
+            m_stamp = stamp_from_seconds(m)
+            small = np.full((60, 80, 3), MONITOR_RGB, dtype=np.uint8)
+            # The last one of the episode arrives after the camera frame that follows it.
+            late = m == monitor_stamps()[-1]
+            messages.append(('/sim/monitor/image_raw', rgb_image_msg(small, m_stamp),
+                             t + (1.02 if late else 0.3 + 0.05 * j)))
+            k_small = np.diag([0.5, 0.5, 1.0]) @ k
+            messages.append(('/sim/monitor/camera_info',
+                             camera_info_msg(k_small, 80, 60, m_stamp), t + 0.3 + 0.05 * j))
     with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
         conns = {}
-        for topic, msg, t in messages:
+        for topic, msg, t in sorted(messages, key=lambda m: m[2]):
             if topic not in conns:
                 msgtype = type(msg).__module__.split('.')[0] + '/msg/' + type(msg).__name__
                 msgdef, rihs01 = message_definition(msgtype)
@@ -159,3 +186,34 @@ def test_replay_bad_input(argv: list[str], message: str, capsys) -> None:
     assert cli.main(argv) == 2
     err = capsys.readouterr().err
     assert message in err and err.count('\n') == 1
+
+
+def test_replay_merges_monitor_frames_in_time_order(tmp_path: Path, capsys) -> None:
+    """Camera + monitor frames, each once, in stamp order (the late one waits its turn), at
+    2 x the monitor rate; monitor frames are scaled to the camera's size and drawn on."""
+    import imageio.v2 as imageio
+
+    from pushbot.render import MONITOR_SPEEDUP, PUSH_RGB
+
+    bag = tmp_path / 'monitored'
+    cameras = write_episode_bag(bag, with_monitor=True)
+    stamps = sorted([(s, 'camera') for s in set(STAMPS)]
+                    + [(s, 'monitor') for s in monitor_stamps() if s not in STAMPS])
+    assert len(stamps) == cameras + 13  # 4 + 6 + 6 monitor frames, 3 at camera stamps
+    out = tmp_path / 'monitored.mp4'
+    assert cli.main(['replay', str(bag), '-o', str(out), '--gif']) == 0
+    assert f'rendered {len(stamps)} frames' in capsys.readouterr().out
+    with imageio.get_reader(out) as reader:
+        fps = reader.get_meta_data()['fps']
+        frames = [f for f in reader]
+    assert fps == pytest.approx(MONITOR_SPEEDUP / MONITOR_PERIOD)
+    assert len({f.shape for f in frames}) == 1
+    kinds = []
+    for f in frames:  # below the 30 px time bar, above the legend: grey camera, blue monitor
+        body = f[40:-60].reshape(-1, 3).astype(float)
+        kinds.append('monitor' if np.median(body[:, 1]) < 100 else 'camera')
+    assert kinds == [k for _, k in stamps]
+    # The push arrow (cyan) is drawn on the monitor frames too.
+    first_monitor = frames[kinds.index('monitor')].astype(int)
+    assert (np.abs(first_monitor - np.asarray(PUSH_RGB)).sum(axis=-1) < 90).sum() > 20
+    assert (tmp_path / 'monitored.gif').is_file()

@@ -15,10 +15,13 @@
 5. Under ``--out`` (default ``out/demo``): ``episode_bag/`` (a rosbag2 folder in MCAP
    storage, :mod:`pushbot.bag`, of every topic of the graph from just before the episode to
    its end, except the raw depth images: 1.2 MB each, ``--record-depth`` keeps
-   them), ``episode.mp4`` (every camera frame of the recording with the perception mask, the
-   perceived outline at the estimate, the affordance colouring, the chosen push, the goal and
-   a legend: :mod:`pushbot.render`, the renderer of ``pushbot replay``), ``episode.gif`` (the
-   same, at most 60 frames, smaller), ``episode_estimate.png`` (estimate vs ground truth over
+   them), ``episode.mp4`` (every camera frame of the recording and, merged in time order, the
+   bridge's monitor frames rendered during each push (``sim/monitor/image_raw``, turned on
+   at ``--monitor-rate`` Hz of sim time, 320 x 240), so the pusher is seen moving the object;
+   with the perception mask, the perceived outline at the estimate, the affordance colouring,
+   the chosen push, the goal and a legend: :mod:`pushbot.render`, the renderer of ``pushbot
+   replay``; it runs at twice sim time during pushes), ``episode.gif`` (the same, at most 60
+   frames, smaller), ``episode_estimate.png`` (estimate vs ground truth over
    time), ``trajectory.png`` (true and estimated poses, goal, pushes; top view),
    ``episode.json`` (the episode record of docs/ARCHITECTURE.md) and the node logs
    (``graph_logs/``). ``--no-record`` skips the recording and the video.
@@ -58,6 +61,7 @@ from pushbot.render import (
     GOAL,
     IMAGE,
     MASK,
+    MONITOR,
     OUTLINE,
     PUSH,
     STATUS,
@@ -72,6 +76,8 @@ from pushbot.render import (
 EXIT_INTERRUPTED = 130
 #: Seconds the recording waits for the graph's topics before the episode starts.
 RECORD_START_TIMEOUT = 20.0
+#: The bridge's monitor stream for the video: Hz of sim time, image size (px).
+MONITOR_RATE, MONITOR_SIZE = 10.0, (320, 240)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -104,6 +110,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help='do not record the episode bag nor render the video')
     parser.add_argument('--record-depth', action='store_true',
                         help='also record the raw depth images (about 1.2 MB per frame)')
+    parser.add_argument('--monitor-rate', type=float, default=MONITOR_RATE, metavar='HZ',
+                        help='frames per second of sim time the bridge renders during each '
+                        'push for the video (sim/monitor/image_raw, 320 x 240); 0 = off, '
+                        'the video then has the camera frames only (default %(default)s; '
+                        'off with --no-record)')
     doctor = parser.add_argument_group('doctor options (the check run before the demo)')
     add_doctor_arguments(doctor)
 
@@ -127,6 +138,10 @@ def run_demo(args: argparse.Namespace) -> int:
         print(f'pushbot demo: --pause must be a finite number of seconds >= 0, got '
               f'{args.pause}', file=sys.stderr)
         return 2
+    if not (math.isfinite(args.monitor_rate) and 0.0 <= args.monitor_rate <= 60.0):
+        print(f'pushbot demo: --monitor-rate must be in [0, 60] Hz, got {args.monitor_rate}',
+              file=sys.stderr)
+        return 2
     if not args.skip_doctor:
         status = run_doctor(args)
         if status != 0:
@@ -143,7 +158,8 @@ def run_demo(args: argparse.Namespace) -> int:
           f'{out / "graph_logs"})', flush=True)
     bag_dir = out / 'episode_bag'
     try:
-        with sigterm_as_keyboard_interrupt(), GraphRunner(log_dir=out / 'graph_logs') as graph:
+        with sigterm_as_keyboard_interrupt(), GraphRunner(
+                log_dir=out / 'graph_logs', node_args=_bridge_args(args)) as graph:
             t_ready = time.monotonic()
             if args.pause > 0.0:
                 print(f'graph up after {t_ready - started:.1f} s; pausing {args.pause:g} s '
@@ -175,7 +191,8 @@ def run_demo(args: argparse.Namespace) -> int:
                               plot=out / 'episode_estimate.png', start=start)
             files += [done.video, done.gif, done.plot]
             outline = load_episode(bag_dir).outline
-            print(f'rendered {done.frames} camera frames', flush=True)
+            print(f'rendered {done.frames} video frames ({done.frames - done.monitor_frames} '
+                  f'camera, {done.monitor_frames} monitor) at {done.fps:g} fps', flush=True)
         except (BagError, RenderError) as exc:
             print(f'pushbot demo: no video: {exc}', file=sys.stderr)
     plot = out / 'trajectory.png'
@@ -184,9 +201,19 @@ def run_demo(args: argparse.Namespace) -> int:
     return 0
 
 
-#: Topics the demo's recording must have subscribed before the episode starts.
+#: Topics the demo's recording must have subscribed before the episode starts (the bridge
+#: always offers the monitor topic; it carries frames only when the monitor is on).
 RECORDED_TOPICS = (IMAGE, MASK, CAMERA_INFO, EXTRINSICS, OUTLINE, ESTIMATE, GOAL, PUSH,
-                   AFFORDANCES, STATUS, TRUTH)
+                   AFFORDANCES, STATUS, TRUTH, MONITOR)
+
+
+def _bridge_args(args: argparse.Namespace) -> dict[str, list[str]]:
+    """The bridge's monitor parameters for the video (none with ``--no-record``)."""
+    if args.no_record or args.monitor_rate <= 0.0:
+        return {}
+    width, height = MONITOR_SIZE
+    return {'sim_bridge_node': [f'monitor.rate:={float(args.monitor_rate)}',
+                                f'monitor.width:={width}', f'monitor.height:={height}']}
 
 
 @contextmanager

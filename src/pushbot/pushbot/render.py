@@ -1,10 +1,14 @@
 """The episode renderer of ``pushbot replay`` and ``pushbot demo``: a recorded bag -> video.
 
-One video frame per distinct camera frame (``camera/color/image_raw``, one per header stamp;
-the bridge repeats frames of a static scene while idle, those add nothing), drawn with what
-the graph had published by the time the next new frame arrived (bag receive times):
+The video frames are the distinct camera frames (``camera/color/image_raw``, one per header
+stamp; the bridge repeats frames of a static scene while idle, those add nothing) and, when
+the bag holds them, the simulator's *monitor* frames (``sim/monitor/image_raw``: rendered
+during each push at a fixed sim-time rate, the pusher visible; sim_bridge_node), merged in
+header-stamp order, each shown once. Each is drawn with what the graph had published by the
+time the next video frame arrived (bag receive times):
 
-- the perception mask of that frame (``perception/mask``, same stamp), tinted green;
+- the perception mask of that frame (``perception/mask``, same stamp; camera frames only),
+  tinted green;
 - the perceived outline (``perception/outline``, object frame) at the latest estimate
   (``estimator/object_pose``), yellow;
 - the affordance colouring of the outline (``planner/affordances``, marker ``planner/outline``:
@@ -12,6 +16,15 @@ the graph had published by the time the next new frame arrived (bag receive time
 - the chosen push (``planner/push``: approach -> end arrow, contact dot), cyan;
 - the goal (``goal_pose``): the perceived outline at the goal pose, magenta;
 - a top bar with the time since the first frame and the planner's status, a legend below.
+
+Frame rate: without monitor frames :data:`DEFAULT_FPS` (the simulated camera has no fixed
+rate: one new frame per reset and per push), so each is shown 0.5 s. With them,
+:data:`MONITOR_SPEEDUP` times the monitor rate (the median stamp spacing of the monitor
+frames): the video then runs at ``MONITOR_SPEEDUP`` x sim time during pushes, i.e. it lasts
+the pushes' sim duration / ``MONITOR_SPEEDUP`` (plus one frame per camera frame; sim time
+stands still between pushes). A monitor frame has the camera's pose and intrinsics scaled to
+its size (the bridge's contract), so it is resized to the camera's size and drawn like a
+camera frame.
 
 Frames are cropped to the region of the poses, goal and pushes and scaled to at least 480 px
 wide. Topic names are the graph's defaults (README topic table), absolute. Decoding uses the
@@ -38,6 +51,7 @@ import numpy as np
 from pushbot.bag import BagError, open_reader, read_messages
 
 IMAGE = '/camera/color/image_raw'
+MONITOR = '/sim/monitor/image_raw'
 DEPTH = '/camera/aligned_depth_to_color/image_raw'
 MASK = '/perception/mask'
 CAMERA_INFO = '/camera/color/camera_info'
@@ -56,11 +70,17 @@ OUTLINE_RGB = (255, 220, 0)
 GOAL_RGB = (255, 40, 200)
 PUSH_RGB = (0, 200, 255)
 CANDIDATE_RGB = (25, 75, 255)
-#: Frames per second of the video: one video frame per camera frame, and the simulated camera
-#: has no fixed rate (one new frame per reset and per push; idle repeats have the old stamp),
-#: so each is shown 0.5 s. Then the GIF's limits.
+#: Frames per second of the video without monitor frames: one video frame per camera frame,
+#: and the simulated camera has no fixed rate (one new frame per reset and per push; idle
+#: repeats have the old stamp), so each is shown 0.5 s.
 DEFAULT_FPS = 2.0
-GIF_MAX_FRAMES, GIF_WIDTH = 60, 360
+#: With monitor frames the video runs at this multiple of sim time (fps = this x their rate).
+MONITOR_SPEEDUP = 2.0
+#: At most this many frames that arrived ahead of their turn (stamp order) are held back while
+#: the video waits for an earlier one (bounded memory); beyond it the awaited one is skipped.
+MAX_PENDING = 64
+#: Then the GIF's limits.
+GIF_MAX_FRAMES, GIF_WIDTH, GIF_COLOURS = 60, 360, 96
 #: Extra space (m) around the poses, goal and pushes in the crop (an object's size).
 CROP_MARGIN = 0.08
 
@@ -91,7 +111,24 @@ class Episode:
         default_factory=list)
     status: list[tuple[float, str]] = field(default_factory=list)
     frame_times: list[tuple[float, float]] = field(default_factory=list)  # (stamp, first t)
+    monitor_times: list[tuple[float, float]] = field(default_factory=list)  # (stamp, t)
+    image_size: tuple[int, int] | None = None  # camera (width, height) from camera_info
     skipped: dict[str, int] = field(default_factory=dict)
+
+    def schedule(self) -> list[tuple[float, float, str]]:
+        """The video frames ``(stamp, receive time, topic)`` in stamp order: every camera
+        frame and every monitor frame whose stamp no camera frame has (camera first)."""
+        camera = {stamp for stamp, _ in self.frame_times}
+        frames = [(s, t, IMAGE) for s, t in self.frame_times]
+        frames += [(s, t, MONITOR) for s, t in self.monitor_times if s not in camera]
+        return sorted(frames, key=lambda f: (f[0], f[2] != IMAGE))
+
+    def monitor_rate(self) -> float | None:
+        """Monitor frames per second of sim time (median stamp spacing), None without."""
+        stamps = np.array(sorted(s for s, _ in self.monitor_times))
+        steps = np.diff(stamps)
+        steps = steps[steps > 0]
+        return float(1.0 / np.median(steps)) if len(steps) else None
 
 
 def _decode(data: bytes, msgtype: str) -> Any:
@@ -133,8 +170,12 @@ def load_episode(bag: Path, start: float = -math.inf) -> Episode:
     from push_ros.stamps import seconds_from_stamp
 
     ep = Episode()
+    def on_info(m: Any, t: float) -> None:
+        ep.camera_matrix = camera_matrix_from_info(m)
+        ep.image_size = (int(m.width), int(m.height))
+
     handlers = {
-        CAMERA_INFO: lambda m, t: setattr(ep, 'camera_matrix', camera_matrix_from_info(m)),
+        CAMERA_INFO: on_info,
         EXTRINSICS: lambda m, t: setattr(ep, 't_world_camera', matrix_from_transform(m)),
         OUTLINE: lambda m, t: setattr(ep, 'outline', outline_from_cloud(m)[0]),
         GOAL: lambda m, t: ep.goals.append((t, xytheta(m.pose))),
@@ -159,16 +200,19 @@ def load_episode(bag: Path, start: float = -math.inf) -> Episode:
                 handlers[conn.topic](_decode(data, conn.msgtype), t_ns / 1e9)
             except (ValueError, LookupError):  # a message the codecs refuse: count, go on
                 ep.skipped[conn.topic] = ep.skipped.get(conn.topic, 0) + 1
-        images = [c for c in reader.connections if c.topic == IMAGE]
-        seen: set[float] = set()
+        images = [c for c in reader.connections if c.topic in (IMAGE, MONITOR)]
+        seen: set[tuple[str, float]] = set()
         for conn, t_ns, data in read_messages(reader, images):
             try:
                 stamp = _image_stamp(data, conn.msgtype)
             except ValueError:
                 continue
-            if stamp not in seen and stamp >= start:
-                seen.add(stamp)
-                ep.frame_times.append((stamp, t_ns / 1e9))
+            if (conn.topic, stamp) not in seen and stamp >= start:
+                seen.add((conn.topic, stamp))
+                times = ep.frame_times if conn.topic == IMAGE else ep.monitor_times
+                times.append((stamp, t_ns / 1e9))
+    ep.frame_times.sort()
+    ep.monitor_times.sort()
     ep.truth = sorted((x for x in ep.truth if x[0] >= start), key=lambda x: x[0])
     ep.estimate_stamps.sort(key=lambda x: x[0])
     return ep
@@ -180,11 +224,35 @@ def _image_stamp(data: bytes, msgtype: str) -> float:
     return seconds_from_stamp(_decode(data, msgtype).header.stamp)
 
 
-def iter_frames(bag: Path, start: float = -math.inf
-                ) -> Iterator[tuple[float, float, np.ndarray, np.ndarray | None]]:
-    """``(stamp, receive time, rgb, mask or None)`` of every distinct camera frame stamped at
-    or after ``start`` (s), in bag order. Masks are kept bit-packed until their frame comes
-    (bounded memory per frame)."""
+def iter_frames(bag: Path, schedule: list[tuple[float, float, str]]
+                ) -> Iterator[tuple[float, str, np.ndarray, np.ndarray | None]]:
+    """``(stamp, topic, rgb, mask or None)`` of the video frames of ``schedule``
+    (:meth:`Episode.schedule`), in its order. One pass over the bag: a frame that arrives
+    ahead of its turn is held (at most :data:`MAX_PENDING`; then the awaited frame is
+    skipped). Masks (camera frames only) are kept bit-packed until their frame comes."""
+    wanted = {(topic, stamp) for stamp, _, topic in schedule}
+    pending: dict[tuple[str, float], tuple[np.ndarray, np.ndarray | None]] = {}
+    turn = 0
+    for key, rgb, mask in _decoded_frames(bag, wanted):
+        pending[key] = (rgb, mask)
+        while turn < len(schedule):
+            stamp, _, topic = schedule[turn]
+            if (topic, stamp) in pending:
+                rgb, mask = pending.pop((topic, stamp))
+                yield stamp, topic, rgb, mask
+            elif len(pending) <= MAX_PENDING:
+                break
+            turn += 1
+    for stamp, _, topic in schedule[turn:]:  # the bag has ended: what is still held
+        if (topic, stamp) in pending:
+            rgb, mask = pending.pop((topic, stamp))
+            yield stamp, topic, rgb, mask
+
+
+def _decoded_frames(bag: Path, wanted: set[tuple[str, float]]
+                    ) -> Iterator[tuple[tuple[str, float], np.ndarray, np.ndarray | None]]:
+    """``((topic, stamp), rgb, mask or None)`` of the ``wanted`` camera and monitor frames,
+    first occurrence of each, in bag order."""
     from push_ros.images import image_to_array
     from push_ros.stamps import seconds_from_stamp
 
@@ -198,24 +266,24 @@ def iter_frames(bag: Path, start: float = -math.inf
             except ValueError:
                 continue
             masks[seconds_from_stamp(msg.header.stamp)] = (np.packbits(mask), mask.shape)
-        seen: set[float] = set()
-        image_conns = [c for c in reader.connections if c.topic == IMAGE]
-        for conn, t_ns, data in read_messages(reader, image_conns):
+        seen: set[tuple[str, float]] = set()
+        image_conns = [c for c in reader.connections if c.topic in (IMAGE, MONITOR)]
+        for conn, _, data in read_messages(reader, image_conns):
             try:
                 msg = _decode(data, conn.msgtype)
-                stamp = seconds_from_stamp(msg.header.stamp)
-                if stamp in seen or stamp < start:
+                key = (conn.topic, seconds_from_stamp(msg.header.stamp))
+                if key in seen or key not in wanted:
                     continue
                 rgb = image_to_array(msg)
             except ValueError:
                 continue
-            seen.add(stamp)
-            packed = masks.pop(stamp, None)
+            seen.add(key)
+            packed = masks.pop(key[1], None) if conn.topic == IMAGE else None
             mask = None
             if packed is not None:
                 bits, shape = packed
                 mask = np.unpackbits(bits, count=shape[0] * shape[1]).reshape(shape).astype(bool)
-            yield stamp, t_ns / 1e9, rgb, mask
+            yield key, rgb, mask
 
 
 def _latest(events: list[tuple[float, Any]], t: float) -> Any:
@@ -384,19 +452,24 @@ def _pad16(img: np.ndarray) -> np.ndarray:
 
 @dataclass
 class Rendered:
-    """What :func:`render_bag` wrote."""
+    """What :func:`render_bag` wrote: ``frames`` video frames (``monitor_frames`` of them from
+    the monitor), at ``fps``."""
 
     frames: int
     video: Path
     gif: Path | None
     plot: Path | None
+    monitor_frames: int = 0
+    fps: float = DEFAULT_FPS
 
 
 def render_bag(bag: Path, video: Path, *, gif: Path | None = None, plot: Path | None = None,
-               fps: float = DEFAULT_FPS, start: float = -math.inf) -> Rendered:
+               fps: float | None = None, start: float = -math.inf) -> Rendered:
     """Render the episode in ``bag`` to ``video`` (MP4), optionally ``gif`` and ``plot``.
 
-    Camera frames stamped before ``start`` (s; default: none) are left out.
+    Camera and monitor frames stamped before ``start`` (s; default: none) are left out.
+    ``fps`` None: the module docstring's rate (:data:`DEFAULT_FPS`, or
+    :data:`MONITOR_SPEEDUP` x the monitor rate when the bag has monitor frames).
 
     Raises
     ------
@@ -413,22 +486,32 @@ def render_bag(bag: Path, video: Path, *, gif: Path | None = None, plot: Path | 
     if ep.camera_matrix is None or ep.t_world_camera is None:
         raise RenderError(f'{bag} lacks {CAMERA_INFO} or {EXTRINSICS}: cannot draw the '
                           'overlays (record them too)')
-    # What the graph had published before the next new frame came in is drawn on a frame.
-    until = {stamp: nxt[1] for (stamp, _), nxt in itertools.pairwise(ep.frame_times)}
-    n_frames = len(ep.frame_times)
-    t0 = ep.frame_times[0][0]
+    schedule = ep.schedule()
+    rate = ep.monitor_rate()
+    if fps is None:
+        fps = DEFAULT_FPS if rate is None else min(120.0, round(MONITOR_SPEEDUP * rate, 3))
+    # What the graph had published before the next video frame came in is drawn on a frame.
+    until = {(f[0], f[2]): max(f[1], nxt[1]) for f, nxt in itertools.pairwise(schedule)}
+    n_frames = len(schedule)
+    t0 = schedule[0][0]
+    size = ep.image_size
     video.parent.mkdir(parents=True, exist_ok=True)
     gif_frames: list[np.ndarray] = []
     stride = max(1, math.ceil(n_frames / GIF_MAX_FRAMES))
     box: tuple[int, int, int, int] | None = None
-    count = 0
+    count = monitored = 0
     writer = imageio.get_writer(video, format='FFMPEG', mode='I', fps=fps, codec='libx264',
                                 quality=7, macro_block_size=16, pixelformat='yuv420p')
     try:
-        for i, (stamp, _, rgb, mask) in enumerate(iter_frames(bag, start)):
-            if i == 0:
-                box = crop_box(ep, (rgb.shape[1], rgb.shape[0]))
-            t_end = until.get(stamp, math.inf)
+        for i, (stamp, topic, rgb, mask) in enumerate(iter_frames(bag, schedule)):
+            if topic == MONITOR:  # the camera's pose, intrinsics scaled: back to its size
+                rgb = _resize(rgb, size)
+                monitored += 1
+            elif size is None or (rgb.shape[1], rgb.shape[0]) != size:
+                size = (rgb.shape[1], rgb.shape[0])
+            if box is None and size is not None:
+                box = crop_box(ep, size)
+            t_end = until.get((stamp, topic), math.inf)
             img = overlay(rgb, ep.camera_matrix, ep.t_world_camera, mask=mask,
                           outline=ep.outline, estimate=_latest(ep.estimates, t_end),
                           goal=_latest(ep.goals, t_end), push=_latest(ep.pushes, t_end),
@@ -446,7 +529,16 @@ def render_bag(bag: Path, video: Path, *, gif: Path | None = None, plot: Path | 
         _write_gif(gif_frames, gif, 1000.0 * stride / fps)
     if plot is not None:
         plot = plot_estimate(ep, plot)
-    return Rendered(count, video, gif, plot)
+    return Rendered(count, video, gif, plot, monitored, fps)
+
+
+def _resize(rgb: np.ndarray, size: tuple[int, int] | None) -> np.ndarray:
+    """``rgb`` scaled to ``size`` = (width, height) (unchanged when None or equal)."""
+    import cv2
+
+    if size is None or (rgb.shape[1], rgb.shape[0]) == size:
+        return rgb
+    return cv2.resize(rgb, size, interpolation=cv2.INTER_LINEAR)
 
 
 def _imageio() -> Any:
@@ -461,6 +553,9 @@ def _imageio() -> Any:
 
 
 def _write_gif(frames: list[np.ndarray], path: Path, frame_ms: float) -> None:
+    """The GIF: frames scaled to :data:`GIF_WIDTH`, one palette of :data:`GIF_COLOURS` for all
+    (from a few frames spread over the episode), each frame stored as its change to the
+    previous one (``disposal=1``): consecutive monitor frames differ only where things move."""
     from PIL import Image
 
     images = []
@@ -469,9 +564,14 @@ def _write_gif(frames: list[np.ndarray], path: Path, frame_ms: float) -> None:
         scale = GIF_WIDTH / im.width
         images.append(im.resize((GIF_WIDTH, max(1, int(im.height * scale))),
                                 Image.Resampling.LANCZOS))
+    picks = np.unique(np.linspace(0, len(images) - 1, min(6, len(images))).round().astype(int))
+    sample = Image.fromarray(np.vstack([np.asarray(images[i]) for i in picks]))
+    palette = sample.quantize(colors=GIF_COLOURS, method=Image.Quantize.MEDIANCUT,
+                              dither=Image.Dither.NONE)
+    images = [im.quantize(palette=palette, dither=Image.Dither.NONE) for im in images]
     durations = [int(frame_ms)] * (len(images) - 1) + [2500]
     images[0].save(path, save_all=True, append_images=images[1:], duration=durations, loop=0,
-                   disposal=2)
+                   disposal=1)
 
 
 def plot_estimate(ep: Episode, path: Path) -> Path | None:

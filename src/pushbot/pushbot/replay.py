@@ -1,11 +1,12 @@
 """``pushbot replay DIR [-o OUT] [--gif]``: a recorded episode bag -> video and plot.
 
 Renders every distinct camera frame of the bag (``pushbot bag record`` or ``ros2 bag record
--s mcap`` of the graph's topics; ``pushbot demo`` records one under ``out/demo/episode_bag``)
-with the perception mask, the perceived outline at the estimate, the affordance colouring,
-the chosen push and the goal, and a legend (:mod:`pushbot.render`), to ``OUT`` (default
-``DIR.mp4`` next to the bag folder), with ``--gif`` also ``OUT`` with suffix ``.gif``, and
-always a plot of the estimate against ground truth over time (``OUT`` stem +
+-s mcap`` of the graph's topics; ``pushbot demo`` records one under ``out/demo/episode_bag``),
+merged in time order with the simulator's monitor frames of the pushes when the bag has
+``sim/monitor/image_raw``, with the perception mask, the perceived outline at the estimate,
+the affordance colouring, the chosen push and the goal, and a legend (:mod:`pushbot.render`),
+to ``OUT`` (default ``DIR.mp4`` next to the bag folder), with ``--gif`` also ``OUT`` with
+suffix ``.gif``, and always a plot of the estimate against ground truth over time (``OUT`` stem +
 ``_estimate.png``).
 
 Exit codes: 0 written, 1 the bag lacks what the video needs (camera images, camera_info,
@@ -20,7 +21,7 @@ import sys
 from pathlib import Path
 
 from pushbot.bag import BagError
-from pushbot.render import DEFAULT_FPS, RenderError, render_bag
+from pushbot.render import DEFAULT_FPS, MONITOR_SPEEDUP, RenderError, render_bag
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -30,8 +31,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help='MP4 to write (default: DIR.mp4 next to the bag folder)')
     parser.add_argument('--gif', action='store_true',
                         help='also write a GIF (OUT with suffix .gif; at most 60 frames)')
-    parser.add_argument('--fps', type=float, default=DEFAULT_FPS,
-                        help='video frame rate (default: %(default)s)')
+    parser.add_argument('--fps', type=float, default=None,
+                        help=f'video frame rate (default: {DEFAULT_FPS:g}, one camera frame per '
+                        f'0.5 s; with monitor frames {MONITOR_SPEEDUP:g} x their rate, i.e. '
+                        f'{MONITOR_SPEEDUP:g} x sim time)')
 
 
 def outputs(bag: Path, output: Path | None) -> tuple[Path, Path, Path]:
@@ -43,7 +46,7 @@ def outputs(bag: Path, output: Path | None) -> tuple[Path, Path, Path]:
 
 def run_replay(args: argparse.Namespace) -> int:
     """Handler of ``pushbot replay``."""
-    if not (math.isfinite(args.fps) and 0 < args.fps <= 120):
+    if args.fps is not None and not (math.isfinite(args.fps) and 0 < args.fps <= 120):
         print(f'pushbot replay: --fps must be in (0, 120], got {args.fps}', file=sys.stderr)
         return 2
     video, gif, plot = outputs(args.bag, args.output)

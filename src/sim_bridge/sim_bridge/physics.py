@@ -34,6 +34,10 @@ Push execution (:meth:`Physics.execute_push` after :func:`check_push`)
    ``LIFT_SPEED``, park (air teleport).
 6. Settle: step until the object is at rest (speed below ``REST_SPEED`` and ``REST_ANGULAR``
    for ``REST_STEPS`` consecutive steps) or ``settle_timeout`` has passed.
+
+``execute_push(..., on_step=f)`` calls ``f()`` after every physics step of steps 3-6 (the
+world's monitor renders from it, :class:`sim_bridge.rendering.MonitorConfig`); the callback
+must only read the scene (render, query poses): the motion is then exactly the one without it.
 """
 
 from __future__ import annotations
@@ -224,6 +228,7 @@ class Physics:
         self._cfg = cfg
         self.steps = 0
         self._target = park_position()
+        self._on_step: Callable[[], None] | None = None  # set only while execute_push runs
 
     @property
     def sim_time(self) -> float:
@@ -287,6 +292,8 @@ class Physics:
             p.changeConstraint(drive, pivot, maxForce=PUSHER_MAX_FORCE, physicsClientId=cid)
             p.stepSimulation(physicsClientId=cid)
             self.steps += 1
+            if self._on_step is not None:
+                self._on_step()
             if watch_contact and not touched:
                 touched = any(pt[9] > 0.0 for pt in p.getContactPoints(
                     pusher, body, physicsClientId=cid))
@@ -307,6 +314,8 @@ class Physics:
             else:
                 calm = 0
             self.step(1)
+            if self._on_step is not None:
+                self._on_step()
         return False
 
     def clear_height(self, thickness: float) -> float:
@@ -315,9 +324,19 @@ class Physics:
         return max(top, thickness) + LIFT_CLEARANCE + PUSHER_LENGTH / 2.0
 
     def execute_push(self, a: NDArray[np.float64], c: NDArray[np.float64],
-                     e: NDArray[np.float64], thickness: float) -> PushResult:
+                     e: NDArray[np.float64], thickness: float,
+                     on_step: Callable[[], None] | None = None) -> PushResult:
         """Steps 2-6 of the module docstring for a push already validated by
-        :func:`check_push`; ``thickness`` is the object's, m."""
+        :func:`check_push`; ``thickness`` is the object's, m. ``on_step`` is called after
+        every physics step of steps 3-6 (read-only observers, module docstring)."""
+        self._on_step = on_step
+        try:
+            return self._execute_push(a, c, e, thickness)
+        finally:
+            self._on_step = None
+
+    def _execute_push(self, a: NDArray[np.float64], c: NDArray[np.float64],
+                      e: NDArray[np.float64], thickness: float) -> PushResult:
         pose_before = self.object_pose()
         z_push = PUSHER_GAP + PUSHER_LENGTH / 2.0
         z_clear = self.clear_height(thickness)

@@ -11,13 +11,18 @@ light direction (azimuth uniform, elevation 30-90 deg), light colour (each chann
 (sigma 2 grey levels) per frame. ``depth_noise``: RealSense-like depth noise and dropouts
 (:func:`sim_bridge.camera.add_depth_noise`), fresh per frame. Speed per frame:
 docs/RESULTS.md, section bench_sim.
+
+Monitor (:class:`MonitorConfig`): a visualisation stream rendered *during* a push (the pusher
+in view) from the same camera pose, usually smaller (:func:`monitor_view` scales the
+intrinsics), without depth noise or colour noise: it never draws from the world's
+sensor-noise stream, so the camera frames and the physics are exactly those without it.
 """
 
 from __future__ import annotations
 
 import colorsys
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pybullet as p
@@ -33,7 +38,8 @@ from sim_bridge.camera import (
     opengl_view,
 )
 
-__all__ = ["Appearance", "CameraView", "Frame", "camera_view", "random_appearance", "render"]
+__all__ = ["Appearance", "CameraView", "Frame", "MonitorConfig", "camera_view", "monitor_view",
+           "random_appearance", "render"]
 
 DEFAULT_TABLE_RGB = (0.78, 0.74, 0.66)
 DEFAULT_OBJECT_RGB = (0.50, 0.52, 0.56)
@@ -102,6 +108,56 @@ def camera_view(camera: CameraConfig, t_world_camera: NDArray[np.float64]) -> Ca
                       view=opengl_view(t_world_camera),
                       projection=opengl_projection(k, camera.width, camera.height,
                                                    camera.near, camera.far))
+
+
+@dataclass(frozen=True)
+class MonitorConfig:
+    """The monitor stream of :meth:`sim_bridge.world.PushWorld.execute_push` (module docstring).
+
+    Attributes
+    ----------
+    rate : float
+        Frames per second of *simulated* time, in (0, 240]; the period is rounded to a whole
+        number of physics steps, ``max(1, round(1 / (rate * time_step)))`` (10 Hz at the
+        default 1/240 s step: every 24 steps, exactly 10 Hz).
+    width, height : int
+        Image size, pixels, in [8, 4096] (default 320 x 240: TinyRenderer time grows with the
+        pixel count).
+    """
+
+    rate: float = 10.0
+    width: int = 320
+    height: int = 240
+
+    def __post_init__(self) -> None:
+        if isinstance(self.rate, bool) or not (np.isfinite(self.rate) and 0 < self.rate <= 240):
+            raise ValueError(f"monitor.rate: must be in (0, 240] Hz of sim time, got "
+                             f"{self.rate!r}")
+        object.__setattr__(self, "rate", float(self.rate))
+        for name in ("width", "height"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or int(value) != value or not 8 <= value <= 4096:
+                raise ValueError(f"monitor.{name}: expected an integer in [8, 4096], got "
+                                 f"{value!r}")
+            object.__setattr__(self, name, int(value))
+
+    def every(self, time_step: float) -> int:
+        """Physics steps between two monitor frames (>= 1)."""
+        return max(1, round(1.0 / (self.rate * time_step)))
+
+
+def monitor_view(camera: CameraConfig, view: CameraView, monitor: MonitorConfig
+                 ) -> tuple[CameraConfig, CameraView]:
+    """The camera of ``view`` (same pose) at the monitor's image size.
+
+    Intrinsics scale with the size per axis, pixel centres kept (OpenCV convention):
+    ``f' = s f``, ``c' = s (c + 1/2) - 1/2`` with ``s = width' / width`` (``height`` for y).
+    """
+    k = view.camera_matrix
+    sx, sy = monitor.width / camera.width, monitor.height / camera.height
+    small = replace(camera, width=monitor.width, height=monitor.height, fx=sx * k[0, 0],
+                    fy=sy * k[1, 1], cx=sx * (k[0, 2] + 0.5) - 0.5, cy=sy * (k[1, 2] + 0.5) - 0.5)
+    return small, camera_view(small, view.T_world_camera)
 
 
 def random_appearance(rng: np.random.Generator) -> Appearance:

@@ -28,6 +28,16 @@ Publications (QoS as in ``docs/ARCHITECTURE.md``; "sensor" = ``qos_profile_senso
   After a push the bridge publishes, in this order: ``/clock`` (time after settling), the fresh
   frame, ``sim/object_pose``, ``pusher/executed``, ``/diagnostics``; it is already idle then,
   so a client may send the next push as soon as any of them arrives.
+- ``sim/monitor/image_raw`` (sensor_msgs/Image, ``rgb8``; sensor) and
+  ``sim/monitor/camera_info`` (sensor_msgs/CameraInfo; sensor): the *monitor*, only when
+  ``monitor.rate`` > 0: frames rendered while a push executes (the pusher lowering, pushing,
+  retracting, the object settling), every ``1 / monitor.rate`` s of sim time (rounded to whole
+  physics steps) from the same camera pose at ``monitor.width`` x ``monitor.height`` (the
+  intrinsics scaled), no noise, frame ``camera_color_optical_frame``, stamp = sim time of the
+  render (epoch included). Published from the worker thread as each is rendered, so all of
+  a push's monitor frames go out before its ``pusher/executed``. A visualisation stream of the
+  simulator (videos, ``pushbot view``), not an input of the pipeline: no node subscribes
+  (ARCHITECTURE.md, "Monitor stream"); never subject to fault injection.
 - ``/diagnostics`` (diagnostic_msgs/DiagnosticArray; reliable): one status, level OK when the
   last command succeeded, WARN after a rejected or failed one; message ``idle`` /
   ``busy: ...``; values: state, object, counters, last_error, sim_time. Published at 1 Hz and
@@ -80,7 +90,8 @@ units in ``pushbot_bringup/config/sim_bridge.yaml``): ``object``, ``initial_pose
 ``com_offset``, ``mass``, ``friction_table``, ``friction_pusher``, ``seed``, ``randomize``,
 ``image_width``, ``image_height``, ``depth_noise``, ``randomize_appearance``,
 ``randomize_camera``, ``push_speed``, ``pusher_radius``, ``faults.{frame_drop,frame_delay,
-push_refusal,seed}`` (all read on start-up and on ``~/reset``), and the read-only
+push_refusal,seed}``, ``monitor.{rate,width,height}`` (all read on start-up and on
+``~/reset``), and the read-only
 ``idle_frame_rate`` and ``clock_rate`` (timer rates, Hz of wall time). A bad value fails
 start-up with a clear message (exit status 2); a set that the
 node can check (e.g. an unknown object) is refused with the reason, what only the world can
@@ -156,7 +167,7 @@ from push_ros.paths import path_from_points, push_points_from_path
 from push_ros.poses import check_frame, pose_stamped_msg, transform_msg, xytheta_from_pose
 from push_ros.qos import CLOCK_QOS, LATCHED_QOS, RELIABLE_QOS, SENSOR_QOS
 from push_ros.stamps import stamp_from_seconds
-from sim_bridge.world import CameraConfig, PushWorld, WorldConfig
+from sim_bridge.world import CameraConfig, Frame, MonitorConfig, PushWorld, WorldConfig
 
 try:  # Only on a full ROS install: tf2_msgs has no PyPI wheel (ARCHITECTURE.md, tf note).
     from tf2_msgs.msg import TFMessage
@@ -219,6 +230,10 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               "refused (as a robot refuses a command).", (0.0, 1.0)),
     ParamSpec("faults.seed", 0, "Seed of the fault injection draws (re-seeded on ~/reset).",
               (0, 2**31 - 1)),
+    ParamSpec("monitor.rate", 0.0, "Monitor stream (sim/monitor/*): frames per second of sim "
+              "time rendered while a push executes; 0 = off.", (0.0, 60.0)),
+    ParamSpec("monitor.width", 320, "Monitor image width, px.", (32, 1920)),
+    ParamSpec("monitor.height", 240, "Monitor image height, px.", (24, 1080)),
 )
 
 
@@ -274,6 +289,8 @@ class SimBridgeParams:
         m.
     faults : FaultConfig
         Fault injection (all off by default).
+    monitor : MonitorConfig or None
+        The monitor stream; None = off (``monitor.rate`` 0).
     """
 
     object: str
@@ -294,6 +311,7 @@ class SimBridgeParams:
     push_speed: float
     pusher_radius: float
     faults: FaultConfig = FaultConfig()
+    monitor: MonitorConfig | None = None
 
     @classmethod
     def from_values(cls, values: dict[str, Any]) -> SimBridgeParams:
@@ -355,6 +373,10 @@ class SimBridgeParams:
                                frame_delay=float(values["faults.frame_delay"]),
                                push_refusal=float(values["faults.push_refusal"]),
                                seed=int(values["faults.seed"])),
+            monitor=(MonitorConfig(rate=float(values["monitor.rate"]),
+                                   width=int(values["monitor.width"]),
+                                   height=int(values["monitor.height"]))
+                     if values["monitor.rate"] > 0.0 else None),
         )
 
     def world_config(self) -> WorldConfig:
@@ -504,6 +526,9 @@ class SimBridgeNode(Node):
         self._pub_clock = self.create_publisher(ClockMsg, "/clock", CLOCK_QOS)
         self._pub_pose = self.create_publisher(PoseStamped, "sim/object_pose", RELIABLE_QOS)
         self._pub_executed = self.create_publisher(Path, "pusher/executed", RELIABLE_QOS)
+        self._pub_monitor = self.create_publisher(Image, "sim/monitor/image_raw", SENSOR_QOS)
+        self._pub_monitor_info = self.create_publisher(
+            CameraInfo, "sim/monitor/camera_info", SENSOR_QOS)
         self._diagnostics = DiagnosticsPublisher(self, "simulation", "pybullet")
         self._pub_tf = self._pub_tf_static = None
         if TFMessage is not None:
@@ -572,8 +597,11 @@ class SimBridgeNode(Node):
 
     def _run_push(self, seq: int, points: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
         self._pushing = True
+        monitor = self._params.monitor
         try:
-            result = self._world.execute_push(*points)
+            result = self._world.execute_push(
+                *points, monitor=monitor,
+                on_frame=None if monitor is None else self._publish_monitor)
         except ValueError as exc:  # the world moved nothing (workspace, geometry of the push)
             self._finish_job(f"rejected push command on planner/push: {exc}",
                              "pushes_rejected_invalid")
@@ -718,6 +746,19 @@ class SimBridgeNode(Node):
                 self._held = None
                 self._count("frames_reordered")
         return out
+
+    def _publish_monitor(self, frame: Frame) -> None:
+        """Publish one monitor frame (worker thread, during a push; module docstring). Never
+        raises: an exception here would stop the physics in the middle of the push."""
+        try:
+            stamp = stamp_from_seconds(self._epoch + float(frame.stamp))
+            height, width = frame.rgb.shape[:2]
+            self._publish_safely(self._pub_monitor, rgb_image_msg(frame.rgb, stamp))
+            self._publish_safely(self._pub_monitor_info,
+                                 camera_info_msg(frame.camera_matrix, width, height, stamp))
+        except Exception as exc:  # e.g. the context shut down meanwhile: the push goes on
+            self._log_limited("monitor", f"monitor frame not published: "
+                                         f"{type(exc).__name__}: {exc}", warning=True)
 
     def _count(self, counter: str) -> None:
         with self._lock:

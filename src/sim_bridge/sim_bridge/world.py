@@ -56,8 +56,8 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
-from collections.abc import Iterator
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -85,7 +85,15 @@ from sim_bridge.physics import (
     PushResult,
     check_push,
 )
-from sim_bridge.rendering import Appearance, Frame, camera_view, random_appearance, render
+from sim_bridge.rendering import (
+    Appearance,
+    Frame,
+    MonitorConfig,
+    camera_view,
+    monitor_view,
+    random_appearance,
+    render,
+)
 from sim_bridge.scene import (
     COLLISION_TOLERANCE,
     COM_SHRINK,
@@ -131,6 +139,7 @@ __all__ = [
     "VISUAL_TOLERANCE",
     "CameraConfig",
     "Frame",
+    "MonitorConfig",
     "PushResult",
     "PushWorld",
     "WorldConfig",
@@ -427,8 +436,9 @@ class PushWorld:
         self._physics.teleport_pusher(park_position())
 
     # ------------------------------------------------------------------ push
-    def execute_push(self, approach: ArrayLike, contact: ArrayLike,
-                     end: ArrayLike) -> PushResult:
+    def execute_push(self, approach: ArrayLike, contact: ArrayLike, end: ArrayLike,
+                     monitor: MonitorConfig | None = None,
+                     on_frame: Callable[[Frame], None] | None = None) -> PushResult:
         """Execute one straight push approach -> end (through contact) and let the object settle.
 
         The motion (travel, lowering, the push, retract, settle) is described in
@@ -439,6 +449,19 @@ class PushWorld:
         approach, contact, end : (2,) array_like
             Points in ``world``, metres: where the pusher is lowered (clear of the object),
             where it is expected to meet the object, and where the push ends.
+        monitor : MonitorConfig, optional
+            With ``on_frame``: render a monitor frame (:func:`sim_bridge.rendering.monitor_view`,
+            no noise) every ``monitor.every(time_step)`` physics steps from the start of the
+            push, while the pusher is lowered, pushes, retracts and the object settles, and
+            hand it to ``on_frame`` at once (stamp = ``sim_time`` of the render, in
+            ``(t0, t_done]`` with ``t0`` the ``sim_time`` when the push was called). Reading
+            only: the push result and every later frame are bit-identical to a push without
+            the monitor.
+        on_frame : callable, optional
+            Receives each monitor :class:`Frame` (rgb (h, w, 3) uint8, depth, mask, stamp,
+            the monitor's K; same ``T_world_camera``), in the caller's thread, in time order.
+            It must not raise: an exception propagates out of the physics loop and leaves the
+            push unfinished (the pusher down), like any other exception there.
 
         Returns
         -------
@@ -454,7 +477,26 @@ class PushWorld:
             Nothing has moved when it is raised.
         """
         a, c, e = self.check_push(approach, contact, end)
-        return self._physics.execute_push(a, c, e, self._spec.thickness)
+        on_step = None
+        if monitor is not None and on_frame is not None:
+            on_step = self._monitor_hook(monitor, on_frame)
+        return self._physics.execute_push(a, c, e, self._spec.thickness, on_step)
+
+    def _monitor_hook(self, monitor: MonitorConfig,
+                      on_frame: Callable[[Frame], None]) -> Callable[[], None]:
+        """The per-step callback of :meth:`execute_push` that renders the monitor frames."""
+        cfg, physics = self._config, self._physics
+        camera, view = monitor_view(cfg.camera, self._view, monitor)
+        look = replace(self._look, rgb_noise=0.0)
+        unused = np.random.default_rng(0)  # no noise is drawn: the world's stream is untouched
+        every, first = monitor.every(cfg.time_step), physics.steps
+
+        def on_step() -> None:
+            if (physics.steps - first) % every == 0:
+                on_frame(render(self._client, camera, view, look, self._object, False, unused,
+                                physics.sim_time, physics.object_pose))
+
+        return on_step
 
     def check_push(self, approach: ArrayLike, contact: ArrayLike,
                    end: ArrayLike) -> tuple[NDArray[np.float64], ...]:
