@@ -67,8 +67,11 @@ def recorded_bag(tmp_path_factory, module_processes) -> tuple[Path, str]:
         pose.pose.orientation.w = 1.0
         latched.publish(pose)
         bag = tmp_path_factory.mktemp('bags') / 'bag'
-        proc = module_processes.start([PUSHBOT, 'bag', 'record', '-o', str(bag), 'chatter',
-                                       '/latched'], name='record')
+        # Started as a script's background job is (`cmd &`: SIGINT ignored), which pushbot's
+        # main undoes: the SIGINT below must still end the recording cleanly.
+        proc = module_processes.start(['sh', '-c', 'trap "" INT; exec "$0" "$@"', PUSHBOT,
+                                       'bag', 'record', '-o', str(bag), 'chatter', '/latched'],
+                                      name='record')
         assert spin_until(executor, lambda: chatter.get_subscription_count() > 0
                           and latched.get_subscription_count() > 0, time.monotonic() + 30.0), \
             module_processes.output(proc)

@@ -29,6 +29,7 @@ import importlib
 import importlib.metadata
 import os
 import re
+import signal
 import sys
 from collections.abc import Sequence
 
@@ -197,6 +198,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     # Every process pushbot starts (nodes, doctor probes, topic tools) uses the project's DDS
     # profile unless the user configured one (see pushbot.dds).
     dds.apply_default_profile()
+    # A shell starts background jobs (`cmd &` in a script) with SIGINT ignored, and Python then
+    # installs no Ctrl-C handler: take SIGINT explicitly, once for every subcommand, so that
+    # `kill -INT` stops `pushbot up`, `bag record`, `view`, `demo` ... in every case.
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         status = args.handler(args)
         sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's final flush

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
 import sys
 import time
 from datetime import datetime
@@ -172,13 +171,8 @@ def run_up(args: argparse.Namespace) -> int:
     log_dir = args.log_dir or default_log_dir()
     nodes = GraphNodes(log_dir, ros_args=node_args)
     follower = LogFollower(log_dir, list(node_args), sys.stdout)
-    # A shell starts background jobs with SIGINT ignored, and Python then installs no Ctrl-C
-    # handler: take SIGINT explicitly so `kill -INT` stops the graph in every case.
-    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
-    try:
-        return _supervise(nodes, follower, log_dir)
-    finally:
-        signal.signal(signal.SIGINT, previous)
+    # SIGINT reaches us even from a background job: pushbot.cli.main takes it for every command.
+    return _supervise(nodes, follower, log_dir)
 
 
 def _supervise(nodes: GraphNodes, follower: LogFollower, log_dir: Path) -> int:
