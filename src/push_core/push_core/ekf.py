@@ -394,7 +394,11 @@ class PushEKF(EKFBase):
         the best point to linearise the push at. ``n`` as in :meth:`_update`.
         """
         x_prev, p_prev, start, end = self._before_push
-        gain = np.linalg.solve(self.P_prior, self.F @ p_prev).T  # P_prev F^T P_prior^-1
+        cfg = self.config
+        if cfg.known_com is None and cfg.known_l is None and cfg.known_m is None:
+            gain = np.linalg.solve(self.P_prior, self.F @ p_prev).T  # P_prev F^T P_prior^-1
+        else:  # known parameters have zero variance: P_prior is singular, use its pseudo-inverse
+            gain = (np.linalg.pinv(self.P_prior, hermitian=True) @ (self.F @ p_prev)).T
         x_lin = x_prev + gain @ (self.x[:, 0] - self.x_prior[:, 0])
         x_lin[5] = min(max(x_lin[5], self.l_bounds[0]), self.l_bounds[1])
         x_lin[6] = min(max(x_lin[6], self.m_bounds[0]), self.m_bounds[1])

@@ -225,6 +225,8 @@ class EpisodeRecord:
     planning_ms: list[float] = field(default_factory=list)
     failures: int = 0
     wall_s: float = 0.0
+    #: ``--obs pixels``: position error (mm = env units) of the estimate each push was planned
+    #: from, against the env's block pose (diagnostics only; never given to the planner).
     pose_error: list[float] = field(default_factory=list)
 
 
@@ -258,6 +260,7 @@ class PushTRunner:
         self.env.reset(seed=0)  # builds the pymunk space the T is read from
         self.obj, self.pusher, self.frames = make_tee(self.env)
         self.agent = AgentModel.of_env(self.env)
+        self.control_hz = float(self.env.unwrapped.control_hz)
         self.goal = self.frames.object_pose(self.env.unwrapped.goal_pose)
         self.vision = None
         if obs == "pixels":
@@ -265,46 +268,71 @@ class PushTRunner:
             ring = tee_body(self.env)[0]
             self.vision = TeeFitter(ring, agent_radius=self.pusher.radius / METRES_PER_UNIT)
 
-    def _observe(self, obs: object, previous: NDArray[np.float64] | None
-                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """(block body pose in env units, agent position in env units) from an observation."""
-        if self.obs == "state":
-            o = np.asarray(obs, dtype=np.float64)
-            return o[2:5], o[0:2]
+    def _estimator(self) -> object:
+        """The EKF for ``--obs pixels``: known COM, ``l`` and friction 0 (:meth:`Pusher.estimator`),
+        noise levels of the image fit (about 0.5 unit and 0.3 degrees rms) and of the model
+        (about 1 unit per 8 cm push)."""
+        return self.pusher.estimator(
+            self.obj, position_sigma=0.6 * METRES_PER_UNIT, angle_sigma=math.radians(0.4),
+            position_noise_min=0.2 * METRES_PER_UNIT, position_noise_per_metre=0.02,
+            angle_noise_min=math.radians(0.2), angle_noise_per_metre=0.3)
+
+    def _perceive(self, obs: object, ekf: object, push: PushPlan | None) -> NDArray[np.float64]:
+        """Object pose (world, m) from a pixels observation: the EKF predicted through the last
+        push gives the fit's start, the fitted pose updates the EKF."""
         agent = np.asarray(obs["agent_pos"], dtype=np.float64)
-        return self.vision.fit(obs["pixels"], agent, previous), agent
+        if push is None or not ekf.initialized:
+            body = self.vision.fit(obs["pixels"], agent, None)
+            ekf.initialize(self.frames.object_pose(body))
+        else:
+            ekf.predict_push(push.approach, push.end)
+            guess = self.frames.body_pose(ekf.state[:3])
+            body = self.vision.fit(obs["pixels"], agent, guess)
+            ekf.update_pose(self.frames.object_pose(body))
+        return ekf.state[:3]
 
     def run(self, seed: int, frames: list | None = None) -> EpisodeRecord:
+        """One episode with seed ``seed``; ``frames`` collects the rendered frames (video)."""
         t_start = time.perf_counter()
         obs, info = self.env.reset(seed=seed)
         planner = _settings_planner(self.pusher, self.obj, seed)
+        ekf = self._estimator() if self.obs == "pixels" else None
         rec = EpisodeRecord(seed=seed, success=False, steps=0, max_reward=0.0,
                             max_coverage=0.0, pushes=0)
-        body, agent = self._observe(obs, None)
-        self.agent.reset(agent)
+        self.agent.reset(self._agent(obs))
         if frames is not None:
             frames.append(self.env.render())
-        done = False
+        done, push = False, None
         while not done and rec.steps < self.max_steps:
-            pose = self.frames.object_pose(body)
+            agent = self._agent(obs)
+            if ekf is None:
+                pose = self.frames.object_pose(np.asarray(obs, dtype=np.float64)[2:5])
+            else:
+                pose = self._perceive(obs, ekf, push)
+                truth = self.frames.object_pose(info["block_pose"])  # diagnostics only
+                rec.pose_error.append(1e3 * float(np.hypot(*(pose[:2] - truth[:2]))))
             t0 = time.perf_counter()
             try:
-                plan = planner.plan(self.obj.outline, self.obj.state(pose), self.goal,
+                push = planner.plan(self.obj.outline, self.obj.state(pose), self.goal,
                                     pusher=self.frames.to_world(agent))
                 path = planner.transit(self.obj.outline, pose, self.frames.to_world(agent),
-                                       plan.approach)
+                                       push.approach)
             except NoFeasiblePush:
-                plan, path = None, None
+                push, path = None, None
             rec.planning_ms.append(1e3 * (time.perf_counter() - t0))
-            if plan is None or path is None:
+            if push is None or path is None:
                 rec.failures += 1
                 path, push = self._escape(agent), None
-            else:
-                push = plan
-            obs, done, body, agent = self._follow(path, push, rec, body, frames)
+            obs, info, done = self._follow(path, push, rec, obs, info, frames)
             rec.pushes += push is not None
         rec.wall_s = time.perf_counter() - t_start
         return rec
+
+    def _agent(self, obs: object) -> NDArray[np.float64]:
+        """The agent position (env units) of an observation."""
+        if self.obs == "state":
+            return np.asarray(obs, dtype=np.float64)[0:2]
+        return np.asarray(obs["agent_pos"], dtype=np.float64)
 
     def _escape(self, agent: NDArray[np.float64]) -> NDArray[np.float64]:
         """No plan: move the disc a little towards the workspace centre (world, m)."""
@@ -314,9 +342,9 @@ class PushTRunner:
         return self.frames.to_world(np.stack([agent, step]))
 
     def _follow(self, path: NDArray[np.float64], push: PushPlan | None, rec: EpisodeRecord,
-                body: NDArray[np.float64], frames: list | None):
+                obs: object, info: dict, frames: list | None) -> tuple[object, dict, bool]:
         """Drive the disc along the transit path (world, m) and then the push; returns the
-        last observation, whether the episode ended, block pose and agent position."""
+        last observation and info and whether the episode ended."""
         way = self.frames.to_env(path)
         speeds = [TRANSIT_SPEED] * (len(way) - 1)
         if push is not None:
@@ -324,25 +352,20 @@ class PushTRunner:
             speeds.append(PUSH_SPEED)
         targets = timed_path(way, np.array(speeds))[1:]
         targets = np.vstack([targets, targets[-1:], targets[-1:]])
-        obs, agent, done = None, self.agent.x, False
         for k in range(len(targets) - 2):
-            p2 = targets[k + 1]
-            v2 = (targets[k + 2] - targets[k + 1]) * 10.0  # units per second at 10 Hz
-            action = self.agent.action(p2, v2)
+            v2 = (targets[k + 2] - targets[k + 1]) * self.control_hz  # units per second
+            action = self.agent.action(targets[k + 1], v2)
             obs, reward, terminated, truncated, info = self.env.step(action)
             rec.steps += 1
             rec.max_reward = max(rec.max_reward, float(reward))
             rec.max_coverage = max(rec.max_coverage, float(info["coverage"]))
             if frames is not None:
                 frames.append(self.env.render())
-            body, agent = self._observe(obs, body)
-            self.agent.step(action, agent)
-            if terminated:
-                rec.success = True
+            self.agent.step(action, self._agent(obs))
+            rec.success = rec.success or bool(terminated)
             if terminated or truncated or rec.steps >= self.max_steps:
-                done = True
-                break
-        return obs, done, body, agent
+                return obs, info, True
+        return obs, info, False
 
     def close(self) -> None:
         self.env.close()
@@ -367,6 +390,7 @@ def summarize(records: Sequence[EpisodeRecord], config: dict) -> dict:
     wins = sum(r.success for r in records)
     lo, hi = wilson_interval(wins, n)
     planning = [t for r in records for t in r.planning_ms]
+    errors = [e for r in records for e in r.pose_error]
     return {
         "success_rate": wins / n if n else 0.0,
         "success_wilson_95": [lo, hi],
@@ -377,6 +401,8 @@ def summarize(records: Sequence[EpisodeRecord], config: dict) -> dict:
         if wins else 0.0,
         "pushes_mean": float(np.mean([r.pushes for r in records])) if n else 0.0,
         "planning_ms_median": float(np.median(planning)) if planning else 0.0,
+        "pose_error_mm_median": float(np.median(errors)) if errors else None,
+        "pose_error_mm_p95": float(np.percentile(errors, 95)) if errors else None,
         "episode_wall_s_mean": float(np.mean([r.wall_s for r in records])) if n else 0.0,
         "n_episodes": n,
         "config": config,

@@ -34,14 +34,19 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
 
-#: Colours of the render (pygame named colours), RGB.
-BLOCK_RGB = (119, 136, 153)  # LightSlateGray
+#: Colours of the render (pygame named colours), RGB. gym-pusht draws each box of the T filled
+#: with 1.2 x its colour and its edges as 2-unit-radius fat lines in the colour
+#: itself, so the block is the union of the boxes dilated by 2 units, in two colours.
+BLOCK_RGB = (119, 136, 153)  # LightSlateGray: the edges
+BLOCK_FILL_RGB = (143, 163, 184)  # 1.2 x LightSlateGray (rounded): the inside
 GOAL_RGB = (144, 238, 144)  # LightGreen
 BACKGROUND_RGB = (255, 255, 255)
+#: The drawn block reaches this far beyond the outline (the fat edges' radius), env units.
+EDGE_RADIUS = 2.0
 #: Side of the render the observation is shrunk from, env units.
 RENDER_SIZE = 512
 #: Mean absolute fraction residual over the fitted window above which the fit restarts.
-RESTART_RESIDUAL = 0.04
+RESTART_RESIDUAL = 0.15
 #: Render pixels around the agent disc left out of the fit (beyond its radius).
 AGENT_MARGIN = 3.0
 #: Orientations tried on a restart.
@@ -49,15 +54,16 @@ RESTART_ANGLES = 12
 
 
 def block_fraction(image: ArrayLike) -> NDArray[np.float64]:
-    """Block fraction (H, W) in [0, 1] of every pixel of an RGB image (H, W, 3) uint8: least
-    squares unmixing of block, background and goal colours (fractions summing to one)."""
+    """Block fraction (H, W) in [0, 1] of every pixel of an RGB image (H, W, 3) uint8:
+    unmixing of the four colours (block edge, block fill, background, goal; fractions summing
+    to one: three unknowns from three channels), the two block fractions added."""
     img = np.asarray(image, dtype=np.float64)
     if img.ndim != 3 or img.shape[2] != 3:
         raise ValueError(f"image: expected (H, W, 3), got shape {img.shape}")
     w = np.array(BACKGROUND_RGB, dtype=np.float64)
-    basis = np.stack([np.array(BLOCK_RGB, float) - w, np.array(GOAL_RGB, float) - w], 1)
-    coef = (img.reshape(-1, 3) - w) @ np.linalg.pinv(basis).T  # (N, 2)
-    return np.clip(coef[:, 0], 0.0, 1.0).reshape(img.shape[:2])
+    basis = np.stack([np.array(c, float) - w for c in (BLOCK_RGB, BLOCK_FILL_RGB, GOAL_RGB)], 1)
+    coef = (img.reshape(-1, 3) - w) @ np.linalg.inv(basis).T  # (N, 3)
+    return np.clip(coef[:, 0] + coef[:, 1], 0.0, 1.0).reshape(img.shape[:2])
 
 
 class TeeFitter:
@@ -72,12 +78,12 @@ class TeeFitter:
     image_size : int
         Side of the observation, pixels.
     dilation : float
-        Offset of the filled region beyond the outline, render pixels (pygame fills boundary
-        pixels and rounds vertices).
+        Offset of the drawn region beyond the outline, render pixels: the fat edges'
+        radius and half a pixel (pygame fills boundary pixels).
     """
 
     def __init__(self, outline: ArrayLike, agent_radius: float = 15.0, image_size: int = 96,
-                 dilation: float = 0.5) -> None:
+                 dilation: float = EDGE_RADIUS + 0.5) -> None:
         self.outline = np.asarray(outline, dtype=np.float64)
         self.agent_radius = float(agent_radius)
         self.size = int(image_size)
@@ -133,27 +139,42 @@ class TeeFitter:
 
     def _window(self, pose: NDArray[np.float64], usable: NDArray[np.bool_], pad: float
                 ) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+        """Usable pixels whose sample point lies within ``pad`` (env units) of the outline at
+        ``pose``: elsewhere the prediction is constant while the pose moves less than
+        ``pad``, so they do not change the fit."""
         r = self.radius + pad
         lo = np.searchsorted(self._sample, pose[:2] - r)
         hi = np.searchsorted(self._sample, pose[:2] + r)
-        sub = np.zeros_like(usable)
-        sub[lo[1]:hi[1], lo[0]:hi[0]] = True
-        return np.nonzero(usable & sub)
+        rows, cols = np.mgrid[lo[1]:hi[1], lo[0]:hi[0]]
+        rows, cols = rows.ravel(), cols.ravel()
+        keep = usable[rows, cols]
+        rows, cols = rows[keep], cols[keep]
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        rel = np.stack([self._sample[cols] - pose[0], self._sample[rows] - pose[1]], -1)
+        local = np.stack([c * rel[:, 0] + s * rel[:, 1], -s * rel[:, 0] + c * rel[:, 1]], -1)
+        band = np.abs(self._signed_distance(local)) <= pad
+        return rows[band], cols[band]
+
+    def _stage(self, frac: NDArray[np.float64], usable: NDArray[np.bool_],
+               pose: NDArray[np.float64], width: float, pad: float, max_nfev: int
+               ) -> tuple[NDArray[np.float64], float]:
+        """One least-squares stage at ramp ``width``; the pose and its mean absolute residual
+        (at that width)."""
+        rows, cols = self._window(pose, usable, pad)
+        obs = frac[rows, cols]
+
+        def residual(p: NDArray[np.float64]) -> NDArray[np.float64]:
+            return self.predict(p, rows, cols, width) - obs
+
+        res = least_squares(residual, pose, x_scale=np.array([1.0, 1.0, 0.02]),
+                            diff_step=np.array([1e-3, 1e-3, 1e-3]), max_nfev=max_nfev)
+        return res.x, float(np.mean(np.abs(res.fun))) if len(obs) else math.inf
 
     def _refine(self, frac: NDArray[np.float64], usable: NDArray[np.bool_],
                 pose: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
-        for width, pad in ((6.0, 30.0), (1.0, 12.0)):
-            rows, cols = self._window(pose, usable, pad)
-            obs = frac[rows, cols]
-
-            def residual(p, rows=rows, cols=cols, obs=obs, width=width):
-                return self.predict(p, rows, cols, width) - obs
-
-            pose = least_squares(residual, pose, x_scale=np.array([1.0, 1.0, 0.02]),
-                                 diff_step=np.array([1e-3, 1e-3, 1e-3]), max_nfev=60).x
-        rows, cols = self._window(pose, usable, 12.0)
-        err = float(np.mean(np.abs(self.predict(pose, rows, cols) - frac[rows, cols])))
-        return pose, err
+        pose, _ = self._stage(frac, usable, pose, 6.0, 30.0, 30)
+        pose, _ = self._stage(frac, usable, pose, 1.0, 8.0, 30)
+        return self._stage(frac, usable, pose, 1.0, 4.0, 20)
 
     def fit(self, image: ArrayLike, agent: ArrayLike, guess: ArrayLike | None = None
             ) -> NDArray[np.float64]:
@@ -181,14 +202,18 @@ class TeeFitter:
             gy, gx = np.meshgrid(self._sample, self._sample, indexing="ij")
             centroid = np.array([np.sum(w * gx), np.sum(w * gy)]) / total
             area_centroid = _area_centroid(self.outline)
-            for k in range(RESTART_ANGLES):
+            coarse = []
+            for k in range(RESTART_ANGLES):  # coarse fits from every orientation ...
                 a = 2.0 * math.pi * k / RESTART_ANGLES
                 c, s = math.cos(a), math.sin(a)
                 origin = centroid - np.array([c * area_centroid[0] - s * area_centroid[1],
                                               s * area_centroid[0] + c * area_centroid[1]])
-                cand, e = self._refine(frac, usable, np.array([origin[0], origin[1], a]))
-                if e < err:
-                    best, err = cand, e
+                coarse.append(self._stage(frac, usable, np.array([origin[0], origin[1], a]),
+                                          6.0, 40.0, 15))
+            start = min(coarse, key=lambda ce: ce[1])[0]  # ... the best one refined
+            cand, e = self._refine(frac, usable, start)
+            if e < err:
+                best, err = cand, e
         assert best is not None
         return best, err
 
