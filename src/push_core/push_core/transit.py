@@ -154,7 +154,8 @@ def segment_polygon_clear(starts: ArrayLike, ends: ArrayLike, polygons: Sequence
     a, b = _edges(polys)
     for i in range(0, len(p0), 4096):  # bounded memory: 4096 x E pairs at a time
         sl = slice(i, i + 4096)
-        clear[sl] = _segments_distance(p0[sl], p1[sl], a, b).min(axis=1) >= clearance
+        d = _segments_distance(p0[sl], p1[sl], a, b).min(axis=1)
+        clear[sl] = (d >= clearance) & (d > 0.0)  # touching or crossing is never clear
     for poly in polys:  # a segment wholly inside a polygon touches no edge
         clear &= ~_inside(p0, poly)
     return clear
