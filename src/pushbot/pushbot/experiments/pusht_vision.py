@@ -19,8 +19,8 @@ known outline at sub-pixel precision):
    radians) of the difference between observed and predicted fractions, coarse-to-fine (ramp
    widths 6 then 1 render pixels), started from the caller's prediction (the planner's or the
    estimator's pose after the push); when the fit is poor (mean absolute residual above
-   ``RESTART_RESIDUAL``) it restarts from 12 orientations about the mask's centroid and keeps the
-   best.
+   ``RESTART_RESIDUAL``) it restarts from the best of 72 orientations (every 5 degrees) about
+   the mask's centroid.
 
 Frames: env units (render pixels), the env's body frame of the T (see
 :mod:`pushbot.experiments.pusht`).
@@ -50,7 +50,7 @@ RESTART_RESIDUAL = 0.15
 #: Render pixels around the agent disc left out of the fit (beyond its radius).
 AGENT_MARGIN = 3.0
 #: Orientations tried on a restart.
-RESTART_ANGLES = 12
+RESTART_ANGLES = 72
 
 
 def block_fraction(image: ArrayLike) -> NDArray[np.float64]:
@@ -78,12 +78,11 @@ class TeeFitter:
     image_size : int
         Side of the observation, pixels.
     dilation : float
-        Offset of the drawn region beyond the outline, render pixels: the fat edges'
-        radius and half a pixel (pygame fills boundary pixels).
+        Offset of the drawn region beyond the outline, render pixels: the fat edges' radius.
     """
 
     def __init__(self, outline: ArrayLike, agent_radius: float = 15.0, image_size: int = 96,
-                 dilation: float = EDGE_RADIUS + 0.5) -> None:
+                 dilation: float = EDGE_RADIUS) -> None:
         self.outline = np.asarray(outline, dtype=np.float64)
         self.agent_radius = float(agent_radius)
         self.size = int(image_size)
@@ -202,15 +201,21 @@ class TeeFitter:
             gy, gx = np.meshgrid(self._sample, self._sample, indexing="ij")
             centroid = np.array([np.sum(w * gx), np.sum(w * gy)]) / total
             area_centroid = _area_centroid(self.outline)
-            coarse = []
-            for k in range(RESTART_ANGLES):  # coarse fits from every orientation ...
+            gy, gx = np.meshgrid(self._sample, self._sample, indexing="ij")
+            near = usable & (np.hypot(gx - centroid[0], gy - centroid[1]) <= self.radius + 10.0)
+            rows, cols = np.nonzero(near)
+            obs = frac[rows, cols]
+            best_start, best_cost = None, math.inf
+            for k in range(RESTART_ANGLES):  # every orientation about the mask's centroid ...
                 a = 2.0 * math.pi * k / RESTART_ANGLES
                 c, s = math.cos(a), math.sin(a)
                 origin = centroid - np.array([c * area_centroid[0] - s * area_centroid[1],
                                               s * area_centroid[0] + c * area_centroid[1]])
-                coarse.append(self._stage(frac, usable, np.array([origin[0], origin[1], a]),
-                                          6.0, 40.0, 15))
-            start = min(coarse, key=lambda ce: ce[1])[0]  # ... the best one refined
+                cand = np.array([origin[0], origin[1], a])
+                cost = float(np.sum((self.predict(cand, rows, cols, 6.0) - obs) ** 2))
+                if cost < best_cost:
+                    best_start, best_cost = cand, cost
+            start = best_start  # ... the best one refined
             cand, e = self._refine(frac, usable, start)
             if e < err:
                 best, err = cand, e
