@@ -228,6 +228,8 @@ class EpisodeRecord:
     #: ``--obs pixels``: position error (mm = env units) of the estimate each push was planned
     #: from, against the env's block pose (diagnostics only; never given to the planner).
     pose_error: list[float] = field(default_factory=list)
+    #: Why the episode stopped early, if it did ("" = it ran to success or the step limit).
+    error: str = ""
 
 
 def _settings_planner(pusher: Pusher, obj: PushObject, seed: int) -> Planner:
@@ -405,6 +407,7 @@ def summarize(records: Sequence[EpisodeRecord], config: dict) -> dict:
         "pose_error_mm_p95": float(np.percentile(errors, 95)) if errors else None,
         "episode_wall_s_mean": float(np.mean([r.wall_s for r in records])) if n else 0.0,
         "n_episodes": n,
+        "episodes_with_error": sum(bool(r.error) for r in records),
         "config": config,
         "episodes": [asdict(r) for r in records],
     }
@@ -420,7 +423,12 @@ def _run_one(job: tuple[str, int, int, str | None]) -> EpisodeRecord:
     if _RUNNER is None or _RUNNER.obs != obs or _RUNNER.max_steps != max_steps:
         _RUNNER = PushTRunner(obs, max_steps)
     frames: list | None = [] if video else None
-    rec = _RUNNER.run(seed, frames)
+    try:
+        rec = _RUNNER.run(seed, frames)
+    except (ValueError, RuntimeError, np.linalg.LinAlgError) as exc:  # a failed episode, not a
+        # failed evaluation: recorded with its reason (the env is reset by the next episode)
+        rec = EpisodeRecord(seed=seed, success=False, steps=0, max_reward=0.0,
+                            max_coverage=0.0, pushes=0, error=f"{type(exc).__name__}: {exc}")
     if video and frames:
         write_video(Path(video), frames)
     return rec
