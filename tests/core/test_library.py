@@ -182,3 +182,44 @@ def test_estimator_with_known_com_and_friction_zero() -> None:
             EKFConfig(known_m=-0.1)
         with pytest.raises(ValueError, match="known_l"):
             EKFConfig(known_l=0.0)
+
+
+# ---- two faces at once ------------------------------------------------------------------------
+def test_wedge_twist_in_a_symmetric_corner_translates_with_the_pusher() -> None:
+    from push_core.rollout import wedge_twist
+    # an inner corner at the origin between faces with inward normals (0, 1) and (1, 0)
+    contacts = np.array([[[0.01, 0.0], [0.0, 0.01]]])
+    normals_in = np.array([[[0.0, 1.0], [1.0, 0.0]]])
+    push = np.array([[0.002, 0.002]])  # along the bisector, into both faces
+    com = np.array([[0.05, 0.05]])  # on the bisector: no net torque
+    twist, ok = wedge_twist(push, contacts, normals_in, com, np.array([0.03]))
+    assert ok.all()
+    assert twist[0] == pytest.approx([0.002, 0.002, 0.0], abs=1e-12)
+    # moving away from the second face: its multiplier would be negative -> one contact
+    _, ok = wedge_twist(np.array([[-0.002, 0.002]]), contacts, normals_in, com,
+                        np.array([0.03]))
+    assert not ok.any()
+
+
+def test_rollout_two_faces_only_changes_corner_pushes() -> None:
+    from push_core.rollout import rollout_push
+    obj = PushObject.from_polygon(TEE, com=(0.0, 0.045), friction=0.0, limit_surface=0.055)
+    pose = np.zeros(3)
+    corner = np.array([0.015, 0.030]) + obj.origin  # inner corner, object frame
+    start = corner + np.array([0.04, 0.04])
+    push = np.array([-0.05, -0.05])  # about 35 mm of it wedged in the corner
+    one = rollout_push(obj.outline.polyline, pose, obj.com, 0.055, 0.0, start, push,
+                       pusher_radius=0.015)
+    two = rollout_push(obj.outline.polyline, pose, obj.com, 0.055, 0.0, start, push,
+                       pusher_radius=0.015, two_faces=True)
+    assert not np.allclose(one.poses[0, -1], two.poses[0, -1])
+    # wedged in the corner, the T moves with the pusher: translation close to the push left
+    moved = two.poses[0, -1, :2] - pose[:2]
+    assert moved @ push / np.linalg.norm(push) > 0.025
+    face = rollout_push(obj.outline.polyline, pose, obj.com, 0.055, 0.0,
+                        np.array([0.0, -0.06]) + obj.origin, np.array([0.0, 0.04]),
+                        pusher_radius=0.015, two_faces=True)
+    plain = rollout_push(obj.outline.polyline, pose, obj.com, 0.055, 0.0,
+                         np.array([0.0, -0.06]) + obj.origin, np.array([0.0, 0.04]),
+                         pusher_radius=0.015)
+    np.testing.assert_array_equal(face.poses, plain.poses)  # one face: bit-identical

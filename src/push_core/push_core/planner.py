@@ -602,6 +602,9 @@ class PlannerConfig:
     require_improvement : bool
         Raise :class:`NoImprovingPush` instead of returning a push whose predicted score is no
         better than the current pose's (default False: the best push is returned anyway).
+    two_faces : bool
+        Rollouts of frictionless pushes (``m = 0``) let a pusher in an inner corner push both
+        faces at once (:func:`push_core.rollout.wedge_twist`); default False (nearest face).
     """
 
     method: str = "ana"
@@ -624,6 +627,7 @@ class PlannerConfig:
     travel_weight: float = 0.0
     transit_clearance: float = 0.0
     require_improvement: bool = False
+    two_faces: bool = False
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -669,10 +673,10 @@ class PlannerConfig:
             raise ValueError(f"workspace: expected ((xmin, xmax), (ymin, ymax)) with min < max, "
                              f"got {self.workspace!r}")
         object.__setattr__(self, "workspace", tuple(tuple(float(v) for v in r) for r in ws))
-        if not isinstance(self.require_improvement, bool | np.bool_):
-            raise ValueError(f"require_improvement: expected a bool, got "
-                             f"{self.require_improvement!r}")
-        object.__setattr__(self, "require_improvement", bool(self.require_improvement))
+        for name in ("require_improvement", "two_faces"):
+            if not isinstance(getattr(self, name), bool | np.bool_):
+                raise ValueError(f"{name}: expected a bool, got {getattr(self, name)!r}")
+            object.__setattr__(self, name, bool(getattr(self, name)))
         obstacles = []
         for i, poly in enumerate(self.obstacles):
             p = ccw_polygon(poly, f"obstacles[{i}]")
@@ -1039,7 +1043,8 @@ class Planner:
         direction = (contact - approach) / cfg.approach_clearance  # unit, world
         total = cfg.approach_clearance + cfg.max_push_length
         res = rollout_push(outline.polyline, pose, com, l, m, approach, total * direction,
-                           substep=cfg.substep, pusher_radius=cfg.pusher_radius)
+                           substep=cfg.substep, pusher_radius=cfg.pusher_radius,
+                           two_faces=cfg.two_faces)
         n_sub = res.poses.shape[1] - 1
         travelled = np.minimum(cfg.substep * np.arange(1, n_sub + 1), total)  # (S,)
         lengths = travelled - cfg.approach_clearance

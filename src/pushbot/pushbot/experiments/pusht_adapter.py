@@ -72,6 +72,8 @@ WALL_MARGIN = 4.0
 #: Pusher speeds, env units per control step (transit / pushing).
 TRANSIT_SPEED = 45.0
 PUSH_SPEED = 25.0
+#: Rollouts with both contacts of a pusher in one of the T's inner corners (frictionless).
+TWO_FACES = True
 #: Extra clearance of the pusher from the T while it travels (env units), for tracking error.
 TRANSIT_MARGIN = 4.0
 
@@ -238,7 +240,7 @@ def _settings_planner(pusher: Pusher, obj: PushObject, seed: int) -> Planner:
     return pusher.planner(
         workspace=(ws, ws), k=3, lam=1.0, temperature=2.0, seed=seed,
         approach_clearance=0.008, min_push_length=0.005, max_push_length=0.08,
-        substep=0.005, travel_weight=0.05,
+        substep=0.005, travel_weight=0.05, two_faces=TWO_FACES,
         transit_clearance=pusher.radius + TRANSIT_MARGIN * METRES_PER_UNIT)
 
 
