@@ -282,16 +282,20 @@ def _two_face_twist(outline: NDArray[np.float64], q: NDArray[np.float64],
                     m: NDArray[np.float64], touching: NDArray[np.bool_], reach: float,
                     single: NDArray[np.float64]) -> NDArray[np.float64]:
     """``single`` replaced by :func:`wedge_twist` where a frictionless pusher in contact also
-    touches another face (within ``reach`` of the pusher centre ``q``, its nearest point more
-    than 1 mm from ``closest`` with a normal at least 8 degrees from ``n_out``)."""
+    touches another face (within ``reach`` of the pusher centre ``q``, its nearest point inside
+    the face, more than 1 mm from ``closest``, with a normal at least 8 degrees from
+    ``n_out``)."""
     a = outline
     ab = np.roll(outline, -1, axis=0) - a
     t = np.clip(np.einsum("bpk,pk->bp", q[:, None, :] - a[None], ab) / np.sum(ab * ab, 1), 0, 1)
     foot = a[None] + t[..., None] * ab[None]  # (B, P, 2)
     dist = np.linalg.norm(q[:, None, :] - foot, axis=-1)
     normal = np.stack([ab[:, 1], -ab[:, 0]], -1) / np.linalg.norm(ab, axis=1)[:, None]
+    # a face the pusher touches squarely (its foot inside the segment, not at an end point: at
+    # a convex corner the other face's nearest point is the shared vertex, not a contact)
     other = (np.linalg.norm(foot - closest[:, None, :], axis=-1) > 1e-3) & (
-        np.einsum("pk,bk->bp", normal, n_out) < math.cos(math.radians(8.0)))
+        np.einsum("pk,bk->bp", normal, n_out) < math.cos(math.radians(8.0))) & (
+        t > 1e-6) & (t < 1.0 - 1e-6)
     dist = np.where(other, dist, np.inf)
     j = np.argmin(dist, axis=1)
     rows = np.arange(len(q))
