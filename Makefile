@@ -20,6 +20,9 @@ $(STAMP): requirements.txt constraints.txt $(SETUP_FILES)
 	@$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "pushbot needs Python >= 3.11, found " + sys.version' 
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -r requirements.txt -c constraints.txt
+	# gym-pusht (Push-T, `pushbot eval pusht`) without its opencv-python<5 requirement: a second
+	# cv2 next to opencv-python-headless 5 breaks both; its other needs are in requirements.txt.
+	$(BIN)/python -m pip install --no-deps gym-pusht==0.1.8
 	# compat mode: a .pth with each source folder, so modules added later import without
 	# reinstalling; no build isolation, so the pinned setuptools of .venv builds them.
 	$(BIN)/python -m pip install --no-deps --no-build-isolation --config-settings editable_mode=compat $(foreach p,$(PACKAGES),-e src/$(p))

@@ -17,7 +17,12 @@ setup(
     # `pushbot eval push --ray ADDRESS` runs the trials as Ray tasks, for users who outgrow one
     # machine (pip install 'pushbot[ray]'; the repository's .venv has it from requirements.txt);
     # the default engine is local worker processes.
-    extras_require={'ray': ['ray>=2.9']},
+    # `pushbot eval pusht` (issue 16): gym-pusht and what it needs at run time. gym-pusht
+    # 0.1.8 also requires opencv-python<5; where opencv-python-headless 5 is installed (this
+    # repository's .venv) install gym-pusht with --no-deps instead, as `make venv` does.
+    extras_require={'ray': ['ray>=2.9'],
+                    'pusht': ['gym-pusht==0.1.8', 'gymnasium>=0.29.1,<2', 'pygame>=2.5.2,<2.7',
+                              'pymunk>=6.6,<7', 'shapely>=2.0.3,<3']},
     zip_safe=True,
     maintainer='pushbot developers',
     maintainer_email='pushbot@example.com',

@@ -132,6 +132,10 @@ class PushEKF(EKFBase):
         l0 = self.outline.limit_surface
         self.l_bounds = (cfg.l_min_fraction * l0, max(self.outline.radius, l0))
         self.m_bounds = cfg.m_range
+        if cfg.known_l is not None:
+            self.l_bounds = (cfg.known_l, cfg.known_l)
+        if cfg.known_m is not None:
+            self.m_bounds = (cfg.known_m, cfg.known_m)
         self.period = 2.0 * math.pi / self.outline.symmetry_order
         self.initialized = False
         self.last_prediction: PushPrediction | None = None
@@ -159,6 +163,13 @@ class PushEKF(EKFBase):
         cov = np.diag([0.0, 0.0, 0.0, 0.0, 0.0, (cfg.l_sigma_fraction * l0) ** 2,
                        cfg.m_sigma**2])
         cov[3:5, 3:5] = cfg.com_prior_fraction**2 * self.outline.area_moment
+        if cfg.known_com is not None:  # known parameters: exact, never updated
+            mean[3:5] = cfg.known_com
+            cov[3:5, 3:5] = 0.0
+        if cfg.known_l is not None:
+            mean[5], cov[5, 5] = cfg.known_l, 0.0
+        if cfg.known_m is not None:
+            mean[6], cov[6, 6] = cfg.known_m, 0.0
         return mean, cov
 
     # ---- episode -----------------------------------------------------------------------------
@@ -383,7 +394,11 @@ class PushEKF(EKFBase):
         the best point to linearise the push at. ``n`` as in :meth:`_update`.
         """
         x_prev, p_prev, start, end = self._before_push
-        gain = np.linalg.solve(self.P_prior, self.F @ p_prev).T  # P_prev F^T P_prior^-1
+        cfg = self.config
+        if cfg.known_com is None and cfg.known_l is None and cfg.known_m is None:
+            gain = np.linalg.solve(self.P_prior, self.F @ p_prev).T  # P_prev F^T P_prior^-1
+        else:  # known parameters have zero variance: P_prior is singular, use its pseudo-inverse
+            gain = (np.linalg.pinv(self.P_prior, hermitian=True) @ (self.F @ p_prev)).T
         x_lin = x_prev + gain @ (self.x[:, 0] - self.x_prior[:, 0])
         x_lin[5] = min(max(x_lin[5], self.l_bounds[0]), self.l_bounds[1])
         x_lin[6] = min(max(x_lin[6], self.m_bounds[0]), self.m_bounds[1])
@@ -420,7 +435,10 @@ class PushEKF(EKFBase):
         x = self.x[:, 0]
         x[5] = min(max(x[5], self.l_bounds[0]), self.l_bounds[1])
         x[6] = min(max(x[6], self.m_bounds[0]), self.m_bounds[1])
-        x[3], x[4] = self.outline.clip_to_hull(float(x[3]), float(x[4]))
+        if self.config.known_com is not None:
+            x[3], x[4] = self.config.known_com
+        else:
+            x[3], x[4] = self.outline.clip_to_hull(float(x[3]), float(x[4]))
 
     def _observation_noise(self, r: ArrayLike | None) -> NDArray[np.float64]:
         if r is None:

@@ -89,6 +89,14 @@ class EKFConfig:
         Linearisations of the push per observation (>= 1). 1 is the plain EKF; each further
         iteration re-linearises the process model at the smoothed pre-push state and redoes
         the update (an iterated EKF for the process nonlinearity in c, l and m).
+    known_com : tuple of 2 float, optional
+        The COM (object frame, m) when it is known: the filter starts there with zero variance
+        and no random walk (default None: estimated).
+    known_l : float, optional
+        Known limit-surface parameter (m, > 0), likewise (default None: estimated).
+    known_m : float, optional
+        Known pusher-object friction (>= 0; 0 = frictionless contact, outside ``m_range``),
+        likewise (default None: estimated).
     """
 
     pusher_radius: float = PUSHER_RADIUS
@@ -115,11 +123,27 @@ class EKFConfig:
     m_noise: float = 0.01
     gate_probability: float = 0.9999
     iterations: int = 2
+    known_com: tuple[float, float] | None = None
+    known_l: float | None = None
+    known_m: float | None = None
 
     def __post_init__(self) -> None:
         for f in fields(self):
             value = getattr(self, f.name)
-            if f.name == "m_range":
+            if f.name.startswith("known_"):
+                if value is None:
+                    continue
+                if f.name == "known_com":
+                    object.__setattr__(self, f.name, tuple(finite_vector(f.name, value, 2)))
+                    continue
+                ok = not isinstance(value, bool) and isinstance(value, int | float) and \
+                    math.isfinite(value) and (value > 0.0 if f.name == "known_l" else value >= 0.0)
+                if not ok:
+                    raise ValueError(f"{f.name} must be a finite number "
+                                     f"{'> 0' if f.name == 'known_l' else '>= 0'} or None, got "
+                                     f"{value!r}")
+                object.__setattr__(self, f.name, float(value))
+            elif f.name == "m_range":
                 lo, hi = _pair("m_range", value)
                 if not 0.0 < lo < hi:
                     raise ValueError(f"m_range must satisfy 0 < low < high, got {value!r}")
@@ -183,8 +207,10 @@ class EKFConfig:
         """
         s_pos = self.position_noise_min + self.position_noise_per_metre * contact_length
         s_ang = self.angle_noise_min + self.angle_noise_per_metre * contact_length
-        return np.diag([s_pos**2, s_pos**2, s_ang**2, self.com_noise**2, self.com_noise**2,
-                        self.l_noise**2, self.m_noise**2])
+        s_com = 0.0 if self.known_com is not None else self.com_noise
+        s_l = 0.0 if self.known_l is not None else self.l_noise
+        s_m = 0.0 if self.known_m is not None else self.m_noise
+        return np.diag([s_pos**2, s_pos**2, s_ang**2, s_com**2, s_com**2, s_l**2, s_m**2])
 
 
 def _pair(name: str, value: object) -> tuple[float, float]:

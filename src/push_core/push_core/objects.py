@@ -37,6 +37,7 @@ __all__ = [
     "TEST_OBJECTS",
     "ObjectSpec",
     "library_names",
+    "limit_surface_guess",
     "load_object",
     "object_from_dict",
 ]
@@ -133,8 +134,18 @@ class ObjectSpec:
         ``l = tau_max / f_max`` = mean distance of the support area from the COM (for a disc of
         radius R this is 2R/3). Estimated by uniform sampling over the area with a fixed seed.
         """
-        samples = _sample_area(self.shape, n, np.random.default_rng(seed))
-        return float(np.mean(np.linalg.norm(samples - self.com, axis=1)))
+        return limit_surface_guess(self.shape, self.com, n, seed)
+
+
+def limit_surface_guess(shape: Shape, com: np.ndarray, n: int = 20000, seed: int = 0) -> float:
+    """Limit-surface parameter ``l`` of a shape under uniform pressure, in the shape's unit.
+
+    ``l = tau_max / f_max`` = the mean distance of the support area from the COM ``com`` (2,)
+    (shape frame); a disc of radius R gives 2R/3. Uniform sampling of ``n`` points with a fixed
+    ``seed`` (:meth:`ObjectSpec.limit_surface_guess` is this function).
+    """
+    samples = _sample_area(shape, n, np.random.default_rng(seed))
+    return float(np.mean(np.linalg.norm(samples - np.asarray(com, dtype=float), axis=1)))
 
 
 def library_names() -> list[str]:

@@ -90,6 +90,7 @@ from push_core.model import REPRESENTATIVE_ANGLES_DEG, REPRESENTATIVE_LENGTHS
 from push_core.rollout import PUSHER_RADIUS, SUBSTEP, rollout_push
 from push_core.shapes import Polygon
 from push_core.symmetry import has_continuous_symmetry
+from push_core.transit import TransitPlanner, ccw_polygon, segment_polygon_clear
 
 __all__ = [
     "APPROACH_MARGIN",
@@ -103,6 +104,7 @@ __all__ = [
     "METHODS",
     "STOP_CONFIDENCE",
     "NoFeasiblePush",
+    "NoImprovingPush",
     "Outline",
     "Planner",
     "PlannerConfig",
@@ -178,6 +180,15 @@ _BASE_COLUMNS = np.arange(0, len(_FINE_ANGLES), INTERPOLATION_STEPS + 1)
 
 class NoFeasiblePush(RuntimeError):
     """No outline point admits a push inside the workspace with a clear approach."""
+
+
+class NoImprovingPush(NoFeasiblePush):
+    """``PlannerConfig.require_improvement``: no feasible push is predicted to bring the object
+    closer to the goal (by eq. 5.1) than it is now. ``plan`` holds the best push found."""
+
+    def __init__(self, message: str, plan: PushPlan) -> None:
+        super().__init__(message)
+        self.plan = plan
 
 
 # ------------------------------------------------------------------------------ scores
@@ -576,6 +587,24 @@ class PlannerConfig:
     stop_confidence : float
         Confidence of the stop rule (:func:`goal_reached`), in ``[0.5, 1)``; 0.5 stops on the
         point estimate.
+    obstacles : tuple of (P_i, 2) polygons
+        Walls and other obstacles in ``world`` (metres, either orientation): a push whose
+        pusher line from approach to end comes closer than ``pusher_radius`` to one is
+        excluded, and the pusher's way in (``plan(pusher=...)``) avoids them. Default none.
+    travel_weight : float
+        With ``plan(pusher=...)``: score cost of the pusher's travel to the approach point,
+        millimetres of score per millimetre of (collision-free, :mod:`push_core.transit`)
+        path, >= 0 (0: travel only decides feasibility). Default 0.
+    transit_clearance : float
+        Distance (m) the pusher centre keeps from the object and the obstacles while it
+        travels (``plan(pusher=...)``); 0 (default) means ``pusher_radius + APPROACH_MARGIN``.
+        Give a pusher that tracks its path loosely a larger margin.
+    require_improvement : bool
+        Raise :class:`NoImprovingPush` instead of returning a push whose predicted score is no
+        better than the current pose's (default False: the best push is returned anyway).
+    two_faces : bool
+        Rollouts of frictionless pushes (``m = 0``) let a pusher in an inner corner push both
+        faces at once (:func:`push_core.rollout.wedge_twist`); default False (nearest face).
     """
 
     method: str = "ana"
@@ -594,6 +623,11 @@ class PlannerConfig:
     simplify_tolerance: float = 5e-4
     seed: int = 0
     stop_confidence: float = STOP_CONFIDENCE
+    obstacles: tuple = ()
+    travel_weight: float = 0.0
+    transit_clearance: float = 0.0
+    require_improvement: bool = False
+    two_faces: bool = False
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -610,7 +644,8 @@ class PlannerConfig:
                              ("tolerance_theta", True), ("pusher_radius", False),
                              ("approach_clearance", True), ("min_push_length", True),
                              ("max_push_length", True), ("substep", True),
-                             ("simplify_tolerance", False)):
+                             ("simplify_tolerance", False), ("travel_weight", False),
+                             ("transit_clearance", False)):
             value = getattr(self, name)
             try:
                 value = float(value)
@@ -638,6 +673,21 @@ class PlannerConfig:
             raise ValueError(f"workspace: expected ((xmin, xmax), (ymin, ymax)) with min < max, "
                              f"got {self.workspace!r}")
         object.__setattr__(self, "workspace", tuple(tuple(float(v) for v in r) for r in ws))
+        for name in ("require_improvement", "two_faces"):
+            if not isinstance(getattr(self, name), bool | np.bool_):
+                raise ValueError(f"{name}: expected a bool, got {getattr(self, name)!r}")
+            object.__setattr__(self, name, bool(getattr(self, name)))
+        obstacles = []
+        for i, poly in enumerate(self.obstacles):
+            p = ccw_polygon(poly, f"obstacles[{i}]")
+            p.setflags(write=False)
+            obstacles.append(p)
+        object.__setattr__(self, "obstacles", tuple(obstacles))
+
+    @property
+    def clearance(self) -> float:
+        """The transit clearance in use (:attr:`transit_clearance`, or its default)."""
+        return self.transit_clearance or self.pusher_radius + APPROACH_MARGIN
 
 
 @dataclass(frozen=True)
@@ -671,6 +721,8 @@ class PushPlan:
         No sampled candidate had a feasible push; every other eligible point was tried.
     method : str
     direct : bool
+    travel : float
+        Length of the pusher's way in (``plan(pusher=...)``), metres; 0 without it.
     """
 
     approach: NDArray[np.float64]
@@ -688,6 +740,7 @@ class PushPlan:
     fallback: bool = False
     method: str = "ana"
     direct: bool = False
+    travel: float = 0.0
 
 
 @dataclass
@@ -699,6 +752,7 @@ class _Options:
     length: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
     score: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
     pose: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 3)))
+    travel: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
 
 
 def _allowed_points(points: NDArray[np.float64], avoid: ArrayLike | None) -> NDArray[np.bool_]:
@@ -784,7 +838,7 @@ class Planner:
         return self.config.lam if outline.orientation_matters else 0.0
 
     def plan(self, outline: Outline, state: ArrayLike, goal: ArrayLike,
-             avoid: ArrayLike | None = None) -> PushPlan:
+             avoid: ArrayLike | None = None, pusher: ArrayLike | None = None) -> PushPlan:
         """Plan one push.
 
         Parameters
@@ -803,6 +857,13 @@ class Planner:
             a refused push is not planned again from the same estimate. Ignored when it would
             leave no point; None or empty changes nothing (the same plan, the same random
             draws).
+        pusher : array_like, shape (2,), optional
+            Where the pusher centre is now (``world``), for a pusher that cannot lift: each
+            push needs a collision-free way from here to its approach point around the object
+            and ``config.obstacles`` (:class:`push_core.transit.TransitPlanner` with
+            ``config.clearance``; pushes without one are infeasible) and costs
+            ``config.travel_weight`` times its length (``PushPlan.travel``). None (default):
+            the pusher is lowered at the approach point from above.
 
         Returns
         -------
@@ -815,8 +876,13 @@ class Planner:
             it).
         NoFeasiblePush
             No outline point admits a feasible push (see the module docstring).
+        NoImprovingPush
+            ``config.require_improvement`` and no feasible push is predicted to improve on the
+            current pose (its ``plan`` is the best push found).
         """
         cfg = self.config
+        if pusher is not None:
+            pusher = _vector(pusher, 2, "pusher")
         if not isinstance(outline, Outline):
             raise ValueError(f"outline: expected an Outline (prepare_outline), got "
                              f"{type(outline).__name__}")
@@ -847,28 +913,72 @@ class Planner:
             candidates = self.rng.choice(pool, size=min(cfg.k, pool.size), replace=False)
 
         options = self._evaluate(outline, pose, com, l, m, goal, desired, aff, candidates)
+        options = self._reachable(outline, pose, options, pusher)
         fallback = not np.isfinite(options.score).any()
         if fallback:
             rest = np.flatnonzero(eligible & ~np.isin(np.arange(n), candidates))
             rest = rest[np.argsort(scores[rest], kind="stable")][:MAX_FALLBACK_POINTS]
             if rest.size:
                 options = self._evaluate(outline, pose, com, l, m, goal, desired, aff, rest)
+                options = self._reachable(outline, pose, options, pusher)
             if not np.isfinite(options.score).any():
                 raise NoFeasiblePush(
                     "no outline point admits a push with its approach and end point inside the "
                     f"workspace {cfg.workspace} and an approach clear of the object")
-        best = int(np.argmin(options.score))
+        cost = options.score + cfg.travel_weight * 1e3 * np.where(np.isfinite(options.travel),
+                                                                  options.travel, 0.0)
+        best = int(np.argmin(cost))
         index, angle, length = (int(options.index[best]), float(options.angle[best]),
                                 float(options.length[best]))
         approach, contact, end = self._pusher_points(outline, pose, options.index[best:best + 1],
                                                      options.angle[best:best + 1],
                                                      options.length[best:best + 1])
-        return PushPlan(
+        result = PushPlan(
             approach=approach[0], contact=contact[0], end=end[0], index=index, angle=angle,
             length=length, predicted_pose=options.pose[best].copy(),
             score=float(options.score[best]), current_score=float(motion_score(desired, lam)),
             scores=scores, probabilities=probabilities, candidates=np.asarray(candidates),
-            fallback=fallback, method=cfg.method, direct=cfg.direct)
+            fallback=fallback, method=cfg.method, direct=cfg.direct,
+            travel=float(options.travel[best]))
+        if cfg.require_improvement and not result.score < result.current_score:
+            raise NoImprovingPush(
+                f"no push improves on the current pose: the best predicted score "
+                f"{result.score:.3f} mm is not below the current {result.current_score:.3f} mm",
+                result)
+        return result
+
+    def _reachable(self, outline: Outline, pose: NDArray[np.float64], options: _Options,
+                   pusher: NDArray[np.float64] | None) -> _Options:
+        """Exclude pushes whose pusher line (approach to end) meets an obstacle and, with a
+        ``pusher`` position, those without a way in; record the travel lengths (metres)."""
+        cfg = self.config
+        options.travel = np.zeros(len(options.score))
+        ok = np.isfinite(options.score)
+        if not ok.any() or (pusher is None and not cfg.obstacles):
+            return options
+        approach, _, end = self._pusher_points(outline, pose, options.index, options.angle,
+                                               options.length)
+        if cfg.obstacles:
+            ok[ok] = segment_polygon_clear(approach[ok], end[ok], cfg.obstacles,
+                                           cfg.pusher_radius)
+        if pusher is not None and ok.any():
+            body = object_to_world(pose, outline.polyline)
+            transit = TransitPlanner([body, *cfg.obstacles], cfg.clearance, cfg.workspace)
+            options.travel[ok] = transit.lengths(pusher, approach[ok])
+            ok &= np.isfinite(options.travel)
+        options.score = np.where(ok, options.score, np.inf)
+        return options
+
+    def transit(self, outline: Outline, pose: ArrayLike, pusher: ArrayLike,
+                target: ArrayLike) -> NDArray[np.float64] | None:
+        """The pusher's collision-free way (K, 2) from ``pusher`` to ``target`` (usually
+        ``PushPlan.approach``) around the object at ``pose`` and ``config.obstacles``, world
+        frame, or None if there is none (:meth:`push_core.transit.TransitPlanner.path`)."""
+        cfg = self.config
+        pose = _vector(pose, 3, "pose")
+        body = object_to_world(pose, outline.polyline)
+        transit = TransitPlanner([body, *cfg.obstacles], cfg.clearance, cfg.workspace)
+        return transit.path(_vector(pusher, 2, "pusher"), _vector(target, 2, "target"))
 
     # -------------------------------------------------------------- internals
     def _evaluate(self, outline: Outline, pose: NDArray[np.float64], com: NDArray[np.float64],
@@ -933,7 +1043,8 @@ class Planner:
         direction = (contact - approach) / cfg.approach_clearance  # unit, world
         total = cfg.approach_clearance + cfg.max_push_length
         res = rollout_push(outline.polyline, pose, com, l, m, approach, total * direction,
-                           substep=cfg.substep, pusher_radius=cfg.pusher_radius)
+                           substep=cfg.substep, pusher_radius=cfg.pusher_radius,
+                           two_faces=cfg.two_faces)
         n_sub = res.poses.shape[1] - 1
         travelled = np.minimum(cfg.substep * np.arange(1, n_sub + 1), total)  # (S,)
         lengths = travelled - cfg.approach_clearance

@@ -34,6 +34,7 @@ substep of the same push (it slid off a corner, or the object rotated away from 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -112,6 +113,7 @@ def rollout_push(
     substep: float = SUBSTEP,
     pusher_radius: float = PUSHER_RADIUS,
     contact_tol: float = CONTACT_TOL,
+    two_faces: bool = False,
 ) -> RolloutResult:
     """Roll out straight-line pushes of a disc pusher against an outline, in substeps.
 
@@ -135,6 +137,10 @@ def rollout_push(
         Pusher radius in metres (>= 0).
     contact_tol : float
         Distance tolerance of the contact test in metres (>= 0).
+    two_faces : bool
+        Frictionless pushes (``m = 0``) only: when the pusher also touches a second face (an
+        inner corner of a non-convex outline, :func:`wedge_twist`), both contacts push at once.
+        Default False: one contact, the nearest face (pushes with ``m > 0`` always use one).
 
     Returns
     -------
@@ -199,6 +205,9 @@ def rollout_push(
         touching = (k < n_steps) & (approach > 0.0) & (gap - approach <= contact_tol)
         frac = np.clip((approach - gap) / np.where(touching, approach, 1.0), 0.0, 1.0)
         twist = push_twist(frac[:, None] * d_obj, closest, -n_out, com, l, m, touching)
+        if two_faces:
+            twist = _two_face_twist(outline, q_start, frac[:, None] * d_obj, closest, n_out,
+                                    com, l, m, touching, pusher_radius + contact_tol, twist)
         pose = np.where(touching[:, None], apply_twist(pose, twist, com), pose)
         poses[:, k + 1], pusher[:, k + 1] = pose, p_end
         contact[:, k], points[:, k], normals[:, k] = touching, closest, n_out
@@ -220,3 +229,81 @@ def rollout_push(
         first_lost_step=first_lost,
         n_steps=n_steps,
     )
+
+
+def wedge_twist(push: ArrayLike, contacts: ArrayLike, normals_in: ArrayLike, com: ArrayLike,
+                l: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:  # noqa: E741
+    """Twist of a frictionless push with two simultaneous contacts (a pusher in an inner corner).
+
+    Ellipsoidal limit surface, frictionless contacts: the contact wrenches
+    ``w_i = (n_i, (r_i - c) x n_i)`` with multipliers ``lam_i >= 0`` move the object by
+    ``V = A (lam_1 w_1 + lam_2 w_2)``, ``A = diag(1, 1, 1 / l^2)``, and each active contact
+    follows the pusher along its normal: ``w_i . V = u . n_i``. Solved as a 2 x 2 system;
+    ``ok`` is False where a multiplier would be negative (the pusher leaves that face: use one
+    contact) or the system is singular (parallel faces).
+
+    Parameters
+    ----------
+    push : array_like, shape (B, 2)
+        Pusher displacement, object frame (metres).
+    contacts, normals_in : array_like, shape (B, 2, 2)
+        The two contact points and inward unit normals, object frame.
+    com : array_like, shape (B, 2)
+    l : array_like, shape (B,)
+
+    Returns
+    -------
+    twist : numpy.ndarray, shape (B, 3)
+        COM displacement (metres) and rotation (radians), object frame.
+    ok : numpy.ndarray of bool, shape (B,)
+    """
+    u = np.asarray(push, dtype=np.float64)
+    r = np.asarray(contacts, dtype=np.float64) - np.asarray(com, dtype=np.float64)[:, None, :]
+    n = np.asarray(normals_in, dtype=np.float64)
+    torque = r[..., 0] * n[..., 1] - r[..., 1] * n[..., 0]  # (B, 2)
+    w = np.concatenate([n, torque[..., None]], axis=-1)  # (B, 2, 3)
+    a = np.array([1.0, 1.0, 0.0])[None, :] + np.array([0.0, 0.0, 1.0])[None, :] / np.square(
+        np.asarray(l, dtype=np.float64))[:, None]  # (B, 3) diagonal of A
+    g = np.einsum("bik,bk,bjk->bij", w, a, w)
+    rhs = np.einsum("bk,bik->bi", u, n)
+    det = g[:, 0, 0] * g[:, 1, 1] - g[:, 0, 1] * g[:, 1, 0]
+    safe = np.abs(det) > 1e-12 * np.maximum(g[:, 0, 0] * g[:, 1, 1], 1e-300)
+    det = np.where(safe, det, 1.0)
+    lam = np.stack([g[:, 1, 1] * rhs[:, 0] - g[:, 0, 1] * rhs[:, 1],
+                    g[:, 0, 0] * rhs[:, 1] - g[:, 1, 0] * rhs[:, 0]], -1) / det[:, None]
+    ok = safe & np.all(lam > 0.0, axis=1)
+    twist = a * np.einsum("bi,bik->bk", lam, w)
+    return np.where(ok[:, None], twist, 0.0), ok
+
+
+def _two_face_twist(outline: NDArray[np.float64], q: NDArray[np.float64],
+                    push: NDArray[np.float64], closest: NDArray[np.float64],
+                    n_out: NDArray[np.float64], com: NDArray[np.float64], l: NDArray[np.float64],  # noqa: E741
+                    m: NDArray[np.float64], touching: NDArray[np.bool_], reach: float,
+                    single: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``single`` replaced by :func:`wedge_twist` where a frictionless pusher in contact also
+    touches another face (within ``reach`` of the pusher centre ``q``, its nearest point inside
+    the face, more than 1 mm from ``closest``, with a normal at least 8 degrees from
+    ``n_out``)."""
+    a = outline
+    ab = np.roll(outline, -1, axis=0) - a
+    t = np.clip(np.einsum("bpk,pk->bp", q[:, None, :] - a[None], ab) / np.sum(ab * ab, 1), 0, 1)
+    foot = a[None] + t[..., None] * ab[None]  # (B, P, 2)
+    dist = np.linalg.norm(q[:, None, :] - foot, axis=-1)
+    normal = np.stack([ab[:, 1], -ab[:, 0]], -1) / np.linalg.norm(ab, axis=1)[:, None]
+    # a face the pusher touches squarely (its foot inside the segment, not at an end point: at
+    # a convex corner the other face's nearest point is the shared vertex, not a contact)
+    other = (np.linalg.norm(foot - closest[:, None, :], axis=-1) > 1e-3) & (
+        np.einsum("pk,bk->bp", normal, n_out) < math.cos(math.radians(8.0))) & (
+        t > 1e-6) & (t < 1.0 - 1e-6)
+    dist = np.where(other, dist, np.inf)
+    j = np.argmin(dist, axis=1)
+    rows = np.arange(len(q))
+    second = touching & (np.asarray(m) <= 0.0) & (dist[rows, j] <= reach) & (
+        -np.sum(push * normal[j], axis=-1) > 0.0)
+    if not second.any():
+        return single
+    contacts = np.stack([closest, foot[rows, j]], 1)
+    normals_in = -np.stack([n_out, normal[j]], 1)
+    twist, ok = wedge_twist(push, contacts, normals_in, com, l)
+    return np.where((second & ok)[:, None], twist, single)

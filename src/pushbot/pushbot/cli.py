@@ -90,6 +90,7 @@ TARGETS: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
         'push': ('pushbot.evaluate',
                  'the closed-loop experiments of SPEC section 5 in-process (success, steps, end '
                  'error; Figs. 5.5-5.7, Tables 5.1-5.2; --ray, --graph)'),
+        'pusht': ('pushbot.experiments.pusht', 'the planner on gym-pusht Push-T (issue 16)'),
     }),
 }
 

@@ -1,0 +1,485 @@
+"""The Push-T adapter of ``pushbot eval pusht``: the push_core planner on ``gym_pusht/PushT-v0``.
+
+The learned-pushing benchmark of Diffusion Policy (Chi et al. 2023): a disc pusher must push a
+T-shaped block into a fixed goal pose in a 2-D pymunk world; success = the block covers more
+than 95 % of the goal T; 300 control steps per episode. This adapter drives the env's own
+dynamics, reward and success with push_core's *public* library API only
+(:mod:`push_core.pushable`, :mod:`push_core.planner`, :mod:`push_core.transit`; a test parses
+this module for private names) and writes LeRobot-style metrics.
+
+Units and frames (checked against gym-pusht 0.1.8, ``envs/pusht.py``):
+
+- **Scale**: one env unit (a pixel of the 512 x 512 render) is taken as 1 mm
+  (:data:`METRES_PER_UNIT`), so the T is 120 mm wide and 120 mm tall, the pusher radius 15 mm,
+  push lengths of 1-5 cm are 10-50 units.
+- **Axes**: push_core's ``world`` is the pymunk frame scaled: x to the right of the image, y
+  *down* the image (pygame draws pymunk coordinates unflipped, ``positive_y_is_up = False``),
+  angles from x towards y (clockwise on the screen). This is a right-handed frame whose z
+  points into the screen; push_core's planar maths needs nothing else.
+- **Block reference point**: the env reports ``block.position``/``block.angle``, the pose of
+  the pymunk *body* frame: the midpoint of the top edge of the T's bar, y along the stem. The
+  T is two boxes in that frame, the bar ``[-60, 60] x [0, 30]`` and the stem
+  ``[-15, 15] x [30, 120]``; their union is the outline given to
+  :meth:`push_core.pushable.PushObject.from_polygon`, whose ``object`` frame origin is the
+  area centroid, ``(0, 40.71)`` in the body frame (:meth:`PushObject.to_object_pose`).
+- **Centre of gravity**: pymunk's, ``center_of_gravity = (0, 45)`` in the body frame (the mean of
+  the two boxes' centroids, not area-weighted): the COM the planner uses, 4.29 mm from the area
+  centroid along the stem. The env sets the block angle about this point at reset.
+- **Dynamics**: ``space.damping = 0`` zeroes every velocity at each 10 ms physics step, and the
+  contact is frictionless (the T's and the agent's shapes keep pymunk's default friction 0;
+  ``body.friction = 1`` in the env sets no shape friction). A frictionless impulsive push on a
+  body that keeps no velocity moves it as the ellipsoidal limit-surface model with ``m = 0``
+  and ``l = sqrt(I / M)`` (the radius of gyration about the COM; the impulse gives
+  ``v = J / M``, ``omega = (r x J) / I``), read from the env's body (``M = 1``, ``I = 3000``:
+  the env adds the bar's moment twice, so ``l = 54.8`` mm, not the uniform-pressure guess).
+- **Agent**: a kinematic disc (radius 15) driven by PD control towards the action (``k_p =
+  100``, ``k_v = 20``, 10 physics steps of 10 ms per control step). The agent is kinematic, so
+  its motion depends only on the actions: :class:`AgentModel` replicates the controller and
+  picks each action so that the disc follows the planned path (two-step deadbeat on position
+  and velocity), tracking its velocity from the actions it sent.
+
+Each push is planned in closed loop from the observed pose (the state, or the pose fitted to
+the 96 x 96 image, :mod:`pushbot.experiments.pusht_vision`), with the disc's position as the
+start of the transit planner: the disc cannot lift, so it travels around the T to the approach
+point, pushes, and the next push is planned from the new observation.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from push_core.planner import NoFeasiblePush, Planner, PushPlan
+from push_core.pushable import Pusher, PushObject
+
+#: Metres per env unit (one pixel of the 512 x 512 render is taken as 1 mm).
+METRES_PER_UNIT = 1e-3
+#: Message of a missing optional dependency.
+MISSING = "Push-T needs gym-pusht and its dependencies (pip install 'pushbot[pusht]'): "
+#: The env id.
+ENV_ID = "gym_pusht/PushT-v0"
+#: Pusher-centre workspace margin inside the walls (env units): tracking error headroom.
+WALL_MARGIN = 4.0
+#: Pusher speeds, env units per control step (transit / pushing).
+TRANSIT_SPEED = 45.0
+PUSH_SPEED = 25.0
+#: Rollouts with both contacts of a pusher in one of the T's inner corners (frictionless).
+TWO_FACES = True
+#: Extra clearance of the pusher from the T while it travels (env units), for tracking error.
+TRANSIT_MARGIN = 4.0
+
+
+# ------------------------------------------------------------------------------ the env's T
+def tee_body(env: object) -> tuple[NDArray[np.float64], NDArray[np.float64], float, float,
+                                      float, float]:
+    """The block as the env built it: outline (body frame, env units), centre of gravity,
+    mass, moment of inertia, pusher-block friction and the agent's radius.
+
+    Read from the env's pymunk objects (``env.unwrapped``): the two boxes' union (shapely,
+    a gym-pusht dependency), ``block.center_of_gravity``, ``block.mass``, ``block.moment``,
+    the product of the shapes' friction coefficients (pymunk's default combine rule).
+    """
+    try:  # gym-pusht's dependency: an optional extra (pushbot[pusht]), no rosdep key
+        import shapely.geometry as sg
+        from shapely.geometry.polygon import orient
+        from shapely.ops import unary_union
+    except ImportError as exc:
+        raise ImportError(MISSING + str(exc)) from exc
+
+    u = env.unwrapped
+    boxes = [sg.Polygon([tuple(v) for v in s.get_vertices()]) for s in u.block.shapes]
+    ring = np.array(orient(unary_union(boxes), 1.0).exterior.coords)[:-1]  # CCW
+    keep = _corners(ring)
+    agent_shape = next(iter(u.agent.shapes))
+    friction = float(agent_shape.friction) * float(next(iter(u.block.shapes)).friction)
+    cog = np.array(tuple(u.block.center_of_gravity), dtype=np.float64)
+    return (ring[keep], cog, float(u.block.mass), float(u.block.moment), friction,
+            float(agent_shape.radius))
+
+
+def _corners(ring: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Vertices of a closed ring that are real corners (not collinear)."""
+    prev, nxt = np.roll(ring, 1, axis=0), np.roll(ring, -1, axis=0)
+    cross = (ring - prev)[:, 0] * (nxt - ring)[:, 1] - (ring - prev)[:, 1] * (nxt - ring)[:, 0]
+    return np.abs(cross) > 1e-9
+
+
+@dataclass(frozen=True)
+class PushTFrames:
+    """Conversions between the env (units, body frame of the T) and push_core (metres,
+    object frame); see the module docstring."""
+
+    obj: PushObject
+    scale: float = METRES_PER_UNIT
+
+    def to_world(self, points: ArrayLike) -> NDArray[np.float64]:
+        """Env points (..., 2) -> world metres."""
+        return np.asarray(points, dtype=np.float64) * self.scale
+
+    def to_env(self, points: ArrayLike) -> NDArray[np.float64]:
+        """World metres (..., 2) -> env units."""
+        return np.asarray(points, dtype=np.float64) / self.scale
+
+    def object_pose(self, body_pose: ArrayLike) -> NDArray[np.float64]:
+        """The env's block pose ``(x, y, angle)`` (body frame, units) -> object frame (m)."""
+        b = np.asarray(body_pose, dtype=np.float64)
+        return self.obj.to_object_pose([b[0] * self.scale, b[1] * self.scale, b[2]])
+
+    def body_pose(self, pose: ArrayLike) -> NDArray[np.float64]:
+        """Inverse of :meth:`object_pose`."""
+        s = self.obj.to_source_pose(pose)
+        return np.array([s[0] / self.scale, s[1] / self.scale, s[2]])
+
+
+def make_tee(env: object) -> tuple[PushObject, Pusher, PushTFrames]:
+    """The T, the pusher and the frames of an env, through the public library API."""
+    ring, cog, mass, moment, friction, radius = tee_body(env)
+    s = METRES_PER_UNIT
+    obj = PushObject.from_polygon(ring * s, com=cog * s, friction=friction,
+                                  limit_surface=math.sqrt(moment / mass) * s)
+    return obj, Pusher(radius=radius * s), PushTFrames(obj)
+
+
+# ------------------------------------------------------------------------------ the agent
+class AgentModel:
+    """The env's PD control of its kinematic disc, per axis (exact: the disc is kinematic).
+
+    One control step holds the action ``a`` for ``n`` physics steps of ``dt``:
+    ``v += (k_p (a - x) - k_v v) dt; x += v dt``. Linear, so ``(x, v)`` after a step is
+    ``A (x, v) + B a``; :meth:`action` solves the two-step deadbeat for a desired position
+    after one step and position and velocity after two.
+    """
+
+    def __init__(self, k_p: float = 100.0, k_v: float = 20.0, dt: float = 0.01,
+                 n: int = 10, low: float = 0.0, high: float = 512.0) -> None:
+        m = np.array([[1.0 - k_p * dt * dt, dt * (1.0 - k_v * dt)], [-k_p * dt, 1.0 - k_v * dt]])
+        b = np.array([k_p * dt * dt, k_p * dt])
+        a_mat, b_vec = np.eye(2), np.zeros(2)
+        for _ in range(n):
+            a_mat, b_vec = m @ a_mat, m @ b_vec + b
+        self.A, self.B = a_mat, b_vec
+        self.low, self.high = low, high
+        # [a0, a1] -> (x2, v2): A B a0 + B a1
+        self._solve = np.linalg.inv(np.column_stack([self.A @ self.B, self.B]))
+        self.x = np.zeros(2)
+        self.v = np.zeros(2)
+
+    @classmethod
+    def of_env(cls, env: object) -> AgentModel:
+        u = env.unwrapped
+        n = int(1 / (u.dt * u.control_hz))
+        return cls(u.k_p, u.k_v, u.dt, n, float(u.action_space.low[0]),
+                   float(u.action_space.high[0]))
+
+    def reset(self, position: ArrayLike) -> None:
+        self.x = np.asarray(position, dtype=np.float64).copy()
+        self.v = np.zeros(2)
+
+    def action(self, p2: ArrayLike, v2: ArrayLike) -> NDArray[np.float64]:
+        """Action (2,) towards position ``p2`` and velocity ``v2`` (units/s) two steps ahead,
+        clipped to the action space."""
+        target = np.stack([np.asarray(p2, float), np.asarray(v2, float)])  # (2 [x,v], 2 axes)
+        free = self.A @ (self.A @ np.stack([self.x, self.v]))
+        a = (self._solve @ (target - free))[0]
+        return np.clip(a, self.low, self.high)
+
+    def step(self, action: ArrayLike, observed: ArrayLike | None = None) -> None:
+        """Advance the model by one control step with ``action``; ``observed`` (the env's
+        agent position) replaces the predicted position."""
+        s = self.A @ np.stack([self.x, self.v]) + np.outer(self.B, np.asarray(action, float))
+        self.x, self.v = s[0], s[1]
+        if observed is not None:
+            self.x = np.asarray(observed, dtype=np.float64).copy()
+
+
+def timed_path(waypoints: NDArray[np.float64], speeds: NDArray[np.float64]
+               ) -> NDArray[np.float64]:
+    """Positions (K, 2) at successive control steps along a polyline: every waypoint, and
+    segment ``i`` split into equal parts of at most ``speeds[i]`` units (per control step)."""
+    out = [waypoints[0]]
+    for i in range(len(waypoints) - 1):
+        a, b = waypoints[i], waypoints[i + 1]
+        n = int(math.ceil(float(np.linalg.norm(b - a)) / speeds[i] - 1e-9))
+        out.extend(a + (b - a) * (j / n) for j in range(1, n + 1))
+    return np.array(out)
+
+
+# ------------------------------------------------------------------------------ episode
+@dataclass
+class EpisodeRecord:
+    """One episode's outcome (LeRobot-style fields plus the planner's)."""
+
+    seed: int
+    success: bool
+    steps: int
+    max_reward: float
+    max_coverage: float
+    pushes: int
+    planning_ms: list[float] = field(default_factory=list)
+    failures: int = 0
+    wall_s: float = 0.0
+    #: ``--obs pixels``: position error (mm = env units) of the estimate each push was planned
+    #: from, against the env's block pose (diagnostics only; never given to the planner).
+    pose_error: list[float] = field(default_factory=list)
+    #: Why the episode stopped early, if it did ("" = it ran to success or the step limit).
+    error: str = ""
+
+
+def _settings_planner(pusher: Pusher, obj: PushObject, seed: int) -> Planner:
+    ws = ((7.0 + WALL_MARGIN) * METRES_PER_UNIT + pusher.radius,
+          (504.0 - WALL_MARGIN) * METRES_PER_UNIT - pusher.radius)
+    return pusher.planner(
+        workspace=(ws, ws), k=3, lam=1.0, temperature=2.0, seed=seed,
+        approach_clearance=0.008, min_push_length=0.005, max_push_length=0.08,
+        substep=0.005, travel_weight=0.05, two_faces=TWO_FACES,
+        transit_clearance=pusher.radius + TRANSIT_MARGIN * METRES_PER_UNIT)
+
+
+class PushTRunner:
+    """Runs episodes of one env (``obs`` ``state`` or ``pixels``)."""
+
+    def __init__(self, obs: str = "state", max_steps: int = 300) -> None:
+        os.environ.setdefault("SDL_VIDEODRIVER", "dummy")  # pygame without a display
+        try:  # optional extra pushbot[pusht] (no rosdep key)
+            import gym_pusht  # noqa: F401  (registers the env)
+            import gymnasium as gym
+        except ImportError as exc:
+            raise ImportError(MISSING + str(exc)) from exc
+
+        if obs not in ("state", "pixels"):
+            raise ValueError(f"obs: expected 'state' or 'pixels', got {obs!r}")
+        self.obs = obs
+        self.max_steps = int(max_steps)
+        self.env = gym.make(ENV_ID, obs_type="state" if obs == "state" else "pixels_agent_pos",
+                            max_episode_steps=self.max_steps)
+        self.env.reset(seed=0)  # builds the pymunk space the T is read from
+        self.obj, self.pusher, self.frames = make_tee(self.env)
+        self.agent = AgentModel.of_env(self.env)
+        self.control_hz = float(self.env.unwrapped.control_hz)
+        self.goal = self.frames.object_pose(self.env.unwrapped.goal_pose)
+        self.vision = None
+        if obs == "pixels":
+            from pushbot.experiments.pusht_vision import TeeFitter
+            ring = tee_body(self.env)[0]
+            self.vision = TeeFitter(ring, agent_radius=self.pusher.radius / METRES_PER_UNIT)
+
+    def _estimator(self) -> object:
+        """The EKF for ``--obs pixels``: known COM, ``l`` and friction 0 (:meth:`Pusher.estimator`),
+        noise levels of the image fit (about 0.5 unit and 0.3 degrees rms) and of the model
+        (about 1 unit per 8 cm push)."""
+        return self.pusher.estimator(
+            self.obj, position_sigma=0.6 * METRES_PER_UNIT, angle_sigma=math.radians(0.4),
+            position_noise_min=0.2 * METRES_PER_UNIT, position_noise_per_metre=0.02,
+            angle_noise_min=math.radians(0.2), angle_noise_per_metre=0.3)
+
+    def _perceive(self, obs: object, ekf: object, push: PushPlan | None) -> NDArray[np.float64]:
+        """Object pose (world, m) from a pixels observation: the EKF predicted through the last
+        push gives the fit's start, the fitted pose updates the EKF."""
+        agent = np.asarray(obs["agent_pos"], dtype=np.float64)
+        if push is None or not ekf.initialized:
+            body = self.vision.fit(obs["pixels"], agent, None)
+            ekf.initialize(self.frames.object_pose(body))
+        else:
+            ekf.predict_push(push.approach, push.end)
+            guess = self.frames.body_pose(ekf.state[:3])
+            body = self.vision.fit(obs["pixels"], agent, guess)
+            ekf.update_pose(self.frames.object_pose(body))
+        return ekf.state[:3]
+
+    def run(self, seed: int, frames: list | None = None) -> EpisodeRecord:
+        """One episode with seed ``seed``; ``frames`` collects the rendered frames (video)."""
+        t_start = time.perf_counter()
+        obs, info = self.env.reset(seed=seed)
+        planner = _settings_planner(self.pusher, self.obj, seed)
+        ekf = self._estimator() if self.obs == "pixels" else None
+        rec = EpisodeRecord(seed=seed, success=False, steps=0, max_reward=0.0,
+                            max_coverage=0.0, pushes=0)
+        self.agent.reset(self._agent(obs))
+        if frames is not None:
+            frames.append(self.env.render())
+        done, push = False, None
+        while not done and rec.steps < self.max_steps:
+            agent = self._agent(obs)
+            if ekf is None:
+                pose = self.frames.object_pose(np.asarray(obs, dtype=np.float64)[2:5])
+            else:
+                pose = self._perceive(obs, ekf, push)
+                truth = self.frames.object_pose(info["block_pose"])  # diagnostics only
+                rec.pose_error.append(1e3 * float(np.hypot(*(pose[:2] - truth[:2]))))
+            t0 = time.perf_counter()
+            try:
+                push = planner.plan(self.obj.outline, self.obj.state(pose), self.goal,
+                                    pusher=self.frames.to_world(agent))
+                path = planner.transit(self.obj.outline, pose, self.frames.to_world(agent),
+                                       push.approach)
+            except NoFeasiblePush:
+                push, path = None, None
+            rec.planning_ms.append(1e3 * (time.perf_counter() - t0))
+            if push is None or path is None:
+                rec.failures += 1
+                path, push = self._escape(agent), None
+            obs, info, done = self._follow(path, push, rec, obs, info, frames)
+            rec.pushes += push is not None
+        rec.wall_s = time.perf_counter() - t_start
+        return rec
+
+    def _agent(self, obs: object) -> NDArray[np.float64]:
+        """The agent position (env units) of an observation."""
+        if self.obs == "state":
+            return np.asarray(obs, dtype=np.float64)[0:2]
+        return np.asarray(obs["agent_pos"], dtype=np.float64)
+
+    def _escape(self, agent: NDArray[np.float64]) -> NDArray[np.float64]:
+        """No plan: move the disc a little towards the workspace centre (world, m)."""
+        centre = np.array([256.0, 256.0])
+        d = centre - agent
+        step = agent + 40.0 * d / max(float(np.linalg.norm(d)), 1e-9)
+        return self.frames.to_world(np.stack([agent, step]))
+
+    def _follow(self, path: NDArray[np.float64], push: PushPlan | None, rec: EpisodeRecord,
+                obs: object, info: dict, frames: list | None) -> tuple[object, dict, bool]:
+        """Drive the disc along the transit path (world, m) and then the push; returns the
+        last observation and info and whether the episode ended."""
+        way = self.frames.to_env(path)
+        speeds = [TRANSIT_SPEED] * (len(way) - 1)
+        if push is not None:
+            way = np.vstack([way, self.frames.to_env(push.end)[None]])
+            speeds.append(PUSH_SPEED)
+        targets = timed_path(way, np.array(speeds))[1:]
+        targets = np.vstack([targets, targets[-1:], targets[-1:]])
+        for k in range(len(targets) - 2):
+            v2 = (targets[k + 2] - targets[k + 1]) * self.control_hz  # units per second
+            action = self.agent.action(targets[k + 1], v2)
+            obs, reward, terminated, truncated, info = self.env.step(action)
+            rec.steps += 1
+            rec.max_reward = max(rec.max_reward, float(reward))
+            rec.max_coverage = max(rec.max_coverage, float(info["coverage"]))
+            if frames is not None:
+                frames.append(self.env.render())
+            self.agent.step(action, self._agent(obs))
+            rec.success = rec.success or bool(terminated)
+            if terminated or truncated or rec.steps >= self.max_steps:
+                return obs, info, True
+        return obs, info, False
+
+    def close(self) -> None:
+        self.env.close()
+
+
+# ------------------------------------------------------------------------------ evaluation
+def wilson_interval(successes: int, n: int, z: float = 1.959963984540054
+                    ) -> tuple[float, float]:
+    """95 % Wilson score interval of a binomial proportion (``(0, 1)`` for ``n = 0``)."""
+    if n <= 0:
+        return 0.0, 1.0
+    p = successes / n
+    denom = 1.0 + z * z / n
+    centre = (p + z * z / (2 * n)) / denom
+    half = z * math.sqrt(p * (1.0 - p) / n + z * z / (4 * n * n)) / denom
+    return max(0.0, centre - half), min(1.0, centre + half)
+
+
+def summarize(records: Sequence[EpisodeRecord], config: dict) -> dict:
+    """results.json: LeRobot-style metrics first, then the configuration and the episodes."""
+    n = len(records)
+    wins = sum(r.success for r in records)
+    lo, hi = wilson_interval(wins, n)
+    planning = [t for r in records for t in r.planning_ms]
+    errors = [e for r in records for e in r.pose_error]
+    return {
+        "success_rate": wins / n if n else 0.0,
+        "success_wilson_95": [lo, hi],
+        "avg_max_reward": float(np.mean([r.max_reward for r in records])) if n else 0.0,
+        "mean_max_coverage": float(np.mean([r.max_coverage for r in records])) if n else 0.0,
+        "steps_mean": float(np.mean([r.steps for r in records])) if n else 0.0,
+        "steps_mean_success": float(np.mean([r.steps for r in records if r.success]))
+        if wins else 0.0,
+        "pushes_mean": float(np.mean([r.pushes for r in records])) if n else 0.0,
+        "planning_ms_median": float(np.median(planning)) if planning else 0.0,
+        "pose_error_mm_median": float(np.median(errors)) if errors else None,
+        "pose_error_mm_p95": float(np.percentile(errors, 95)) if errors else None,
+        "episode_wall_s_mean": float(np.mean([r.wall_s for r in records])) if n else 0.0,
+        "n_episodes": n,
+        "episodes_with_error": sum(bool(r.error) for r in records),
+        "config": config,
+        "episodes": [asdict(r) for r in records],
+    }
+
+
+_RUNNER: PushTRunner | None = None
+
+
+def _run_one(job: tuple[str, int, int, str | None]) -> EpisodeRecord:
+    """Worker: one episode (a runner per process, reused); writes the video if asked."""
+    global _RUNNER
+    obs, max_steps, seed, video = job
+    if _RUNNER is None or _RUNNER.obs != obs or _RUNNER.max_steps != max_steps:
+        _RUNNER = PushTRunner(obs, max_steps)
+    frames: list | None = [] if video else None
+    try:
+        rec = _RUNNER.run(seed, frames)
+    except (ValueError, RuntimeError, np.linalg.LinAlgError) as exc:  # a failed episode, not a
+        # failed evaluation: recorded with its reason (the env is reset by the next episode)
+        rec = EpisodeRecord(seed=seed, success=False, steps=0, max_reward=0.0,
+                            max_coverage=0.0, pushes=0, error=f"{type(exc).__name__}: {exc}")
+    if video and frames:
+        write_video(Path(video), frames)
+    return rec
+
+
+def write_video(path: Path, frames: Sequence[np.ndarray], fps: int = 10) -> None:
+    """RGB frames (H, W, 3) uint8 -> an mp4 (OpenCV's mp4v codec)."""
+    import cv2
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    h, w = frames[0].shape[:2]
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), fps, (w, h))
+    try:
+        for f in frames:
+            writer.write(np.ascontiguousarray(f[:, :, ::-1]))
+    finally:
+        writer.release()
+
+
+def evaluate(episodes: int, seed0: int = 0, max_steps: int = 300, obs: str = "state",
+             out: Path | None = None, video: int = 0, workers: int = 1,
+             progress: bool = False) -> dict:
+    """Run ``episodes`` episodes with seeds ``seed0 ...``; return (and write to
+    ``out/results.json``) the summary of :func:`summarize`."""
+    if episodes < 1 or max_steps < 1 or workers < 1 or video < 0:
+        raise ValueError("episodes, max-steps and workers must be >= 1, video >= 0")
+    jobs = [(obs, max_steps, seed0 + i,
+             str(out / "videos" / f"episode_{seed0 + i:04d}.mp4") if out and i < video else None)
+            for i in range(episodes)]
+    records: list[EpisodeRecord] = []
+    if workers == 1:
+        it = map(_run_one, jobs)
+        pool = None
+    else:
+        pool = ProcessPoolExecutor(max_workers=workers)
+        it = pool.map(_run_one, jobs, chunksize=4)
+    try:
+        for rec in it:
+            records.append(rec)
+            if progress and len(records) % 25 == 0:
+                wins = sum(r.success for r in records)
+                print(f"  {len(records)}/{episodes} episodes, {wins} successes", flush=True)
+    finally:
+        if pool is not None:
+            pool.shutdown()
+    config = {"env": ENV_ID, "obs": obs, "episodes": episodes, "seed0": seed0,
+              "max_steps": max_steps, "metres_per_unit": METRES_PER_UNIT}
+    result = summarize(records, config)
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "results.json").write_text(json.dumps(result, indent=1) + "\n")
+    return result
