@@ -28,14 +28,13 @@ import sys
 import time
 from typing import Any
 
-from pushbot.graph import cli_node, run_graph_command, spin_until
+from pushbot.graph import EXIT_USAGE, cli_node, run_graph_command, spin_until
 
 DEFAULT_TIMEOUT = 300.0
 """Seconds ``--wait`` follows the episode (30 pushes take about a minute in simulation)."""
 PLANNER_TIMEOUT = 20.0
 """Longest wait for planner_node (its goal subscription and latched status), seconds: enough
 for a graph that ``pushbot up`` is still starting (the nodes import torch)."""
-EXIT_USAGE = 2
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

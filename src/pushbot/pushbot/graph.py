@@ -119,6 +119,16 @@ def spin_until(
 #: section ``cli``, where shorter rules are replayed on the same timelines).
 MIN_DISCOVERY_TIME = 3.0
 SETTLE_TIME = 2.0
+#: Default bound (seconds) of the graph commands' discovery wait (``--spin-time``).
+DEFAULT_SPIN_TIME = 10.0
+#: Exit status of every ``pushbot`` command on bad input (argparse's own, as ros2cli).
+EXIT_USAGE = 2
+
+
+def add_spin_time(parser: Any) -> None:
+    """The ``--spin-time`` option of a graph-listing command (one definition for all)."""
+    parser.add_argument('--spin-time', type=float, default=DEFAULT_SPIN_TIME,
+                        help='longest wait for discovery in seconds (default: %(default)s)')
 
 
 def wait_for_stable_graph(

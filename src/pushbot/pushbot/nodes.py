@@ -17,10 +17,10 @@ import os
 import sys
 from dataclasses import dataclass
 
+from pushbot.graph import EXIT_USAGE
+
 NODE_DISTRIBUTIONS = ('sim_bridge', 'push_perception', 'push_estimator', 'push_planner')
 """Distributions whose console scripts are ROS nodes."""
-
-EXIT_USAGE = 2
 
 
 @dataclass(frozen=True)

@@ -25,14 +25,13 @@ from typing import TYPE_CHECKING, Any
 
 import yaml
 
-from pushbot.graph import cli_node, full_node_name, run_graph_command, spin_until
+from pushbot.graph import EXIT_USAGE, cli_node, full_node_name, run_graph_command, spin_until
 from pushbot.rosnode import split_node_name
 
 if TYPE_CHECKING:
     from rclpy.executors import Executor
 
 DEFAULT_TIMEOUT = 10.0
-EXIT_USAGE = 2
 
 
 class ParamError(RuntimeError):

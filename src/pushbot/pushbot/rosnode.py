@@ -18,6 +18,9 @@ import time
 from typing import TYPE_CHECKING
 
 from pushbot.graph import (
+    DEFAULT_SPIN_TIME,
+    EXIT_USAGE,
+    add_spin_time,
     cli_node,
     full_node_name,
     run_graph_command,
@@ -28,9 +31,6 @@ from pushbot.graph import (
 if TYPE_CHECKING:
     from rclpy.node import Node
 
-DEFAULT_SPIN_TIME = 10.0
-"""Longest wait for discovery, seconds."""
-EXIT_USAGE = 2
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -45,8 +45,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                    help='also hidden nodes (names starting with _), e.g. the CLI\'s own')
     p.add_argument('-c', '--count-nodes', action='store_true',
                    help='only print the number of nodes')
-    p.add_argument('--spin-time', type=float, default=DEFAULT_SPIN_TIME,
-                   help='longest wait for discovery in seconds (default: %(default)s)')
+    add_spin_time(p)
     p.set_defaults(node_handler=cmd_list)
 
     p = sub.add_parser('info', help='subscribers, publishers and services of a node',

@@ -20,6 +20,8 @@ import sys
 import time
 
 from pushbot.graph import (
+    EXIT_USAGE,
+    add_spin_time,
     cli_node,
     import_message_class,
     run_graph_command,
@@ -35,8 +37,6 @@ from pushbot.messages import (
 )
 
 DEFAULT_TIMEOUT = 10.0
-DEFAULT_SPIN_TIME = 10.0
-EXIT_USAGE = 2
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -47,8 +47,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                        description='List the services of the graph once discovery has '
                                    'settled (at least 3 s, then nothing new for 2 s).')
     p.add_argument('-t', '--show-types', action='store_true', help='also print the types')
-    p.add_argument('--spin-time', type=float, default=DEFAULT_SPIN_TIME,
-                   help='longest wait for discovery in seconds (default: %(default)s)')
+    add_spin_time(p)
     p.set_defaults(service_handler=cmd_list)
 
     p = sub.add_parser(

@@ -26,6 +26,8 @@ from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any
 
 from pushbot.graph import (
+    EXIT_USAGE,
+    add_spin_time,
     cli_node,
     compatible_qos,
     import_message_class,
@@ -50,9 +52,6 @@ if TYPE_CHECKING:
     from rclpy.topic_endpoint_info import TopicEndpointInfo
 
 DEFAULT_TIMEOUT = 10.0
-DEFAULT_SPIN_TIME = 10.0
-"""Longest ``topic list`` waits for the graph to settle (an empty graph takes all of it)."""
-EXIT_USAGE = 2
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -65,8 +64,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                    '(at least 3 s, then nothing new for 2 s; at most '
                                    '--spin-time).')
     p.add_argument('-t', '--show-types', action='store_true', help='also print the types')
-    p.add_argument('--spin-time', type=float, default=DEFAULT_SPIN_TIME,
-                   help='longest wait for discovery in seconds (default: %(default)s)')
+    add_spin_time(p)
     p.set_defaults(topic_handler=cmd_list)
 
     p = sub.add_parser(

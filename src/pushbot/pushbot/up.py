@@ -31,10 +31,11 @@ from datetime import datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
+from pushbot.graph import EXIT_USAGE
+
 if TYPE_CHECKING:
     from pushbot.graph_nodes import GraphNodes
 
-EXIT_USAGE = 2
 POLL_INTERVAL = 0.1
 """Seconds between two looks at the logs and the processes."""
 
