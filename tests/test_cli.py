@@ -411,3 +411,30 @@ def test_topic_echo_on_a_missing_topic_exits_1_clearly() -> None:
     assert result.returncode == 1
     assert 'topic /no_such_topic_here did not appear within 2 s' in result.stderr
     assert 'Traceback' not in result.stderr
+
+
+def test_readme_lists_every_command_and_option() -> None:
+    """README's command reference is exactly what the parsers say (issue 14, item 7: every
+    option documented), and it names every option string of every command."""
+    import argparse
+
+    from pushbot.cli import build_parser
+    from pushbot.cli_reference import readme_section, reference_markdown
+
+    readme = Path(__file__).resolve().parents[1] / 'README.md'
+    section = readme_section(readme.read_text(encoding='utf-8'))
+    assert section is not None, 'README.md has no cli-reference section'
+    assert section == reference_markdown(), \
+        'README command reference is stale: python -m pushbot.cli_reference README.md'
+    options = set()
+    stack = [build_parser()]
+    while stack:
+        parser = stack.pop()
+        for action in parser._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                stack.extend(action.choices.values())
+            else:
+                options.update(o for o in action.option_strings if o.startswith('--'))
+    missing = sorted(o for o in options - {'--help', '--version'} if f'`{o}' not in section
+                     and f', {o}' not in section)
+    assert not missing, missing

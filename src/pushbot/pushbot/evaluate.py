@@ -580,8 +580,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="base seed (default 0)")
     parser.add_argument("--max-steps", type=int, default=30, help="pushes allowed (default 30)")
     parser.add_argument("--workers", type=int, default=None,
-                        help="worker processes (default: the usable cores, "
-                             f"{usable_cores()} here); 1 runs in this process")
+                        help="worker processes (default: the cores this process may use); 1 "
+                             "runs in this process")
     parser.add_argument("--ray", metavar="ADDRESS", default=None,
                         help="run the trials as Ray tasks on this cluster ('local' starts one; "
                              "needs pip install 'pushbot[ray]')")
