@@ -21,7 +21,7 @@ so for every child process, which inherits ``os.environ``):
 Fixtures:
 
 - ``ros_context``: a dedicated, initialised :class:`rclpy.context.Context` for in-process
-  node tests, shut down afterwards;
+  node tests, shut down afterwards (``module_ros_context``: one per test module);
 - ``wait_for``: ``wait_for(predicate, timeout=10.0, executor=None)`` polls (or spins
   ``executor``) until the predicate holds; returns its final truth value;
 - ``processes``: a :class:`ProcessManager` that starts commands (``start``) and nodes
@@ -105,9 +105,8 @@ def venv_executable(name: str) -> str:
     return found
 
 
-@pytest.fixture
-def ros_context() -> Iterator[Any]:
-    """An initialised rclpy Context of its own; shut down after the test."""
+@contextlib.contextmanager
+def _initialised_context() -> Iterator[Any]:
     import rclpy
     from rclpy.context import Context
 
@@ -117,6 +116,20 @@ def ros_context() -> Iterator[Any]:
         yield context
     finally:
         rclpy.try_shutdown(context=context)
+
+
+@pytest.fixture
+def ros_context() -> Iterator[Any]:
+    """An initialised rclpy Context of its own; shut down after the test."""
+    with _initialised_context() as context:
+        yield context
+
+
+@pytest.fixture(scope='module')
+def module_ros_context() -> Iterator[Any]:
+    """The same, shared by the tests of one module (e.g. one node under fuzzing)."""
+    with _initialised_context() as context:
+        yield context
 
 
 def _wait_for(

@@ -143,18 +143,8 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
 
 
 @pytest.fixture(scope="module")
-def context() -> Iterator[Any]:
-    from rclpy.context import Context
-
-    ctx = Context()
-    rclpy.init(args=[], context=ctx)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
-
-
-@pytest.fixture(scope="module")
-def node(context: Any) -> Iterator[SimBridgeNode]:
-    n = SimBridgeNode(node_name="fuzz_sim_bridge_node", context=context,
+def node(module_ros_context: Any) -> Iterator[SimBridgeNode]:
+    n = SimBridgeNode(node_name="fuzz_sim_bridge_node", context=module_ros_context,
                       parameter_overrides=SMALL)
     yield n
     n.destroy_node()
@@ -339,11 +329,11 @@ def test_after_the_fuzz_the_bridge_executes_a_valid_push(node: SimBridgeNode) ->
 
 
 # ---- over DDS ----------------------------------------------------------------------------------
-def test_fuzz_over_dds_bridge_stays_alive_and_answers_reset(context: Any) -> None:
-    node = SimBridgeNode(node_name="fuzz_dds_sim_bridge_node", context=context,
+def test_fuzz_over_dds_bridge_stays_alive_and_answers_reset(module_ros_context: Any) -> None:
+    node = SimBridgeNode(node_name="fuzz_dds_sim_bridge_node", context=module_ros_context,
                          parameter_overrides=SMALL)
-    client = rclpy.create_node("fuzz_dds_bridge_client", context=context)
-    executor = SingleThreadedExecutor(context=context)
+    client = rclpy.create_node("fuzz_dds_bridge_client", context=module_ros_context)
+    executor = SingleThreadedExecutor(context=module_ros_context)
     executor.add_node(node)
     executor.add_node(client)
     try:

@@ -197,16 +197,6 @@ class Recorder:
 
 
 @pytest.fixture(scope="module")
-def context() -> Iterator[Any]:
-    from rclpy.context import Context
-
-    ctx = Context()
-    rclpy.init(args=[], context=ctx)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
-
-
-@pytest.fixture(scope="module")
 def rendered() -> dict[str, Any]:
     """Butter at two poses, rendered by the pybullet world (the valid input of the end)."""
     from sim_bridge.world import PushWorld, WorldConfig
@@ -219,10 +209,10 @@ def rendered() -> dict[str, Any]:
 
 
 @pytest.fixture(scope="module")
-def node(context: Any, rendered: dict[str, Any]) -> Iterator[SegmentationNode]:
+def node(module_ros_context: Any, rendered: dict[str, Any]) -> Iterator[SegmentationNode]:
     # No re-anchoring wait after start-up: frames are processed from the first one on (the
     # estimator topics' callbacks are fuzzed all the same).
-    n = SegmentationNode(node_name="fuzz_segmentation_node", context=context,
+    n = SegmentationNode(node_name="fuzz_segmentation_node", context=module_ros_context,
                          parameter_overrides=[Parameter("anchor_timeout", value=0.0)])
     n.poses = Recorder(n._pub_pose.publish)  # type: ignore[attr-defined]
     n._pub_pose.publish = n.poses  # type: ignore[method-assign]
@@ -415,10 +405,10 @@ def test_after_the_fuzz_the_node_measures_a_rendered_frame(node: SegmentationNod
 
 
 # ---- over DDS: 100 hostile messages per topic on the real topics -------------------------------
-def test_fuzz_over_dds_node_stays_alive_and_answers_reset(context: Any) -> None:
-    node = SegmentationNode(node_name="fuzz_dds_segmentation_node", context=context)
-    client = rclpy.create_node("fuzz_dds_client", context=context)
-    executor = SingleThreadedExecutor(context=context)
+def test_fuzz_over_dds_node_stays_alive_and_answers_reset(module_ros_context: Any) -> None:
+    node = SegmentationNode(node_name="fuzz_dds_segmentation_node", context=module_ros_context)
+    client = rclpy.create_node("fuzz_dds_client", context=module_ros_context)
+    executor = SingleThreadedExecutor(context=module_ros_context)
     executor.add_node(node)
     executor.add_node(client)
     try:

@@ -367,19 +367,13 @@ def send_estimate_checked(probe: Probe, msgs: list[Any]) -> None:
 
 
 @pytest.fixture(scope="module")
-def probe() -> Iterator[Probe]:
-    import rclpy
-    from rclpy.context import Context
-
-    context = Context()
-    rclpy.init(args=[], context=context)
-    node = PlannerNode(context=context, parameter_overrides=[
+def probe(module_ros_context: Any) -> Iterator[Probe]:
+    node = PlannerNode(context=module_ros_context, parameter_overrides=[
         Parameter("k", value=1), Parameter("seed", value=3)])
     try:
         yield Probe(node)
     finally:
         node.destroy_node()
-        rclpy.try_shutdown(context=context)
 
 
 def valid_cloud() -> PointCloud2:
