@@ -78,15 +78,16 @@ class GraphNodes:
         apply_default_profile(env)
         exe = Path(sys.executable).parent / "pushbot"
         base = [str(exe)] if exe.exists() else [sys.executable, "-m", "pushbot.cli"]
-        params = ["-p", "use_sim_time:=true"] if name != "sim_bridge_node" else []
-        if name == "planner_node":
-            # A protocol episode ends at "goal reached" (as in-process): the planner only
-            # reports it if the object leaves the region afterwards, it pushes no more.
-            params += ["-p", f"push_timeout:={PUSH_TIMEOUT}", "-p", "after_goal:=report"]
-        for value in [*self.node_args[name], *extra]:
-            params += ["-p", value]
-        if self.ros_args is not None:
+        if self.ros_args is not None:  # pushbot up: the launch file's arguments as they are
             params = list(self.ros_args[name])
+        else:
+            params = ["-p", "use_sim_time:=true"] if name != "sim_bridge_node" else []
+            if name == "planner_node":
+                # A protocol episode ends at "goal reached" (as in-process): the planner only
+                # reports it if the object leaves the region afterwards, it pushes no more.
+                params += ["-p", f"push_timeout:={PUSH_TIMEOUT}", "-p", "after_goal:=report"]
+            params += [arg for value in self.node_args[name] for arg in ("-p", value)]
+        params += [arg for value in extra for arg in ("-p", value)]
         with open(self.log_dir / f"{name}.log", "ab") as log:  # a restart appends
             log.write(f"=== pushbot run {name}, started {time.ctime()} ===\n".encode())
             log.flush()
