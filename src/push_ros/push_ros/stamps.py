@@ -13,17 +13,22 @@ within 1 us of 2^31 s cannot round-trip through float seconds: the nearest doubl
   ``clamp=True`` a finite time is clamped into the range instead (publishing an estimate then
   never raises; NaN still raises, it is a bug).
 
-Whether a valid stamp is acceptable for a node (not in the future beyond a tolerance, not
-before the episode) is the node's rule, documented in its module docstring.
+The clock rule, also stated once (:func:`clock_seconds`, :func:`check_not_ahead`): a node's
+clock is *not valid* while it is a sim-time clock that has not received ``/clock`` yet (it reads
+0); an input stamped more than ``max_ahead`` seconds ahead of a valid clock is refused, and no
+future check is made while the clock is not valid (the simulator publishes ``/clock`` before any
+frame, so nothing valid is lost). Whether a stamp may precede the episode is the node's rule.
 """
 
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from builtin_interfaces.msg import Time
 
-__all__ = ["MAX_SECONDS", "MAX_STAMP_SECONDS", "seconds_from_stamp", "stamp_from_seconds"]
+__all__ = ["MAX_SECONDS", "MAX_STAMP_SECONDS", "check_not_ahead", "clock_seconds",
+           "seconds_from_stamp", "stamp_from_seconds"]
 
 _NS = 1_000_000_000
 #: Exclusive upper bound of the int32 ``sec`` field, s.
@@ -76,3 +81,36 @@ def seconds_from_stamp(stamp: Time) -> float:
         raise ValueError(f"stamp: {sec} s {nanosec} ns is within 1 us of 2^31 s (cannot "
                          "round-trip)")
     return sec + nanosec / _NS
+
+
+def clock_seconds(clock: Any) -> float | None:
+    """An rclpy clock's time, s; None while a sim-time clock has not started (reads 0)."""
+    ns = clock.now().nanoseconds
+    if getattr(clock, "ros_time_is_active", False) and ns <= 0:
+        return None
+    return ns * 1e-9
+
+
+def check_not_ahead(stamp: float, now: float | None, max_ahead: float, what: str = "stamp"
+                    ) -> None:
+    """Refuse a time more than ``max_ahead`` s ahead of ``now`` (module docstring).
+
+    Parameters
+    ----------
+    stamp : float
+        The input's time, s.
+    now : float or None
+        The node's clock (:func:`clock_seconds`); None: no check.
+    max_ahead : float
+        Tolerance, s (>= 0).
+    what : str
+        Names the input in the message.
+
+    Raises
+    ------
+    ValueError
+        ``"<what> <stamp> s is <d> s ahead of the node's clock (max <max_ahead> s)"``.
+    """
+    if now is not None and stamp > now + max_ahead:
+        raise ValueError(f"{what} {stamp:.6f} s is {stamp - now:.3f} s ahead of the node's "
+                         f"clock {now:.6f} s (max {max_ahead:g} s)")
