@@ -72,7 +72,24 @@ def test_sim_true_starts_the_bridge_and_puts_everyone_else_on_sim_time() -> None
         # the file first, then the explicit values, which win
         assert isinstance(node.parameters[0], str) and isinstance(node.parameters[-1], dict)
     assert _overrides(nodes[0])['object'] == 'rect1'
+    assert _overrides(nodes[0])['robot'] == 'pusher'
     assert all('object' not in _overrides(n) for n in nodes[1:])
+
+
+def test_robot_arm_in_simulation_adds_the_executor_enabled_and_the_bridge_s_arm() -> None:
+    nodes = graph_nodes(True, robot='arm')
+    assert [n.executable for n in nodes] == ['sim_bridge_node', 'segmentation_node', 'ekf_node',
+                                             'planner_node', 'push_executor_node']
+    assert _overrides(nodes[0]) == {'use_sim_time': False, 'robot': 'arm'}
+    assert _overrides(nodes[-1]) == {'use_sim_time': True, 'start_enabled': True}
+
+
+@pytest.mark.parametrize('sim, robot, match', [
+    (False, 'pusher', 'robot:=pusher needs sim:=true'),
+    (True, 'gripper', 'robot:=gripper: expected one of pusher, arm')])
+def test_robot_argument_refusals(sim: bool, robot: str, match: str) -> None:
+    with pytest.raises(ValueError, match=match):
+        graph_nodes(sim, robot=robot)
 
 
 def test_sim_true_without_object_keeps_the_bridge_file_s_object() -> None:
@@ -83,10 +100,14 @@ def test_sim_true_without_object_keeps_the_bridge_file_s_object() -> None:
 
 def test_sim_false_starts_no_simulator_uses_wall_time_and_realsense_topics() -> None:
     nodes = graph_nodes(False)
-    assert [n.package for n in nodes] == ['push_perception', 'push_estimator', 'push_planner']
-    for node in nodes:
+    assert [n.package for n in nodes] == ['push_perception', 'push_estimator', 'push_planner',
+                                          'push_executor']
+    for node in nodes[:3]:
         assert _overrides(node) == {'use_sim_time': False}, node.package
-    perception, estimator, planner = nodes
+    # the arm executor: wall time, and a dry run until ~/enable
+    assert _overrides(nodes[3]) == {'use_sim_time': False, 'start_enabled': False}
+    perception, estimator, planner, executor = nodes
+    assert executor.remappings == ()
     assert dict(perception.remappings) == REALSENSE
     assert estimator.remappings == () and planner.remappings == ()
 
@@ -102,10 +123,10 @@ def test_remapped_topics_are_the_ones_perception_subscribes_to() -> None:
         assert f'"{topic}"' in source or f"'{topic}'" in source, topic
 
 
-@pytest.mark.parametrize('sim', [True, False])
-def test_only_existing_executables_and_parameter_files(sim: bool) -> None:
+@pytest.mark.parametrize('sim, robot', [(True, 'pusher'), (True, 'arm'), (False, 'arm')])
+def test_only_existing_executables_and_parameter_files(sim: bool, robot: str) -> None:
     scripts = _console_scripts()
-    for node in graph_nodes(sim):
+    for node in graph_nodes(sim, robot=robot):
         assert (node.package, node.executable) in scripts, node
         files = _files(node)
         assert files == [str(CONFIG_DIR / f'{node.package}.yaml')], node.package
@@ -194,17 +215,17 @@ def test_launch_arguments_and_defaults(launch_module: types.ModuleType) -> None:
     actions = description.args[0]
     declared = {a.args[0]: a.kwargs['default_value'] for a in actions
                 if 'default_value' in a.kwargs}
-    assert declared == {'sim': 'true', 'object': '', 'config_dir': str(CONFIG_DIR)}
+    assert declared == {'sim': 'true', 'object': '', 'robot': '', 'config_dir': str(CONFIG_DIR)}
     assert all(a.kwargs.get('description') for a in actions[:-1])
     assert actions[-1].kwargs['function'] is launch_module._nodes
 
 
-@pytest.mark.parametrize('sim', ['true', 'false'])
+@pytest.mark.parametrize('sim, robot', [('true', ''), ('false', ''), ('true', 'arm')])
 def test_launch_file_builds_the_nodes_graph_nodes_decides(
-        launch_module: types.ModuleType, sim: str) -> None:
-    context = _Context(sim=sim, object='', config_dir=str(CONFIG_DIR))
+        launch_module: types.ModuleType, sim: str, robot: str) -> None:
+    context = _Context(sim=sim, object='', robot=robot, config_dir=str(CONFIG_DIR))
     actions = launch_module._nodes(context)
-    expected = graph_nodes(sim == 'true', config_dir=str(CONFIG_DIR))
+    expected = graph_nodes(sim == 'true', config_dir=str(CONFIG_DIR), robot=robot)
     assert len(actions) == len(expected)
     for action, node in zip(actions, expected, strict=True):
         kw = action.kwargs

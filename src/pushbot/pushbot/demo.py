@@ -100,6 +100,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help='trial index: initial orientation 18 deg x (index mod 20) '
                         '(default 0)')
     parser.add_argument('--max-steps', type=int, default=30, help='pushes allowed (default 30)')
+    parser.add_argument('--robot', default='pusher', choices=('pusher', 'arm'),
+                        help='what pushes: the simulator\'s free pusher, or the simulated '
+                             'Panda arm driven by push_executor_node (default %(default)s)')
     parser.add_argument('--out', default='out/demo', type=Path,
                         help='output directory (default out/demo)')
     parser.add_argument('--skip-doctor', action='store_true', help='do not run doctor first')
@@ -149,17 +152,19 @@ def run_demo(args: argparse.Namespace) -> int:
             return status
         print()
     from pushbot.graph_episode import GraphError, GraphRunner, sigterm_as_keyboard_interrupt
+    from pushbot.graph_nodes import graph_node_names
 
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
     print(f'pushbot demo: {trial.task} task on {spec.name} ({trial.com} COM), method '
           f'{trial.method}, k = {trial.k}, seed {trial.seed}, index {trial.index}; starting '
-          f'sim_bridge_node, segmentation_node, ekf_node and planner_node (logs in '
-          f'{out / "graph_logs"})', flush=True)
+          f'{", ".join(graph_node_names(args.robot))} (logs in {out / "graph_logs"})',
+          flush=True)
     bag_dir = out / 'episode_bag'
     try:
         with sigterm_as_keyboard_interrupt(), GraphRunner(
-                log_dir=out / 'graph_logs', node_args=_bridge_args(args)) as graph:
+                log_dir=out / 'graph_logs', node_args=_bridge_args(args),
+                robot=args.robot) as graph:
             t_ready = time.monotonic()
             if args.pause > 0.0:
                 print(f'graph up after {t_ready - started:.1f} s; pausing {args.pause:g} s '

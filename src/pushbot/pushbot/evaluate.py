@@ -245,13 +245,14 @@ def _run_ray(trials: list[Trial], address: str,
     return out
 
 
-def _run_graph(trials: list[Trial], out_dir: Path, progress: bool) -> list[dict[str, Any]]:
+def _run_graph(trials: list[Trial], out_dir: Path, progress: bool, robot: str = "pusher"
+               ) -> list[dict[str, Any]]:
     try:
         from pushbot.graph_episode import run_graph_trials
     except ImportError as exc:
         raise ValueError(f"--graph needs pushbot.graph_episode (the ROS-graph episodes), which "
                          f"is not available in this install: {exc}") from None
-    return list(run_graph_trials(trials, out_dir=out_dir, progress=progress))
+    return list(run_graph_trials(trials, out_dir=out_dir, progress=progress, robot=robot))
 
 
 def _order(records: list[dict[str, Any]], trials: list[Trial]) -> list[dict[str, Any]]:
@@ -262,7 +263,7 @@ def _order(records: list[dict[str, Any]], trials: list[Trial]) -> list[dict[str,
 
 def evaluate(opts: EvalOptions, *, workers: int | None = None, ray_address: str | None = None,
              graph: bool = False, out_dir: Path | str | None = None,
-             progress: bool = True) -> dict[str, Any]:
+             progress: bool = True, robot: str = "pusher") -> dict[str, Any]:
     """Run the options' trials and summarise them (the ``results.json`` document).
 
     Parameters
@@ -274,6 +275,9 @@ def evaluate(opts: EvalOptions, *, workers: int | None = None, ray_address: str 
         Run on Ray instead (``"local"`` starts a local cluster).
     graph : bool
         Run through the ROS graph (:mod:`pushbot.graph_episode`).
+    robot : str
+        With ``graph``: ``pusher`` (the simulator's finger) or ``arm`` (push_executor_node
+        driving the simulated Panda).
     out_dir : path, optional
         Handed to the graph runner (its logs); the caller writes the outputs.
     progress : bool
@@ -293,8 +297,8 @@ def evaluate(opts: EvalOptions, *, workers: int | None = None, ray_address: str 
     t0 = time.perf_counter()
     try:
         if graph:
-            records = _run_graph(trials, Path(out_dir or "out/eval"), progress)
-            engine = "graph"
+            records = _run_graph(trials, Path(out_dir or "out/eval"), progress, robot)
+            engine = "graph" if robot == "pusher" else f"graph ({robot})"
         elif ray_address:
             records = _run_ray(trials, ray_address, tick)
             engine = f"ray ({ray_address})"
@@ -587,6 +591,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "needs pip install 'pushbot[ray]')")
     parser.add_argument("--graph", action="store_true",
                         help="run the trials through the real ROS graph (pushbot.graph_episode)")
+    parser.add_argument("--robot", default="pusher", choices=("pusher", "arm"),
+                        help="with --graph: what executes the pushes, the simulator's free "
+                             "pusher or push_executor_node driving the simulated Panda arm "
+                             "(default %(default)s)")
     parser.add_argument("--out", default="out/eval",
                         help="output directory for results.json, figures and tables "
                              "(default out/eval)")
@@ -606,6 +614,9 @@ def run(args: argparse.Namespace) -> int:
         opts = options_from_args(args)
         if args.ray and args.graph:
             raise ValueError("--ray and --graph exclude each other")
+        if args.robot != "pusher" and not args.graph:
+            raise ValueError(f"--robot {args.robot} needs --graph (the arm runs only in the "
+                             "ROS graph)")
         if args.workers is not None and args.workers < 1:
             raise ValueError(f"--workers: must be >= 1, got {args.workers}")
         if args.ray:
@@ -616,7 +627,7 @@ def run(args: argparse.Namespace) -> int:
                                  "'pushbot[ray]' (or pip install ray)")
         out_dir = Path(args.out)
         doc = evaluate(opts, workers=args.workers, ray_address=args.ray, graph=args.graph,
-                       out_dir=out_dir, progress=not args.no_progress)
+                       out_dir=out_dir, progress=not args.no_progress, robot=args.robot)
     except ValueError as exc:
         print(f"pushbot eval push: error: {exc}", file=sys.stderr)
         return 2

@@ -20,7 +20,10 @@ from typing import Any
 import numpy as np
 
 from pushbot.dds import apply_default_profile
-from pushbot.graph_nodes import NODES, GraphError
+from pushbot.graph_nodes import EXECUTOR_NODE, NODES, GraphError, graph_node_names
+
+#: The simulated arm's controller topic (push_executor_node's and sim_bridge_node's default).
+ARM_TRAJECTORY_TOPIC = "/joint_trajectory_controller/joint_trajectory"
 
 __all__ = ["SERVICE_TIMEOUT", "STARTUP_TIMEOUT", "GraphClient", "Recorded"]
 
@@ -40,6 +43,8 @@ class Recorded:
     pushes: list[tuple[float, np.ndarray]] = field(default_factory=list)  # (wall, 3x2)
     executed: list[tuple[float, float, float]] = field(default_factory=list)  # (wall, t0, t1)
     status: list[dict[str, str]] = field(default_factory=list)
+    #: ``executor/status`` values as they came (``robot`` arm).
+    executor_status: list[dict[str, str]] = field(default_factory=list)
     #: The last ``/diagnostics`` values per status name (``/sim_bridge_node: simulation``...).
     diagnostics: dict[str, dict[str, str]] = field(default_factory=dict)
     frames: dict[float, np.ndarray] = field(default_factory=dict)  # stamp -> rgb
@@ -63,10 +68,15 @@ class GraphClient:
     record_frames : bool
         Also subscribe to the camera, the mask, the camera info, the extrinsics and the
         outline.
+    robot : str
+        ``pusher`` or ``arm`` (then ``push_executor_node`` takes ``planner/push`` and the
+        bridge the joint trajectories).
     """
 
     def __init__(self, rec: Recorded, check_alive: Callable[[], None], log_dir: Path,
-                 record_frames: bool = False) -> None:
+                 record_frames: bool = False, robot: str = "pusher") -> None:
+        self.robot = robot
+        self.names = graph_node_names(robot)
         self.rec = rec
         self.check_alive = check_alive
         self.log_dir = log_dir
@@ -139,6 +149,8 @@ class GraphClient:
         from std_srvs.srv import Trigger
 
         self._reset = {n: node.create_client(Trigger, f"/{n}/reset") for n in NODES}
+        if self.robot == "arm":  # the executor has ~/cancel and ~/enable, no ~/reset
+            sub(DiagnosticStatus, "executor/status", self._on_executor_status, latched)
         self._set_params = {n: node.create_client(SetParameters, f"/{n}/set_parameters")
                             for n in ("sim_bridge_node", "planner_node")}
 
@@ -192,6 +204,10 @@ class GraphClient:
         values = {kv.key: kv.value for kv in msg.values}
         values["_message"] = msg.message
         self.rec.status.append(values)
+
+    def _on_executor_status(self, msg: Any) -> None:
+        self.rec.executor_status.append({kv.key: kv.value for kv in msg.values}
+                                        | {"_message": msg.message})
 
     def _on_diagnostics(self, msg: Any) -> None:
         for status in msg.status:
@@ -253,9 +269,12 @@ class GraphClient:
             "pusher/executed": ["ekf_node", "planner_node"],
             "estimator/object_pose": ["planner_node"],
             "estimator/state": ["planner_node"],
-            "planner/push": ["sim_bridge_node"],
+            "planner/push": [EXECUTOR_NODE if self.robot == "arm" else "sim_bridge_node"],
             "goal_pose": ["planner_node"],
         }
+        if self.robot == "arm":
+            links[ARM_TRAJECTORY_TOPIC] = ["sim_bridge_node"]
+            links["/joint_states"] = [EXECUTOR_NODE]
 
         def missing() -> list[str]:
             out = [f"/{n}/reset" for n, c in self._reset.items() if not c.service_is_ready()]
@@ -272,7 +291,7 @@ class GraphClient:
             return out
 
         self.wait(lambda: not missing(), STARTUP_TIMEOUT,
-                  "the four nodes to start and discover each other (still missing: "
+                  f"the {len(self.names)} nodes to start and discover each other (still missing: "
                   f"{', '.join(missing()) or 'nothing'})")
 
     def planner_estimates(self) -> int:

@@ -98,17 +98,22 @@ class GraphRunner:
         Also keep every new camera frame and perception mask (the demo's video).
     node_args : dict, optional
         Extra start-up parameters per node (``"name:=value"`` strings).
+    robot : str
+        ``pusher`` (the simulator's finger) or ``arm`` (``push_executor_node`` and the
+        simulated Panda; :class:`pushbot.graph_nodes.GraphNodes`).
     """
 
     def __init__(self, log_dir: Path | None = None, record_frames: bool = False,
-                 node_args: dict[str, Sequence[str]] | None = None) -> None:
+                 node_args: dict[str, Sequence[str]] | None = None, robot: str = "pusher"
+                 ) -> None:
         self._tmp = None
         if log_dir is None:
             self._tmp = tempfile.TemporaryDirectory(prefix="pushbot_graph_")
             log_dir = Path(self._tmp.name)
         self.log_dir = Path(log_dir)
         self.record_frames = record_frames
-        self.nodes = GraphNodes(self.log_dir, node_args)
+        self.robot = robot
+        self.nodes = GraphNodes(self.log_dir, node_args, robot=robot)
         self.rec = Recorded()
         self.client: GraphClient | None = None
         self._com_true: np.ndarray | None = None
@@ -131,7 +136,7 @@ class GraphRunner:
         estimate has gone all the way from the bridge's camera to the planner."""
         self.nodes.start()
         self.client = GraphClient(self.rec, self.nodes.check_alive, self.log_dir,
-                                  self.record_frames)
+                                  self.record_frames, robot=self.robot)
         self.client.start()
         self.client.wait_ready()
         self._warm_up()
@@ -152,7 +157,7 @@ class GraphRunner:
         """Stop everything and start again (after a failed episode)."""
         self.close()
         self.rec = Recorded()
-        self.nodes = GraphNodes(self.log_dir, self.nodes.node_args)
+        self.nodes = GraphNodes(self.log_dir, self.nodes.node_args, robot=self.robot)
         self.start()
 
     # ---- the client's waits and calls -----------------------------------------------------------
@@ -473,7 +478,7 @@ def check_trial(trial: Trial) -> None:
 
 
 def run_graph_trials(trials: list[Trial], *, out_dir: Path | str | None = None,
-                     progress: bool = True) -> list[dict[str, Any]]:
+                     progress: bool = True, robot: str = "pusher") -> list[dict[str, Any]]:
     """Run ``trials`` through the ROS graph (four node processes, started once) in order.
 
     Parameters
@@ -484,6 +489,8 @@ def run_graph_trials(trials: list[Trial], *, out_dir: Path | str | None = None,
         The node logs go to ``out_dir/graph_logs``; default: a temporary directory.
     progress : bool
         One line per trial on stderr.
+    robot : str
+        ``pusher`` or ``arm`` (:class:`GraphRunner`).
 
     Returns
     -------
@@ -496,7 +503,7 @@ def run_graph_trials(trials: list[Trial], *, out_dir: Path | str | None = None,
         check_trial(trial)
     log_dir = Path(out_dir) / "graph_logs" if out_dir is not None else None
     records: list[dict[str, Any]] = []
-    with sigterm_as_keyboard_interrupt(), GraphRunner(log_dir=log_dir) as graph:
+    with sigterm_as_keyboard_interrupt(), GraphRunner(log_dir=log_dir, robot=robot) as graph:
         for i, trial in enumerate(trials):
             try:
                 record = graph.run(trial)

@@ -22,9 +22,27 @@ from pathlib import Path
 
 from pushbot.dds import apply_default_profile
 
-__all__ = ["NODES", "PUSH_TIMEOUT", "GraphError", "GraphNodes", "sigterm_as_keyboard_interrupt"]
+__all__ = ["ARM_NODES", "EXECUTOR_NODE", "NODES", "PUSH_TIMEOUT", "GraphError", "GraphNodes",
+           "graph_node_names", "sigterm_as_keyboard_interrupt"]
 
 NODES = ("sim_bridge_node", "segmentation_node", "ekf_node", "planner_node")
+#: The arm's push executor (``robot`` arm: the bridge simulates a Panda behind ros2_control's
+#: interface and no longer executes ``planner/push`` itself).
+EXECUTOR_NODE = "push_executor_node"
+ARM_NODES = (*NODES, EXECUTOR_NODE)
+
+
+def graph_node_names(robot: str = "pusher") -> tuple[str, ...]:
+    """The protocol graph's node names for ``robot`` (``pusher`` or ``arm``).
+
+    Raises
+    ------
+    ValueError
+        Another ``robot``.
+    """
+    if robot not in ("pusher", "arm"):
+        raise ValueError(f"robot must be 'pusher' or 'arm', got {robot!r}")
+    return ARM_NODES if robot == "arm" else NODES
 #: planner_node's wait for a push the bridge never reports (it refused it, e.g. an approach
 #: point inside the object), wall seconds; the push then counts as a step and nothing moved, as
 #: in-process. A push takes well under a second of wall time (the physics runs ~100x real time).
@@ -47,7 +65,7 @@ def _parent_death_signal() -> None:  # pragma: no cover - runs in the child befo
 
 
 class GraphNodes:
-    """The four node processes, started with ``pushbot run`` in their own process groups.
+    """The graph's node processes, started with ``pushbot run`` in their own process groups.
 
     Parameters
     ----------
@@ -57,19 +75,25 @@ class GraphNodes:
         Extra ``-p name:=value`` strings per node name.
     ros_args : dict, optional
         ``pushbot up``: the nodes to start, each with its whole ``--ros-args`` list, instead
-        of the protocol graph's four nodes and parameters.
+        of the protocol graph's nodes and parameters.
+    robot : str
+        ``pusher`` (the four nodes) or ``arm`` (the bridge with ``robot:=arm`` and
+        ``push_executor_node``, enabled, as a fifth node).
     """
 
     def __init__(self, log_dir: Path, node_args: dict[str, Sequence[str]] | None = None,
-                 ros_args: dict[str, Sequence[str]] | None = None) -> None:
+                 ros_args: dict[str, Sequence[str]] | None = None, robot: str = "pusher"
+                 ) -> None:
         self.log_dir = Path(log_dir)
-        self.node_args = {n: list((node_args or {}).get(n, ())) for n in NODES}
+        self.robot = robot
+        self.names = graph_node_names(robot)
+        self.node_args = {n: list((node_args or {}).get(n, ())) for n in self.names}
         self.ros_args = ros_args
         self.procs: dict[str, subprocess.Popen] = {}
 
     def start(self) -> None:
         self.log_dir.mkdir(parents=True, exist_ok=True)
-        for name in NODES if self.ros_args is None else self.ros_args:
+        for name in self.names if self.ros_args is None else self.ros_args:
             self._start_one(name)
 
     def _start_one(self, name: str, extra: Sequence[str] = ()) -> None:
@@ -86,6 +110,10 @@ class GraphNodes:
                 # A protocol episode ends at "goal reached" (as in-process): the planner only
                 # reports it if the object leaves the region afterwards, it pushes no more.
                 params += ["-p", f"push_timeout:={PUSH_TIMEOUT}", "-p", "after_goal:=report"]
+            if name == "sim_bridge_node":
+                params += ["-p", f"robot:={self.robot}"]
+            if name == EXECUTOR_NODE:
+                params += ["-p", "start_enabled:=true"]
             params += [arg for value in self.node_args[name] for arg in ("-p", value)]
         params += [arg for value in extra for arg in ("-p", value)]
         with open(self.log_dir / f"{name}.log", "ab") as log:  # a restart appends

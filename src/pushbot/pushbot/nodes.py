@@ -19,7 +19,8 @@ from dataclasses import dataclass
 
 from pushbot.graph import EXIT_USAGE
 
-NODE_DISTRIBUTIONS = ('sim_bridge', 'push_perception', 'push_estimator', 'push_planner')
+NODE_DISTRIBUTIONS = ('sim_bridge', 'push_perception', 'push_estimator', 'push_planner',
+                      'push_executor')
 """Distributions whose console scripts are ROS nodes."""
 
 

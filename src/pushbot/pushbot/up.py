@@ -9,7 +9,9 @@ install; ``--params-dir DIR`` replaces those of the packages that have a file th
 - ``--sim`` (default): ``sim_bridge_node`` (``--object NAME|FILE`` sets its ``object``) and
   simulated time for the others;
 - ``--no-sim``: no bridge, wall time, and segmentation_node reads the RealSense ROS 2 wrapper's
-  topics (``/camera/camera/...``), as ``sim:=false`` of the launch file.
+  topics (``/camera/camera/...``), as ``sim:=false`` of the launch file;
+- ``--robot pusher|arm``: what executes the pushes, as ``robot:=`` of the launch file (``arm``
+  adds ``push_executor_node``; with ``--sim`` the bridge simulates a Panda arm).
 
 The processes are started and stopped by ``pushbot.graph_nodes.GraphNodes`` (the one launcher:
 ``pushbot run <node> --ros-args ...`` each in its own process group, a parent-death signal, the
@@ -50,6 +52,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                      help='start sim_bridge_node and run on its /clock (default)')
     sim.add_argument('--no-sim', dest='sim', action='store_false',
                      help='a real robot: no simulator, wall time, RealSense camera topics')
+    parser.add_argument('--robot', default='', choices=('', 'pusher', 'arm'),
+                        help='what executes the pushes: pusher (the simulated finger) or arm '
+                             '(push_executor_node; the simulated Panda with --sim); default: '
+                             'pusher with --sim, arm with --no-sim (robot:= of the launch file)')
     parser.add_argument('--params-dir', type=Path, default=None,
                         help='directory of <package>.yaml parameter files replacing the '
                              'bundled ones (packages without a file there keep theirs)')
@@ -82,8 +88,8 @@ def _yaml_scalar(value: object) -> str:
     return repr(value)
 
 
-def ros_arguments(sim: bool, object_name: str = '', config_dir: str | None = None
-                  ) -> dict[str, list[str]]:
+def ros_arguments(sim: bool, object_name: str = '', config_dir: str | None = None,
+                  robot: str = '') -> dict[str, list[str]]:
     """Node name -> its ``--ros-args`` (without the flag) for ``pushbot up``.
 
     The nodes, parameter files, overrides and remappings of
@@ -94,12 +100,12 @@ def ros_arguments(sim: bool, object_name: str = '', config_dir: str | None = Non
     Raises
     ------
     ValueError
-        ``object_name`` with ``sim`` false.
+        ``object_name`` with ``sim`` false; ``robot`` pusher with ``sim`` false.
     """
     from pushbot_bringup.graph import graph_nodes
 
     out: dict[str, list[str]] = {}
-    for launch in graph_nodes(sim, object_name, config_dir, default_config_dir()):
+    for launch in graph_nodes(sim, object_name, config_dir, default_config_dir(), robot):
         args: list[str] = []
         for entry in launch.parameters:
             if isinstance(entry, dict):
@@ -165,7 +171,8 @@ def run_up(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     try:
         node_args = ros_arguments(args.sim, args.object,
-                                  str(args.params_dir) if args.params_dir else None)
+                                  str(args.params_dir) if args.params_dir else None,
+                                  args.robot)
     except ValueError as exc:
         print(f'pushbot up: {exc}', file=sys.stderr)
         return EXIT_USAGE

@@ -6,7 +6,8 @@ install cannot run this file; there, start the nodes with ``pushbot run <node>``
     cd ros_ws && colcon build && source install/setup.bash
     ros2 launch pushbot_bringup pushbot.launch.py                      # simulation, butter
     ros2 launch pushbot_bringup pushbot.launch.py sim:=true object:=rect1
-    ros2 launch pushbot_bringup pushbot.launch.py sim:=false           # robot + realsense2_camera
+    ros2 launch pushbot_bringup pushbot.launch.py robot:=arm           # simulated Panda arm
+    ros2 launch pushbot_bringup pushbot.launch.py sim:=false           # robot arm + realsense2_camera
     ros2 launch pushbot_bringup pushbot.launch.py config_dir:=/path/to/my/config
 
 Arguments:
@@ -18,6 +19,11 @@ Arguments:
   ``/camera/camera/aligned_depth_to_color/image_raw``, ``/camera/camera/color/camera_info``).
 - ``object`` (default ``""``: the bridge's parameter file): object library name or spec file
   for the simulator; only with ``sim:=true``.
+- ``robot`` (default ``""``: ``pusher`` with ``sim:=true``, ``arm`` with ``sim:=false``): what
+  executes the planner's pushes. ``pusher``: the simulator's free finger. ``arm``:
+  ``push_executor_node`` sends each push as a joint trajectory to a ros2_control arm's
+  ``joint_trajectory_controller`` (with ``sim:=true`` the simulated Panda, enabled; with
+  ``sim:=false`` your arm, starting as a dry run until ``~/enable``; docs/ROBOT.md).
 - ``config_dir`` (default: this package's ``config``): a directory whose ``<package>.yaml``
   files replace the bundled ones (packages without a file there keep the bundled one).
 
@@ -63,6 +69,7 @@ def _nodes(context: LaunchContext, *args: object, **kwargs: object) -> list[Node
         object_name=LaunchConfiguration('object').perform(context),
         config_dir=LaunchConfiguration('config_dir').perform(context) or None,
         default_config_dir=DEFAULT_CONFIG_DIR,
+        robot=LaunchConfiguration('robot').perform(context),
     )
     env = dds_environment()
     return [
@@ -81,7 +88,7 @@ def _nodes(context: LaunchContext, *args: object, **kwargs: object) -> list[Node
 
 
 def generate_launch_description() -> LaunchDescription:
-    """The pushbot graph: [sim_bridge,] perception, estimator and planner."""
+    """The pushbot graph: [sim_bridge,] perception, estimator, planner [, push executor]."""
     return LaunchDescription([
         DeclareLaunchArgument(
             'sim', default_value='true',
@@ -91,6 +98,11 @@ def generate_launch_description() -> LaunchDescription:
             'object', default_value='',
             description='object library name or spec file for the simulator (sim:=true); '
                         'empty = the one in sim_bridge.yaml'),
+        DeclareLaunchArgument(
+            'robot', default_value='',
+            description='pusher (the simulated finger) or arm (push_executor_node and a '
+                        'ros2_control arm; simulated with sim:=true); empty = pusher with '
+                        'sim:=true, arm with sim:=false'),
         DeclareLaunchArgument(
             'config_dir', default_value=DEFAULT_CONFIG_DIR,
             description='directory holding <package>.yaml parameter files that replace the '

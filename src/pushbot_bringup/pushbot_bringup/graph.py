@@ -8,6 +8,13 @@ actions one to one and that the tests call directly.
 ``/clock``; every other node gets ``use_sim_time: true``, the bridge itself ``false`` (it is
 the clock source). ``object`` goes to the bridge's ``object`` parameter.
 
+``robot`` says what executes the planner's pushes: ``pusher`` (the simulator's free-floating
+finger, only with ``sim``) or ``arm`` (``push_executor_node`` turns each push into a joint
+trajectory of a ros2_control arm; with ``sim`` the bridge simulates a Franka Panda behind that
+interface, ``robot: arm``, and the executor starts enabled; without ``sim`` the executor starts
+disabled, a dry run, until ``~/enable``). The default is ``pusher`` in simulation and ``arm``
+on a robot (docs/ROBOT.md).
+
 ``sim`` false (a real robot): no ``sim_bridge_node``, ``use_sim_time: false`` for every node,
 and perception's camera inputs are remapped to the topics of the Intel RealSense ROS 2 wrapper
 (``realsense2_camera``, ``ros2 launch realsense2_camera rs_launch.py align_depth.enable:=true``):
@@ -15,7 +22,7 @@ its topics are ``/<camera_namespace>/<camera_name>/<stream>/...`` with both defa
 ``camera`` (realsense-ros README, ros2-development branch, the ``camera_namespace`` and
 ``camera_name`` parameters; IntelRealSense/realsense-ros issue 2866, "Apply camera name in
 topics", PR 2857). Its aligned depth is ``16UC1``
-millimetres, which ``push_perception`` decodes. The robot driver takes ``planner/push`` and
+millimetres, which ``push_perception`` decodes. ``push_executor_node`` takes ``planner/push`` and
 publishes ``pusher/executed`` in place of the bridge; the camera extrinsics
 (``camera/color/extrinsics``, or tf where available) come from the robot's calibration.
 
@@ -35,7 +42,9 @@ from pathlib import Path
 __all__ = [
     "CLOCK_SOURCE",
     "DEFAULT_CONFIG_DIR",
+    "EXECUTOR",
     "PIPELINE",
+    "ROBOTS",
     "REALSENSE_TOPICS",
     "SIMULATOR",
     "NodeLaunch",
@@ -48,6 +57,10 @@ __all__ = [
 #: (package, executable) of the simulator: the only node that publishes /clock.
 SIMULATOR = ("sim_bridge", "sim_bridge_node")
 CLOCK_SOURCE = SIMULATOR[0]
+#: (package, executable) of the arm's push executor (``robot`` arm).
+EXECUTOR = ("push_executor", "push_executor_node")
+#: What executes the pushes: the simulator's finger or an arm through push_executor_node.
+ROBOTS = ("pusher", "arm")
 #: (package, executable) of the nodes that run in simulation and on the robot alike.
 PIPELINE = (
     ("push_perception", "segmentation_node"),
@@ -128,7 +141,8 @@ def parameter_file(package: str, config_dir: str | os.PathLike[str] | None,
 
 
 def graph_nodes(sim: bool, object_name: str = "", config_dir: str | None = None,
-                default_config_dir: str = DEFAULT_CONFIG_DIR) -> list[NodeLaunch]:
+                default_config_dir: str = DEFAULT_CONFIG_DIR, robot: str = ""
+                ) -> list[NodeLaunch]:
     """The nodes to start, with their parameters and remappings.
 
     Parameters
@@ -141,22 +155,33 @@ def graph_nodes(sim: bool, object_name: str = "", config_dir: str | None = None,
         Directory of override parameter files ``<package>.yaml``.
     default_config_dir : str
         Where the bundled parameter files are.
+    robot : str
+        ``pusher``, ``arm`` or ``""`` (``pusher`` with ``sim``, ``arm`` without).
 
     Returns
     -------
     list of NodeLaunch
-        The simulator first (when ``sim``), then perception, estimator, planner.
+        The simulator first (when ``sim``), then perception, estimator, planner, then the
+        executor (``robot`` arm).
 
     Raises
     ------
     ValueError
-        ``object_name`` given with ``sim`` false (there is no simulator to take it).
+        ``object_name`` given with ``sim`` false (there is no simulator to take it), an unknown
+        ``robot``, or ``pusher`` without ``sim`` (the finger exists only in the simulator).
     """
+    robot = robot or ("pusher" if sim else "arm")
+    if robot not in ROBOTS:
+        raise ValueError(f"launch argument robot:={robot}: expected one of {', '.join(ROBOTS)}")
+    if robot == "pusher" and not sim:
+        raise ValueError("launch argument robot:=pusher needs sim:=true (the free pusher exists "
+                         "only in the simulator; a robot pushes with robot:=arm)")
     if object_name and not sim:
         raise ValueError(f"launch argument object:={object_name} needs sim:=true (the object "
                          "is a simulator parameter; on the robot it is whatever is on the table)")
     nodes = []
-    for package, executable in ((SIMULATOR,) if sim else ()) + PIPELINE:
+    executors = (EXECUTOR,) if robot == "arm" else ()
+    for package, executable in ((SIMULATOR,) if sim else ()) + PIPELINE + executors:
         parameters: list[str | dict[str, object]] = []
         path = parameter_file(package, config_dir, default_config_dir)
         if path is not None:
@@ -164,6 +189,10 @@ def graph_nodes(sim: bool, object_name: str = "", config_dir: str | None = None,
         overrides: dict[str, object] = {"use_sim_time": sim and package != CLOCK_SOURCE}
         if package == CLOCK_SOURCE and object_name:
             overrides["object"] = object_name
+        if package == CLOCK_SOURCE:
+            overrides["robot"] = robot
+        if package == EXECUTOR[0]:
+            overrides["start_enabled"] = sim  # a robot starts as a dry run until ~/enable
         parameters.append(overrides)
         remappings = REALSENSE_TOPICS if (not sim and package == CAMERA_CONSUMER) else ()
         nodes.append(NodeLaunch(package, executable, tuple(parameters), remappings))
