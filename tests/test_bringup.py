@@ -20,6 +20,7 @@ import pytest
 import yaml
 
 from pushbot_bringup import graph
+from push_ros.dds import PROFILE_ENV
 from pushbot_bringup.graph import NodeLaunch, graph_nodes, parameter_file, parse_bool
 
 REPO = Path(__file__).resolve().parents[1]
@@ -155,10 +156,10 @@ def test_parse_bool_refuses_anything_else() -> None:
 
 
 def test_dds_profile_unless_the_environment_names_one() -> None:
-    assert graph.dds_environment({graph.PROFILE_ENV: '/my/profile.xml'}) == {}
+    assert graph.dds_environment({PROFILE_ENV: '/my/profile.xml'}) == {}
     env = graph.dds_environment({})
-    assert Path(env[graph.PROFILE_ENV]).name == 'fastdds.xml'
-    assert Path(env[graph.PROFILE_ENV]).is_file()
+    assert Path(env[PROFILE_ENV]).name == 'fastdds.xml'
+    assert Path(env[PROFILE_ENV]).is_file()
 
 
 # -------------------------------------------------------------------- the launch file
@@ -233,13 +234,13 @@ def test_launch_file_builds_the_nodes_graph_nodes_decides(
             node.package, node.executable, node.name)
         assert kw['parameters'] == list(node.parameters)
         assert kw['remappings'] == list(node.remappings)
-        assert graph.PROFILE_ENV in kw['additional_env'] or graph.dds_environment() == {}
+        assert PROFILE_ENV in kw['additional_env'] or graph.dds_environment() == {}
 
 
 def test_launch_file_passes_object_and_refuses_bad_sim(launch_module: types.ModuleType) -> None:
-    actions = launch_module._nodes(_Context(sim='true', object='hex', config_dir=''))
+    actions = launch_module._nodes(_Context(sim='true', object='hex', robot='', config_dir=''))
     bridge = actions[0].kwargs
     assert bridge['executable'] == 'sim_bridge_node'
-    assert bridge['parameters'][-1] == {'use_sim_time': False, 'object': 'hex'}
+    assert bridge['parameters'][-1] == {'use_sim_time': False, 'object': 'hex', 'robot': 'pusher'}
     with pytest.raises(ValueError, match='launch argument sim'):
-        launch_module._nodes(_Context(sim='maybe', object='', config_dir=''))
+        launch_module._nodes(_Context(sim='maybe', object='', robot='', config_dir=''))

@@ -5,7 +5,7 @@ import subprocess
 import sys
 import xml.etree.ElementTree as ET
 
-from pushbot.dds import (
+from push_ros.dds import (
     CLOSED_RANGE,
     NETWORK_ENV,
     PROFILE_ENV,
@@ -54,13 +54,13 @@ def test_closed_by_default_open_only_by_an_explicit_choice():
 
 
 def test_opening_the_graph_warns(capsys, monkeypatch):
-    import pushbot.dds
+    import push_ros.dds
 
-    monkeypatch.setattr(pushbot.dds, '_warned', False)
+    monkeypatch.setattr(push_ros.dds, '_warned', False)
     env = {NETWORK_ENV: '1'}
     assert apply_default_profile(env) == str(profile_path(network=True))
     assert 'OPEN TO THE NETWORK' in capsys.readouterr().err
-    monkeypatch.setattr(pushbot.dds, '_warned', False)
+    monkeypatch.setattr(push_ros.dds, '_warned', False)
     apply_default_profile({})
     assert capsys.readouterr().err == ''
 

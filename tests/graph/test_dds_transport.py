@@ -1,11 +1,13 @@
-"""Camera images cross process boundaries with the bundled Fast DDS profile (pushbot.dds).
+"""Camera images cross process boundaries with the bundled Fast DDS profile (push_ros.dds).
 
 A 640 x 480 frame is 0.9 MB (rgb8) + 1.2 MB (32FC1 depth). With Fast DDS's default transports
 (512 KB shared-memory segments, 208 KB UDP socket buffers) about half of the depth images never
 reached another process; the bundled profile declares 32 MB shared-memory segments and 4 MB
 UDP buffers (docs/ARCHITECTURE.md, "DDS profile"). These tests run sim_bridge_node as its own
 process and count what arrives here, and check that shared-memory segments left behind by a
-killed process do not break discovery or delivery for the next one.
+killed process do not break discovery or delivery for the next one, and that a node started by
+its own console script (as ``ros2 run`` starts it, without ``pushbot`` setting the profile) gets
+the same profile from its ``main()`` (issue 23, item 2).
 """
 
 from __future__ import annotations
@@ -13,15 +15,17 @@ from __future__ import annotations
 import os
 import signal
 import subprocess
+import sys
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import pytest
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Image
 
-from pushbot.dds import PROFILE_ENV, profile_path
+from push_ros.dds import PROFILE_ENV, profile_path
 from pushbot.graph import cli_node, spin_until
 
 if TYPE_CHECKING:  # the fixtures come from tests/conftest.py
@@ -78,3 +82,18 @@ def test_segments_of_a_killed_process_do_not_break_the_next(processes: ProcessMa
     second = _start_bridge(processes)
     count, seconds = _count_depth_frames(lambda: second.poll() is None)
     assert count >= RATE * seconds - 2, (count, processes.output(second)[-2000:])
+
+
+def test_a_node_started_by_its_console_script_gets_the_profile(
+        processes: ProcessManager) -> None:
+    # Without FASTRTPS_DEFAULT_PROFILES_FILE, under UDPv4 only (the tests' and a multi-host
+    # setting): before, a second process received 0 colour and 0 depth frames in 30 s.
+    env = {PROFILE_ENV: "", "FASTDDS_BUILTIN_TRANSPORTS": "UDPv4"}  # "" = not set
+    script = str(Path(sys.executable).parent / "sim_bridge_node")  # the console script itself
+    bridge = processes.start([script, "--ros-args", "-p",
+                              f"idle_frame_rate:={RATE}"], env=env)
+    count, seconds = _count_depth_frames(lambda: bridge.poll() is None)
+    assert count >= RATE * seconds - 2, (count, processes.output(bridge)[-2000:])
+    log = processes.output(bridge)
+    assert f"DDS: bundled profile {profile_path()} (loopback only)" in log, log[-2000:]
+    assert "FASTDDS_BUILTIN_TRANSPORTS=UDPv4 has no effect under it" in log

@@ -10,8 +10,10 @@ would make the configuration invalid is rejected with the reason
 (``SetParametersResult.reason``) and changes nothing. When a valid new value takes effect is
 the node's business (the episode parameters on ``~/reset``).
 
-Running. :func:`run_node` is the Jazzy ``main()`` shape, once for every node: ``rclpy.init``,
-construct, spin; an invalid configuration (``ValueError`` or ``ParameterException`` from the
+Running. :func:`run_node` is the Jazzy ``main()`` shape, once for every node: the project's DDS
+rule (:func:`push_ros.dds.apply_default_profile`, so a node started by its console script or
+``ros2 run`` gets the same transports as through ``pushbot`` or the launch file; logged once),
+``rclpy.init``, construct, spin; an invalid configuration (``ValueError`` or ``ParameterException`` from the
 constructor) logs a fatal ``invalid configuration: ...`` and exits with status 2;
 ``KeyboardInterrupt`` and ``ExternalShutdownException`` end the spin quietly; the node is
 destroyed and rclpy shut down in every case.
@@ -274,7 +276,11 @@ def run_node(factory: Callable[[], Any], name: str, args: list[str] | None = Non
     from rclpy.exceptions import ParameterException
     from rclpy.executors import ExternalShutdownException
 
+    from push_ros.dds import apply_default_profile, describe
+
+    apply_default_profile()  # before rclpy.init: Fast DDS reads it when the participant is made
     rclpy.init(args=args)
+    rclpy.logging.get_logger(name).info(describe())
     try:
         node = factory()
     except (ValueError, ParameterException) as exc:

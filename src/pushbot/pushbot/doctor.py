@@ -36,7 +36,7 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
-from pushbot.dds import NETWORK_ENV, PROFILE_ENV, RANGE_ENV, network_reason, profile_path
+from push_ros.dds import NETWORK_ENV, PROFILE_ENV, RANGE_ENV, network_reason, profile_path
 from pushbot.doctor_probe import DEFAULT_COUNT, DEFAULT_TIMEOUT
 
 SUB_DOMAIN_OFFSET_ENV = 'PUSHBOT_DOCTOR_SUB_DOMAIN_OFFSET'

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from pushbot.dds import apply_default_profile
+from push_ros.dds import apply_default_profile
 from pushbot.graph_nodes import EXECUTOR_NODE, NODES, GraphError, graph_node_names
 
 #: The simulated arm's controller topic (push_executor_node's and sim_bridge_node's default).

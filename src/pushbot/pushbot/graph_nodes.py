@@ -20,7 +20,7 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
-from pushbot.dds import apply_default_profile
+from push_ros.dds import apply_default_profile
 
 __all__ = ["ARM_NODES", "EXECUTOR_NODE", "NODES", "PUSH_TIMEOUT", "GraphError", "GraphNodes",
            "graph_node_names", "sigterm_as_keyboard_interrupt"]

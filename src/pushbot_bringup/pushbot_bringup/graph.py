@@ -79,10 +79,6 @@ CAMERA_CONSUMER = "push_perception"
 #: ``<this package>/config``: next to ``launch/`` both in the source tree and installed (the
 #: launch file passes its own ``../config``; this is the source-tree fallback).
 DEFAULT_CONFIG_DIR = str(Path(__file__).resolve().parents[1] / "config")
-PROFILE_ENV = "FASTRTPS_DEFAULT_PROFILES_FILE"
-RANGE_ENV = "ROS_AUTOMATIC_DISCOVERY_RANGE"
-NETWORK_ENV = "PUSHBOT_DDS_NETWORK"
-_SOURCE_PROFILE = Path(__file__).resolve().parents[2] / "pushbot/pushbot/data/fastdds.xml"
 
 
 @dataclass(frozen=True)
@@ -200,32 +196,11 @@ def graph_nodes(sim: bool, object_name: str = "", config_dir: str | None = None,
 
 
 def dds_environment(environ: Mapping[str, str] | None = None) -> dict[str, str]:
-    """The DDS variables every node gets: :func:`pushbot.dds.dds_environment` (one rule for the
-    CLI and the launch file).
-
-    Closed by default: ``FASTRTPS_DEFAULT_PROFILES_FILE`` = ``pushbot/data/fastdds.xml`` (32 MB
-    shared-memory segments, 4 MB UDP buffers, UDPv4 bound to 127.0.0.1; docs/ARCHITECTURE.md,
-    "DDS profile") and ``ROS_AUTOMATIC_DISCOVERY_RANGE=SYSTEM_DEFAULT`` (discovery left to that
-    profile, loopback only) unless the user set a range. ``PUSHBOT_DDS_NETWORK=1`` or a
-    user-set ``ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET`` selects ``fastdds_network.xml`` instead
-    (open to the network; README, "Security"). {} when the environment already names a profile.
-    Without an importable ``pushbot`` the profiles come from the source tree.
+    """The DDS variables every node gets: :func:`push_ros.dds.dds_environment`, the one rule
+    for the launch file, ``pushbot`` and every node's ``main()`` (docs/ARCHITECTURE.md, "DDS
+    profile"); ``push_ros`` is installed wherever a node is, so a robot install without
+    ``pushbot`` gets the same profile. {} when the environment already names a profile.
     """
-    environ = os.environ if environ is None else environ
-    try:
-        from pushbot.dds import dds_environment as pushbot_dds_environment
-    except ImportError:
-        pass
-    else:
-        return pushbot_dds_environment(environ)
-    if environ.get(PROFILE_ENV):
-        return {}
-    network = (environ.get(NETWORK_ENV, "").strip().lower() in ("1", "true", "yes", "on")
-               or environ.get(RANGE_ENV) == "SUBNET")
-    path = _SOURCE_PROFILE.with_name("fastdds_network.xml" if network else "fastdds.xml")
-    if not path.is_file():
-        return {}
-    extra = {PROFILE_ENV: str(path)}
-    if not network and not environ.get(RANGE_ENV):
-        extra[RANGE_ENV] = "SYSTEM_DEFAULT"
-    return extra
+    from push_ros.dds import dds_environment as rule
+
+    return rule(environ)
