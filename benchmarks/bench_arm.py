@@ -121,7 +121,8 @@ def main() -> int:
         f"both succeeded, arm - pusher: pushes "
         f"{paired([p['steps'] for p, _ in both], [a['steps'] for _, a in both])}, true end "
         f"error mm "
-        f"{paired([1e3 * p['end_error_xy'] for p, _ in both], [1e3 * a['end_error_xy'] for _, a in both])}"
+        f"{paired([1e3 * p['end_error_xy'] for p, _ in both],
+                  [1e3 * a['end_error_xy'] for _, a in both])}"
         f" (mean difference with its 95 % t-interval).\n\n"
         f"Arm failures: {'; '.join(failures) if failures else 'none'}.\n")
     command = ("python benchmarks/bench_arm.py --trials "

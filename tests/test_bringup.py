@@ -19,8 +19,8 @@ from typing import Any
 import pytest
 import yaml
 
-from pushbot_bringup import graph
 from push_ros.dds import PROFILE_ENV
+from pushbot_bringup import graph
 from pushbot_bringup.graph import NodeLaunch, graph_nodes, parameter_file, parse_bool
 
 REPO = Path(__file__).resolve().parents[1]
