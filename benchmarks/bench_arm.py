@@ -111,6 +111,8 @@ def main() -> int:
     same = sum(p["success"] == a["success"] for p, a in zip(pusher, arm, strict=True))
     failures = [f"{a['trial']['object']} #{a['trial']['index']}: {a['reason']}"
                 for a in arm if not a["success"]]
+    paired_errors = paired([1e3 * p["end_error_xy"] for p, _ in both],
+                           [1e3 * a["end_error_xy"] for _, a in both])
     body = (
         f"Trials: {len(trials)} per engine ({', '.join(args.objects)} x {args.trials}; mixed "
         f"task, random COM, state filter, ana, k = 3, seed 0, indices 0..{args.trials - 1}); "
@@ -121,8 +123,7 @@ def main() -> int:
         f"both succeeded, arm - pusher: pushes "
         f"{paired([p['steps'] for p, _ in both], [a['steps'] for _, a in both])}, true end "
         f"error mm "
-        f"{paired([1e3 * p['end_error_xy'] for p, _ in both],
-                  [1e3 * a['end_error_xy'] for _, a in both])}"
+        f"{paired_errors}"
         f" (mean difference with its 95 % t-interval).\n\n"
         f"Arm failures: {'; '.join(failures) if failures else 'none'}.\n")
     command = ("python benchmarks/bench_arm.py --trials "

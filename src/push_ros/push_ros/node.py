@@ -14,7 +14,8 @@ Running. :func:`run_node` is the Jazzy ``main()`` shape, once for every node: th
 rule (:func:`push_ros.dds.apply_default_profile`, so a node started by its console script or
 ``ros2 run`` gets the same transports as through ``pushbot`` or the launch file; logged once),
 ``rclpy.init``, construct, spin; an invalid configuration (``ValueError`` or
-``ParameterException`` from the constructor) logs a fatal ``invalid configuration: ...`` and exits with status 2;
+``ParameterException`` from the constructor) logs a fatal ``invalid configuration: ...`` and
+exits with status 2;
 ``KeyboardInterrupt`` and ``ExternalShutdownException`` end the spin quietly; the node is
 destroyed and rclpy shut down in every case.
 

@@ -7,7 +7,7 @@ install cannot run this file; there, start the nodes with ``pushbot run <node>``
     ros2 launch pushbot_bringup pushbot.launch.py                      # simulation, butter
     ros2 launch pushbot_bringup pushbot.launch.py sim:=true object:=rect1
     ros2 launch pushbot_bringup pushbot.launch.py robot:=arm           # simulated Panda arm
-    ros2 launch pushbot_bringup pushbot.launch.py sim:=false           # your arm + realsense2_camera
+    ros2 launch pushbot_bringup pushbot.launch.py sim:=false           # an arm + realsense2_camera
     ros2 launch pushbot_bringup pushbot.launch.py config_dir:=/path/to/my/config
 
 Arguments:
