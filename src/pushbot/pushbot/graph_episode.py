@@ -69,7 +69,7 @@ from pushbot.graph_nodes import (
     GraphNodes,
     sigterm_as_keyboard_interrupt,
 )
-from pushbot.protocol import Trial
+from pushbot.protocol import Trial, planner_episode_params
 
 __all__ = ["NODES", "GraphError", "GraphNodes", "GraphRunner", "Recorded", "check_trial",
            "run_graph_trials", "sigterm_as_keyboard_interrupt"]
@@ -414,16 +414,6 @@ class GraphRunner:
         c_true = rot2(theta0 - shift) @ self._com_true
         self._c_true_episode = c_true
         return float(math.hypot(*(self.rec.com[-1][1] - c_true)))
-
-
-def planner_episode_params(trial: Trial) -> dict[str, Any]:
-    """``planner_node``'s episode parameters for ``trial`` (set before every episode; also
-    the start-up parameters of a planner restarted mid-episode)."""
-    kw = trial.planner_kwargs()
-    return {"method": kw["method"], "direct": bool(kw["direct"]), "k": int(kw["k"]),
-            "goal_tolerance.xy": float(kw["tolerance_xy"]),
-            "goal_tolerance.theta": float(kw["tolerance_theta"]),
-            "max_steps": int(trial.max_steps), "seed": int(kw["seed"])}
 
 
 def _same_goal(a: str, b: str) -> bool:

@@ -37,9 +37,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from pushbot.protocol import Trial, planner_episode_params
+
 if TYPE_CHECKING:
     from pushbot.graph_episode import GraphRunner
-    from pushbot.protocol import Trial
 
 __all__ = ["SCENARIOS", "BridgeFaults", "Episode", "Fault", "ForeignPush", "KillRestart",
            "Knock", "SecondGoal", "make_fault"]
@@ -260,8 +261,6 @@ class SecondGoal(Fault):
 def planner_start_args(trial: Trial) -> list[str]:
     """The trial's episode parameters of ``planner_node`` as ``name:=value`` start-up
     parameters (what a restarted planner is started with)."""
-    from pushbot.graph_episode import planner_episode_params
-
     return [f"{name}:={str(value).lower() if isinstance(value, bool) else value}"
             for name, value in planner_episode_params(trial).items()]
 

@@ -51,6 +51,7 @@ __all__ = [
     "TASKS",
     "Trial",
     "make_trials",
+    "planner_episode_params",
 ]
 
 #: task -> (translation distance m, rotation magnitude rad)
@@ -237,3 +238,13 @@ def make_trials(objects: list[str], tasks: list[str], methods: list[str], ks: li
     return [Trial(object=o, task=t, method=mth, k=k, state=state, com=com, region=region,
                   index=i, seed=seed, max_steps=max_steps, estimate_com=estimate_com)
             for o in objects for t in tasks for mth in methods for k in ks for i in range(n)]
+
+
+def planner_episode_params(trial: Trial) -> dict[str, Any]:
+    """``planner_node``'s episode parameters for ``trial`` (set before every episode; also
+    the start-up parameters of a planner restarted mid-episode)."""
+    kw = trial.planner_kwargs()
+    return {"method": kw["method"], "direct": bool(kw["direct"]), "k": int(kw["k"]),
+            "goal_tolerance.xy": float(kw["tolerance_xy"]),
+            "goal_tolerance.theta": float(kw["tolerance_theta"]),
+            "max_steps": int(trial.max_steps), "seed": int(kw["seed"])}
