@@ -297,9 +297,11 @@ class TrajectoryFollower:
         return self._start + float(self._current.times[-1])
 
     def hold(self, q: ArrayLike) -> None:
-        """Forget any trajectory and hold positions ``q`` (a reset)."""
+        """Forget any trajectory and hold positions ``q`` (a reset, or a failed physics loop:
+        the loop counts as stopped)."""
         with self._lock:
             self._pending = self._current = None
+            self.running = False
             self._hold = np.asarray(q, dtype=float).copy()
 
     def target(self, t: float, q: ArrayLike, v: ArrayLike

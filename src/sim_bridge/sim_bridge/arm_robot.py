@@ -10,9 +10,9 @@ its top on the flange ``panda_link8``, its axis along the flange z) and a fixed 
 ``pusher_tip`` at the rod's lower end. Mesh paths are made absolute, so the URDF string loads
 from any file and is what ``/robot_description`` carries.
 
-Frames: the arm's base ``panda_link0`` stands at ``base_pose`` = (x, y, z,
-yaw) in ``world`` (m, rad), on a pedestal (visual only) when z > 0. The tip is on the rod axis at its lower end; with the rod vertical
-the flange is ``ROD_LENGTH`` above the tip.
+Frames: the arm's base ``panda_link0`` stands at ``base_pose`` = (x, y, z, yaw) in ``world``
+(m, rad), on a pedestal (visual only) when z > 0. The tip is on the rod axis at its lower
+end; with the rod vertical the flange is ``ROD_LENGTH`` above the tip.
 
 Contacts: the rod collides with the object (its friction is the scene's pusher friction; the
 object's is 1, bullet multiplies); the arm's links and the rod do not collide with the table
