@@ -11,8 +11,9 @@ its top on the flange ``panda_link8``, its axis along the flange z) and a fixed 
 from any file and is what ``/robot_description`` carries.
 
 Frames: the arm's base ``panda_link0`` stands at ``base_pose`` = (x, y, z, yaw) in ``world``
-(m, rad), on a pedestal (visual only) when z > 0. The tip is on the rod axis at its lower
-end; with the rod vertical the flange is ``ROD_LENGTH`` above the tip.
+(m, rad); a pedestal under it (z > 0) is neither modelled nor drawn (drawn, it showed at the
+image's top edge and cost perception accuracy: bench_arm_perception). The tip is on the rod
+axis at its lower end; with the rod vertical the flange is ``ROD_LENGTH`` above the tip.
 
 Contacts: the rod collides with the object (its friction is the scene's pusher friction; the
 object's is 1, bullet multiplies); the arm's links and the rod do not collide with the table
@@ -148,10 +149,6 @@ class ArmRobot:
                  park: ArrayLike, friction: float, table: int, obj: int) -> None:
         x, y, z, yaw = (float(v) for v in np.asarray(base_pose, dtype=float))
         self._c = client
-        if z > 0.0:  # the pedestal the base stands on: drawn only (nothing touches it)
-            box = client.createVisualShape(p.GEOM_BOX, halfExtents=[0.1, 0.1, z / 2],
-                                           rgbaColor=[0.3, 0.3, 0.32, 1.0])
-            client.createMultiBody(0.0, -1, box, [x, y, z / 2])
         self.body = client.loadURDF(urdf_path, [x, y, z], p.getQuaternionFromEuler([0, 0, yaw]),
                                     useFixedBase=True, flags=p.URDF_USE_INERTIA_FROM_FILE)
         names = {client.getJointInfo(self.body, j)[1].decode(): j
