@@ -46,6 +46,18 @@ Publications (QoS as in ``docs/ARCHITECTURE.md``; "sensor" = ``qos_profile_senso
   world -> ``pusher``): only when ``tf2_msgs`` is importable (full ROS install; see the tf note
   in ARCHITECTURE.md). The pipeline never depends on them.
 
+- ``pusher/refused`` (diagnostic_msgs/DiagnosticStatus; reliable; codec
+  :mod:`push_ros.refusal`): one per ``planner/push`` the bridge does not execute (pusher mode),
+  ``push_stamp`` = the push's header stamp, ``kind`` ``busy``, ``invalid`` (malformed, or a
+  geometry the world refuses), ``workspace`` (a point outside it) or ``fault``
+  (``faults.push_refusal``).
+- Arm mode (``robot: arm``, read-only): ``/joint_states``, ``/robot_description``,
+  ``sim/tool_tip`` and the ``arm.controller_topic`` subscription, see :mod:`sim_bridge.arm_ros`.
+  A run of trajectories advances ``/clock`` like a push and ends with a fresh frame and
+  ``sim/object_pose`` (no ``pusher/executed``: push_executor_node reports pushes).
+  ``planner/push`` is ignored (counted ``pushes_ignored_arm_mode``, logged throttled), not
+  refused: a refusal would make the planner drop the push the executor is carrying out.
+
 Subscriptions:
 
 - ``planner/push`` (nav_msgs/Path; reliable): frame ``world``, exactly three poses: approach,
