@@ -303,6 +303,8 @@ EXPECTED_PUBLISHERS = {
                          (ReliabilityPolicy.RELIABLE, DurabilityPolicy.VOLATILE)),
     "/pusher/executed": ("nav_msgs/msg/Path",
                          (ReliabilityPolicy.RELIABLE, DurabilityPolicy.VOLATILE)),
+    "/pusher/refused": ("diagnostic_msgs/msg/DiagnosticStatus",
+                        (ReliabilityPolicy.RELIABLE, DurabilityPolicy.VOLATILE)),
     "/diagnostics": ("diagnostic_msgs/msg/DiagnosticArray",
                      (ReliabilityPolicy.RELIABLE, DurabilityPolicy.VOLATILE)),
 }

@@ -77,6 +77,7 @@ __all__ = [
     "REST_STEPS",
     "RETRACT_SPEED",
     "Physics",
+    "PushRefused",
     "PushResult",
     "check_push",
 ]
@@ -101,6 +102,15 @@ BACK_OFF = 1e-3  # m, retreat along -push direction before lifting
 REST_SPEED = 5e-4  # m/s
 REST_ANGULAR = 5e-3  # rad/s
 REST_STEPS = 5
+
+
+class PushRefused(ValueError):
+    """A push :func:`check_push` refuses; ``kind`` is the ``pusher/refused`` class:
+    ``workspace`` (a point outside the workspace) or ``invalid`` (anything else)."""
+
+    def __init__(self, kind: str, reason: str) -> None:
+        super().__init__(reason)
+        self.kind = kind
 
 
 @dataclass(frozen=True)
@@ -176,8 +186,8 @@ def check_push(cfg: WorldConfig, outline: Callable[[], NDArray[np.float64]],
             raise ValueError(f"{name}: must be finite, got {pt.tolist()}")
         (x0, x1), (y0, y1) = cfg.workspace
         if not (x0 <= pt[0] <= x1 and y0 <= pt[1] <= y1):
-            raise ValueError(f"{name}: ({pt[0]:.4f}, {pt[1]:.4f}) m is outside the "
-                             f"workspace x in [{x0}, {x1}], y in [{y0}, {y1}] m")
+            raise PushRefused("workspace", f"{name}: ({pt[0]:.4f}, {pt[1]:.4f}) m is outside "
+                              f"the workspace x in [{x0}, {x1}], y in [{y0}, {y1}] m")
         pts.append(pt)
     a, c, e = pts
     length = float(np.linalg.norm(e - c))

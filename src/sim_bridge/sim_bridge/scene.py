@@ -115,9 +115,10 @@ class Scene:
     Attributes
     ----------
     table, object, pusher : int
-        Body ids.
+        Body ids (``pusher`` -1 in arm mode: the arm's rod pushes).
     drive : int
-        The pusher's fixed constraint to the world; its pivot is the commanded position.
+        The pusher's fixed constraint to the world; its pivot is the commanded position
+        (-1 in arm mode).
     inertial_offset : (3,) ndarray
         COM in the object frame, ``(c_x, c_y, thickness / 2)``, m (pybullet reports the COM
         frame; ``object frame = COM frame - R @ inertial_offset``).
@@ -159,6 +160,9 @@ def build_scene(client: BulletClient, cfg: WorldConfig, spec: ObjectSpec,
 
     body, inertial_offset = _create_object(c, cfg, spec, look)
 
+    if cfg.robot == "arm":  # the rod on the arm is the pusher (sim_bridge.arm_robot)
+        return Scene(table=table, object=body, pusher=-1, drive=-1,
+                     inertial_offset=inertial_offset)
     radius = cfg.pusher_radius
     col = c.createCollisionShape(p.GEOM_CYLINDER, radius=radius, height=PUSHER_LENGTH)
     vis = c.createVisualShape(p.GEOM_CYLINDER, radius=radius, length=PUSHER_LENGTH,

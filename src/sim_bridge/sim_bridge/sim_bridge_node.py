@@ -46,6 +46,18 @@ Publications (QoS as in ``docs/ARCHITECTURE.md``; "sensor" = ``qos_profile_senso
   world -> ``pusher``): only when ``tf2_msgs`` is importable (full ROS install; see the tf note
   in ARCHITECTURE.md). The pipeline never depends on them.
 
+- ``pusher/refused`` (diagnostic_msgs/DiagnosticStatus; reliable; codec
+  :mod:`push_ros.refusal`): one per ``planner/push`` the bridge does not execute (pusher mode),
+  ``push_stamp`` = the push's header stamp, ``kind`` ``busy``, ``invalid`` (malformed, or a
+  geometry the world refuses), ``workspace`` (a point outside it) or ``fault``
+  (``faults.push_refusal``).
+- Arm mode (``robot: arm``, read-only): ``/joint_states``, ``/robot_description``,
+  ``sim/tool_tip`` and the ``arm.controller_topic`` subscription, see :mod:`sim_bridge.arm_ros`.
+  A run of trajectories advances ``/clock`` like a push and ends with a fresh frame and
+  ``sim/object_pose`` (no ``pusher/executed``: push_executor_node reports pushes).
+  ``planner/push`` is ignored (counted ``pushes_ignored_arm_mode``, logged throttled), not
+  refused: a refusal would make the planner drop the push the executor is carrying out.
+
 Subscriptions:
 
 - ``planner/push`` (nav_msgs/Path; reliable): frame ``world``, exactly three poses: approach,
@@ -129,16 +141,12 @@ which would be worse); nothing is lost meanwhile, messages wait in their queues.
 
 from __future__ import annotations
 
-import functools
-import math
-import os
-import stat
 import threading
 import traceback
 from collections.abc import Callable
 from concurrent.futures import Future as ThreadFuture
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -151,30 +159,29 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import CameraInfo, Image
 from std_srvs.srv import Trigger
 
-from push_core.objects import library_names, load_object
 from push_ros.diagnostics import DiagnosticsPublisher
 from push_ros.frames import CAMERA_FRAME, PUSHER_FRAME, WORLD_FRAME
 from push_ros.images import camera_info_msg, depth_image_msg, rgb_image_msg
-from push_ros.node import (
-    ParamSpec,
-    ThrottledLog,
-    declare_config,
-    guarded,
-    parameter_values,
-    run_node,
-)
+from push_ros.node import ThrottledLog, declare_config, guarded, parameter_values, run_node
 from push_ros.paths import path_from_points, push_points_from_path
 from push_ros.poses import check_frame, pose_stamped_msg, transform_msg, xytheta_from_pose
 from push_ros.qos import CLOCK_QOS, LATCHED_QOS, RELIABLE_QOS, SENSOR_QOS
+from push_ros.refusal import refusal_msg
 from push_ros.stamps import stamp_from_seconds
-from sim_bridge.world import CameraConfig, Frame, MonitorConfig, PushWorld, WorldConfig
+from sim_bridge.arm import Trajectory
+from sim_bridge.arm_ros import ArmEndpoints
+from sim_bridge.params import PARAMETERS, FaultConfig, SimBridgeParams, check_object_parameter
+from sim_bridge.world import Frame, PushWorld, WorldConfig
 
 try:  # Only on a full ROS install: tf2_msgs has no PyPI wheel (ARCHITECTURE.md, tf note).
     from tf2_msgs.msg import TFMessage
 except ImportError:  # pragma: no cover - depends on the install
     TFMessage = None
 
-__all__ = ["SimBridgeNode", "SimBridgeParams", "main"]
+__all__ = ["PARAMETERS", "FaultConfig", "SimBridgeNode", "SimBridgeParams",
+           "check_object_parameter", "main"]
+#: The worker's state while the arm follows trajectories.
+ARM_BUSY = "following joint trajectories"
 
 #: Seconds between repeated log lines of the same kind (the diagnostics count every event).
 LOG_THROTTLE_S = 1.0
@@ -182,275 +189,6 @@ LOG_THROTTLE_S = 1.0
 DIAGNOSTICS_PERIOD_S = 1.0
 #: Largest displacement of the object one ``sim/knock`` may ask for, m.
 MAX_KNOCK_SHIFT = 0.1
-#: Suffixes of the object specification files the ``object`` parameter accepts.
-SPEC_SUFFIXES = (".json", ".yaml", ".yml")
-#: Largest object specification file the ``object`` parameter reads, bytes (a spec is < 10 kB).
-MAX_SPEC_BYTES = 1 << 20
-
-
-# --------------------------------------------------------------------------------------------
-# Parameters
-# --------------------------------------------------------------------------------------------
-_UNSET_OR_NEGATIVE = "negative = the object spec's value"
-PARAMETERS: tuple[ParamSpec, ...] = (
-    ParamSpec("object", "butter", "Object library name (e.g. butter, rect1) or path to a "
-              ".json/.yaml object specification file."),
-    ParamSpec("initial_pose.x", 0.0, "Initial x of the object frame in world, m.", (-1.0, 1.0)),
-    ParamSpec("initial_pose.y", 0.0, "Initial y of the object frame in world, m.", (-1.0, 1.0)),
-    ParamSpec("initial_pose.theta", 0.0, "Initial yaw of the object frame in world, rad.",
-              (-math.pi, math.pi)),
-    ParamSpec("com_offset", None, "Centre of mass (x, y) in the object frame, m; unset or "
-              "empty = the object spec's COM.", constraints="2 values or empty"),
-    ParamSpec("mass", -1.0, "Object mass, kg.", (-1.0, 100.0), constraints=_UNSET_OR_NEGATIVE),
-    ParamSpec("friction_table", -1.0, "Object-table Coulomb friction coefficient.",
-              (-1.0, 10.0), constraints=_UNSET_OR_NEGATIVE),
-    ParamSpec("friction_pusher", -1.0, "Pusher-object Coulomb friction coefficient.",
-              (-1.0, 10.0), constraints=_UNSET_OR_NEGATIVE),
-    ParamSpec("seed", 0, "Seed of the randomisation (physics and appearance).", (0, 2**31 - 1)),
-    ParamSpec("randomize", False, "Randomise mass, COM and frictions from the seed."),
-    ParamSpec("image_width", 640, "Camera image width, px.", (32, 1920)),
-    ParamSpec("image_height", 480, "Camera image height, px.", (24, 1080)),
-    ParamSpec("depth_noise", False, "Add D415-like depth noise and dropouts."),
-    ParamSpec("randomize_appearance", False, "Randomise lighting, table and object colours "
-              "from the seed."),
-    ParamSpec("randomize_camera", False, "Jitter the camera pose from the seed (the published "
-              "extrinsics are the true, jittered pose)."),
-    ParamSpec("idle_frame_rate", 2.0, "Rate of repeated camera frames, object pose and /clock "
-              "while idle, Hz (wall time).", (0.1, 30.0), read_only=True),
-    ParamSpec("clock_rate", 50.0, "Rate of /clock messages while the physics runs, Hz (wall "
-              "time).", (1.0, 1000.0), read_only=True),
-    ParamSpec("push_speed", 0.02, "Pusher speed along the push, m/s.", (0.001, 0.2)),
-    ParamSpec("pusher_radius", 0.0048, "Radius of the cylindrical pusher, m.", (0.001, 0.05)),
-    ParamSpec("faults.frame_drop", 0.0, "Fault injection: probability that a camera frame "
-              "publication (colour, depth, camera_info together) is dropped.", (0.0, 0.9)),
-    ParamSpec("faults.frame_delay", 0.0, "Fault injection: probability that a camera frame "
-              "publication is held back and published right after the next newer frame "
-              "(delayed and reordered).", (0.0, 0.9)),
-    ParamSpec("faults.push_refusal", 0.0, "Fault injection: probability that a valid push is "
-              "refused (as a robot refuses a command).", (0.0, 1.0)),
-    ParamSpec("faults.seed", 0, "Seed of the fault injection draws (re-seeded on ~/reset).",
-              (0, 2**31 - 1)),
-    ParamSpec("monitor.rate", 0.0, "Monitor stream (sim/monitor/*): frames per second of sim "
-              "time rendered while a push executes; 0 = off.", (0.0, 60.0)),
-    ParamSpec("monitor.width", 320, "Monitor image width, px.", (32, 1920)),
-    ParamSpec("monitor.height", 240, "Monitor image height, px.", (24, 1080)),
-)
-
-
-@dataclass(frozen=True)
-class FaultConfig:
-    """Fault injection of the bridge (docs/ARCHITECTURE.md, "Faults"); all off by default.
-
-    Attributes
-    ----------
-    frame_drop : float
-        Probability in [0, 0.9] that one publication of a camera frame (colour, depth and
-        camera_info together) is dropped; ``sim/object_pose`` (ground truth) is never dropped.
-    frame_delay : float
-        Probability in [0, 0.9] that one publication of a camera frame is held back and
-        published right after the next publication of a *newer* frame (so it arrives late and
-        out of order; the idle re-publications of its own frame still go out meanwhile).
-    push_refusal : float
-        Probability in [0, 1] that a valid push is refused (``pushes_refused_fault``).
-    seed : int
-        Seed of the draws, re-seeded on every ``~/reset``. Which publications are hit also
-        depends on how many idle re-publications happen, i.e. on wall time.
-    """
-
-    frame_drop: float = 0.0
-    frame_delay: float = 0.0
-    push_refusal: float = 0.0
-    seed: int = 0
-
-
-@dataclass(frozen=True)
-class SimBridgeParams:
-    """The node's parameters, typed; sentinels already turned into None (= spec default).
-
-    Attributes
-    ----------
-    object : str
-        Library name or spec-file path.
-    initial_pose : tuple of 3 float
-        x, y (m) and theta (rad) of the object frame in ``world``.
-    com_offset : tuple of 2 float or None
-        COM in the object frame, m; None = the spec's.
-    mass, friction_table, friction_pusher : float or None
-        kg and Coulomb coefficients; None = the spec's.
-    seed : int
-    randomize, depth_noise, randomize_appearance, randomize_camera : bool
-    image_width, image_height : int
-        px.
-    idle_frame_rate, clock_rate : float
-        Hz of wall time.
-    push_speed : float
-        m/s.
-    pusher_radius : float
-        m.
-    faults : FaultConfig
-        Fault injection (all off by default).
-    monitor : MonitorConfig or None
-        The monitor stream; None = off (``monitor.rate`` 0).
-    """
-
-    object: str
-    initial_pose: tuple[float, float, float]
-    com_offset: tuple[float, float] | None
-    mass: float | None
-    friction_table: float | None
-    friction_pusher: float | None
-    seed: int
-    randomize: bool
-    image_width: int
-    image_height: int
-    depth_noise: bool
-    randomize_appearance: bool
-    randomize_camera: bool
-    idle_frame_rate: float
-    clock_rate: float
-    push_speed: float
-    pusher_radius: float
-    faults: FaultConfig = FaultConfig()
-    monitor: MonitorConfig | None = None
-
-    @classmethod
-    def from_values(cls, values: dict[str, Any]) -> SimBridgeParams:
-        """Build from ``{parameter name: value}`` and check what the descriptors cannot.
-
-        Raises
-        ------
-        ValueError
-            Naming the parameter: an unknown object, a COM offset that is not 2 finite values,
-            a zero mass.
-        """
-        name = str(values["object"]).strip()
-        if not name:
-            raise ValueError("parameter 'object' is empty; give a library name or a spec path")
-        check_object_parameter(name)
-        try:
-            if name in library_names():
-                _check_library_object(name)
-            else:
-                load_object(name)
-        except (ValueError, OSError) as exc:  # load_object's messages never quote a file
-            raise ValueError(f"parameter 'object' = {name[:200]!r}: {exc}") from None
-        com = values["com_offset"]
-        if com is not None and len(com) > 0:
-            com_arr = np.asarray(com, dtype=float)
-            if com_arr.shape != (2,) or not np.all(np.isfinite(com_arr)):
-                raise ValueError(
-                    f"parameter 'com_offset' must be 2 finite values (x, y in metres, object "
-                    f"frame) or empty, got {list(com)}"
-                )
-            com_offset: tuple[float, float] | None = (float(com_arr[0]), float(com_arr[1]))
-        else:
-            com_offset = None
-        if values["mass"] == 0.0:
-            raise ValueError("parameter 'mass' must be > 0 kg, or negative for the spec's mass")
-        return cls(
-            object=name,
-            initial_pose=(
-                float(values["initial_pose.x"]),
-                float(values["initial_pose.y"]),
-                float(values["initial_pose.theta"]),
-            ),
-            com_offset=com_offset,
-            mass=_spec_default_if_negative(values["mass"]),
-            friction_table=_spec_default_if_negative(values["friction_table"]),
-            friction_pusher=_spec_default_if_negative(values["friction_pusher"]),
-            seed=int(values["seed"]),
-            randomize=bool(values["randomize"]),
-            image_width=int(values["image_width"]),
-            image_height=int(values["image_height"]),
-            depth_noise=bool(values["depth_noise"]),
-            randomize_appearance=bool(values["randomize_appearance"]),
-            randomize_camera=bool(values["randomize_camera"]),
-            idle_frame_rate=float(values["idle_frame_rate"]),
-            clock_rate=float(values["clock_rate"]),
-            push_speed=float(values["push_speed"]),
-            pusher_radius=float(values["pusher_radius"]),
-            faults=FaultConfig(frame_drop=float(values["faults.frame_drop"]),
-                               frame_delay=float(values["faults.frame_delay"]),
-                               push_refusal=float(values["faults.push_refusal"]),
-                               seed=int(values["faults.seed"])),
-            monitor=(MonitorConfig(rate=float(values["monitor.rate"]),
-                                   width=int(values["monitor.width"]),
-                                   height=int(values["monitor.height"]))
-                     if values["monitor.rate"] > 0.0 else None),
-        )
-
-    def world_config(self) -> WorldConfig:
-        """The :class:`~sim_bridge.world.WorldConfig` these parameters describe.
-
-        Raises
-        ------
-        ValueError
-            If the world rejects a value.
-        """
-        return WorldConfig(
-            object=self.object,
-            object_pose=self.initial_pose,
-            com_offset=self.com_offset,
-            mass=self.mass,
-            friction_table=self.friction_table,
-            friction_pusher=self.friction_pusher,
-            randomize=self.randomize,
-            seed=self.seed,
-            pusher_radius=self.pusher_radius,
-            push_speed=self.push_speed,
-            camera=CameraConfig(width=self.image_width, height=self.image_height),
-            depth_noise=self.depth_noise,
-            randomize_appearance=self.randomize_appearance,
-            randomize_camera=self.randomize_camera,
-        )
-
-    def summary(self) -> str:
-        """One line naming what these parameters build."""
-        x, y, theta = self.initial_pose
-        return (
-            f"object {self.object!r} at (x={x:.4f} m, y={y:.4f} m, theta={theta:.4f} rad), "
-            f"camera {self.image_width}x{self.image_height}, seed {self.seed}"
-            f"{', randomized' if self.randomize else ''}"
-        )
-
-
-@functools.cache
-def _check_library_object(name: str) -> None:
-    """``load_object`` of a bundled library entry, once (up to 0.2 s each: every parameter set
-    re-validates the whole table)."""
-    load_object(name)
-
-
-def check_object_parameter(name: str) -> None:
-    """Accept a library name or a readable object specification file; nothing else.
-
-    A file must end in ``.json``, ``.yaml`` or ``.yml``, be a regular file and hold at most
-    ``MAX_SPEC_BYTES``; it is then parsed as a specification by ``load_object``, whose errors
-    name the schema field and never quote the file. Raises ``ValueError`` otherwise.
-    """
-    if name in library_names():
-        return
-    shown = f"{name[:200]!r}"
-    if not name.lower().endswith(SPEC_SUFFIXES):
-        raise ValueError(f"parameter 'object' = {shown}: unknown object {shown}; library "
-                         f"objects are {', '.join(library_names())}, or give the path of an "
-                         f"object specification file ({', '.join(SPEC_SUFFIXES)})")
-    try:
-        info = os.stat(name)
-    except (OSError, ValueError):
-        raise ValueError(f"parameter 'object' = {shown}: no such object specification "
-                         "file") from None
-    if not stat.S_ISREG(info.st_mode):
-        raise ValueError(f"parameter 'object' = {shown}: not a regular file")
-    if info.st_size > MAX_SPEC_BYTES:
-        raise ValueError(f"parameter 'object' = {shown}: {info.st_size} bytes, larger than "
-                         f"an object specification file may be ({MAX_SPEC_BYTES} bytes)")
-
-
-def _spec_default_if_negative(value: float) -> float | None:
-    return None if value < 0.0 else float(value)
-
-
 # --------------------------------------------------------------------------------------------
 # The node
 # --------------------------------------------------------------------------------------------
@@ -494,7 +232,9 @@ class SimBridgeNode(Node):
                         "pushes_rejected_invalid": 0, "pushes_failed": 0, "resets": 0,
                         "callback_errors": 0, "knocks": 0, "knocks_rejected": 0,
                         "pushes_refused_fault": 0, "frames_dropped": 0, "frames_delayed": 0,
-                        "frames_reordered": 0}
+                        "frames_reordered": 0, "pushes_ignored_arm_mode": 0,
+                        "trajectories_accepted": 0, "trajectories_rejected": 0,
+                        "trajectory_runs": 0, "trajectory_runs_failed": 0}
         # Fault injection (FaultConfig): its draws and the held-back frame; any thread.
         self._fault_lock = threading.Lock()
         self._fault_rng = np.random.default_rng(self._params.faults.seed)
@@ -526,6 +266,8 @@ class SimBridgeNode(Node):
         self._pub_clock = self.create_publisher(ClockMsg, "/clock", CLOCK_QOS)
         self._pub_pose = self.create_publisher(PoseStamped, "sim/object_pose", RELIABLE_QOS)
         self._pub_executed = self.create_publisher(Path, "pusher/executed", RELIABLE_QOS)
+        self._pub_refused = self.create_publisher(DiagnosticStatus, "pusher/refused",
+                                                  RELIABLE_QOS)
         self._pub_monitor = self.create_publisher(Image, "sim/monitor/image_raw", SENSOR_QOS)
         self._pub_monitor_info = self.create_publisher(
             CameraInfo, "sim/monitor/camera_info", SENSOR_QOS)
@@ -544,6 +286,14 @@ class SimBridgeNode(Node):
         self.create_subscription(Path, "planner/push", self.on_push, RELIABLE_QOS)
         self.create_subscription(PoseStamped, "sim/knock", self.on_knock, RELIABLE_QOS)
         self.create_service(Trigger, "~/reset", self.on_reset)
+        self._arm: ArmEndpoints | None = None  # arm mode (sim_bridge.arm_ros)
+        self._arm_queued = 0  # arm runs submitted to the worker and not started yet
+        if self._params.robot == "arm":
+            self._arm = ArmEndpoints(
+                self, self._params.arm_controller_topic, self._params.arm_max_duration,
+                lambda: self._epoch + float(self._world.sim_time), self._guard,
+                lambda reason: self._reject(reason, "trajectories_rejected"),
+                self._on_trajectory)
 
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(1.0 / self._params.clock_rate, self._guard(self._on_clock_timer),
@@ -583,6 +333,10 @@ class SimBridgeNode(Node):
         extrinsics = transform_msg(self._world.T_world_camera, stamp, WORLD_FRAME, CAMERA_FRAME)
         self._publish_clock(capture.time)
         self._capture = capture
+        if self._arm is not None:
+            self._arm.follower.hold(self._world.arm_state().positions)
+            self._arm.publish_description(self._world.robot_description)
+            self._publish_joint_state(float(self._world.sim_time), self._world.arm_state())
         self._publish_capture(capture)
         self._publish_safely(self._pub_extrinsics, extrinsics)
         if self._pub_tf_static is not None:
@@ -595,7 +349,8 @@ class SimBridgeNode(Node):
             f"(world, m/rad); camera {capture.info.width}x{capture.info.height}"
         )
 
-    def _run_push(self, seq: int, points: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
+    def _run_push(self, seq: int, points: tuple[np.ndarray, np.ndarray, np.ndarray],
+                  stamp: Any) -> None:
         self._pushing = True
         monitor = self._params.monitor
         try:
@@ -603,8 +358,9 @@ class SimBridgeNode(Node):
                 *points, monitor=monitor,
                 on_frame=None if monitor is None else self._publish_monitor)
         except ValueError as exc:  # the world moved nothing (workspace, geometry of the push)
-            self._finish_job(f"rejected push command on planner/push: {exc}",
-                             "pushes_rejected_invalid")
+            reason = f"rejected push command on planner/push: {exc}"
+            self._finish_job(reason, "pushes_rejected_invalid")
+            self._publish_refusal(stamp, getattr(exc, "kind", "invalid"), reason)
             return
         except Exception as exc:  # keep the node alive; report everything else loudly
             self.get_logger().error(f"push {seq} crashed:\n{traceback.format_exc()}")
@@ -682,7 +438,7 @@ class SimBridgeNode(Node):
     def _finish_job(self, error: str | None, counter: str | None, publish: bool = True) -> None:
         """Mark the worker idle, count the outcome, log an error, publish the diagnostic."""
         with self._lock:
-            self._busy = ""
+            self._busy = ARM_BUSY if self._arm_queued else ""
             if counter is not None:
                 self._counts[counter] += 1
             if error is not None:
@@ -801,11 +557,17 @@ class SimBridgeNode(Node):
         self._publish_capture(capture)
 
     def _on_push(self, msg: Path) -> None:
+        if self._arm is not None:  # the arm is driven by push_executor_node's trajectories
+            self._count("pushes_ignored_arm_mode")
+            self._log.warning("arm_mode", "planner/push ignored: robot is 'arm' (the push "
+                                          "executor turns pushes into joint trajectories)")
+            return
+        stamp = msg.header.stamp
         try:
             points = push_points_from_path(msg)
         except ValueError as exc:
             self._reject(f"rejected push command on planner/push: {exc}",
-                         "pushes_rejected_invalid")
+                         "pushes_rejected_invalid", stamp, "invalid")
             return
         if self._params.faults.push_refusal > 0.0 and not self._busy:
             with self._fault_lock:
@@ -813,7 +575,7 @@ class SimBridgeNode(Node):
             if refuse:
                 self._reject("refused push command on planner/push (fault injection: "
                              f"faults.push_refusal = {self._params.faults.push_refusal})",
-                             "pushes_refused_fault")
+                             "pushes_refused_fault", stamp, "fault")
                 return
         with self._lock:
             busy = self._busy
@@ -823,11 +585,11 @@ class SimBridgeNode(Node):
                 self._busy = f"executing push {seq}"
         if busy:
             self._reject(f"rejected push command on planner/push: busy ({busy}); pushes are "
-                         "never queued, resend when idle", "pushes_rejected_busy")
+                         "never queued, resend when idle", "pushes_rejected_busy", stamp, "busy")
             return
         try:
             self._publish_diagnostics()
-            self._submit(self._run_push, seq, points)
+            self._submit(self._run_push, seq, points, stamp)
         except BaseException:  # never left busy without a job that ends it
             with self._lock:
                 self._busy = ""
@@ -933,13 +695,80 @@ class SimBridgeNode(Node):
     def _submit(self, job: Callable[..., Any], *args: Any) -> ThreadFuture:
         return self._worker.submit(job, *args)
 
-    def _reject(self, reason: str, counter: str) -> None:
+    def _reject(self, reason: str, counter: str, push_stamp: Any = None, kind: str = "") -> None:
+        """Count, log and report a rejected input; a push (``push_stamp`` given) is also
+        answered on ``pusher/refused`` with ``kind``."""
         with self._lock:
             self._counts[counter] += 1
             self._last_error = reason
             self._error_active = True
         self._log_limited(counter, reason, warning=counter == "pushes_rejected_busy")
+        if push_stamp is not None:
+            self._publish_refusal(push_stamp, kind, reason)
         self._publish_diagnostics()
+
+    def _publish_refusal(self, push_stamp: Any, kind: str, reason: str) -> None:
+        self._publish_safely(self._pub_refused, refusal_msg(
+            self.get_fully_qualified_name(), push_stamp, kind, reason,
+            hardware_id="pybullet pusher"))
+
+    # ---- arm mode (endpoints in sim_bridge.arm_ros, physics in sim_bridge.arm_motion) -------
+    def _on_trajectory(self, trajectory: Trajectory) -> str | None:
+        """An accepted trajectory: to the running physics loop, or start one; a reason if the
+        worker is busy with something else (a reset, a knock)."""
+        if trajectory.stamp != 0.0:  # the world's sim_time has no epoch
+            trajectory = replace(trajectory, stamp=max(trajectory.stamp - self._epoch, 1e-9))
+        follower = self._arm.follower
+        with self._lock:
+            if self._busy and self._busy != ARM_BUSY:
+                return f"the simulator is busy ({self._busy})"
+            self._counts["trajectories_accepted"] += 1
+            if follower.offer(trajectory):
+                return None  # the running loop picks it up, replacing the current one
+            follower.open()
+            self._busy, self._arm_queued = ARM_BUSY, self._arm_queued + 1
+        self._submit(self._run_arm)
+        return None
+
+    def _run_arm(self) -> None:
+        """Worker: step the physics while the arm follows trajectories, then publish the tool
+        tip path, a fresh frame and the ground truth (ARCHITECTURE.md, arm mode)."""
+        with self._lock:
+            self._arm_queued -= 1
+        self._pushing = True
+        monitor, dt = self._params.monitor, self._world.config.time_step
+        try:
+            run = self._world.run_arm(
+                self._arm.follower, max(1, round(1.0 / (self._params.arm_joint_state_rate * dt))),
+                self._publish_joint_state, monitor,
+                None if monitor is None else self._publish_monitor)
+            capture = self._capture_scene()
+        except Exception as exc:  # keep the node alive; the arm holds where it is
+            self.get_logger().error(f"arm run failed:\n{traceback.format_exc()}")
+            self._arm.follower.hold(self._world.arm_state().positions)
+            self._finish_job(f"arm run failed: {type(exc).__name__}: {exc}",
+                             "trajectory_runs_failed")
+            return
+        finally:
+            self._pushing = False
+        self._capture = capture
+        self._finish_job(None, "trajectory_runs", publish=False)
+        self._publish_clock(capture.time)
+        self._arm.publish_tool_tip(run, self._epoch)
+        self._publish_capture(capture)
+        self._publish_diagnostics()
+        if not run.settled:
+            self.get_logger().warning("arm run: the arm or the object had not come to rest "
+                                      "when the settle timeout ended")
+
+    def _publish_joint_state(self, sim_time: float, state: Any) -> None:
+        """``/joint_states`` at ``epoch + sim_time`` (any thread; never raises)."""
+        if self._closing:
+            return
+        try:
+            self._arm.publish_state(self._epoch + sim_time, state)
+        except Exception as exc:  # e.g. the context shut down meanwhile
+            self._log_limited("joint_states", f"joint state not published: {exc}", warning=True)
 
     def _log_limited(self, kind: str, message: str, warning: bool = False) -> None:
         """Log at most one line per ``kind`` every ``LOG_THROTTLE_S`` s (any thread); every

@@ -56,6 +56,7 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
+import tempfile
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -67,6 +68,9 @@ from pybullet_utils.bullet_client import BulletClient
 
 from push_core.geometry import closest_point_on_polyline, object_to_world
 from push_core.objects import ObjectSpec
+from sim_bridge.arm import TrajectoryFollower
+from sim_bridge.arm_motion import ArmRun, run_arm
+from sim_bridge.arm_robot import DEFAULT_BASE_POSE, DEFAULT_PARK, ArmRobot, JointState, arm_urdf
 from sim_bridge.camera import CameraConfig, jittered, look_at_pose
 from sim_bridge.physics import (
     APPROACH_MARGIN,
@@ -206,6 +210,14 @@ class WorldConfig:
         Constraint solver iterations per step.
     settle_timeout : float
         Longest time to wait for the object to come to rest after a push, s.
+    robot : str
+        ``"pusher"`` (the free cylinder driven by :meth:`PushWorld.execute_push`) or
+        ``"arm"`` (a Panda with the pusher rod, driven by joint trajectories through
+        :meth:`PushWorld.run_arm`; :mod:`sim_bridge.arm_robot`).
+    arm_base_pose : (4,) tuple
+        Arm mode: (x, y, z, yaw) of the arm's base in ``world``, m and rad.
+    arm_park : (7,) tuple
+        Arm mode: joint positions after a reset, rad.
     """
 
     object: str | Path = "rect1"
@@ -227,8 +239,16 @@ class WorldConfig:
     time_step: float = 1.0 / 240.0
     solver_iterations: int = 10
     settle_timeout: float = 2.0
+    robot: str = "pusher"
+    arm_base_pose: tuple[float, float, float, float] = DEFAULT_BASE_POSE
+    arm_park: tuple[float, ...] = DEFAULT_PARK
 
     def __post_init__(self) -> None:
+        if self.robot not in ("pusher", "arm"):
+            raise ValueError(f"robot: expected 'pusher' or 'arm', got {self.robot!r}")
+        for name, size in (("arm_base_pose", 4), ("arm_park", 7)):
+            value = _finite_vector(name, getattr(self, name), size)
+            object.__setattr__(self, name, tuple(float(v) for v in value))
         pose = _finite_vector("object_pose", self.object_pose, 3)
         object.__setattr__(self, "object_pose", tuple(float(v) for v in pose))
         if self.com_offset is not None:
@@ -331,6 +351,17 @@ class PushWorld:
         self._scene = scene
         self._object = scene.object  # pybullet body id (tests read the COM frame through it)
         self._physics = Physics(self._client, scene, cfg)
+        self._arm: ArmRobot | None = None
+        self._urdf = ""
+        if cfg.robot == "arm":
+            self._urdf = arm_urdf(cfg.pusher_radius)
+            with tempfile.NamedTemporaryFile("w", suffix=".urdf", delete=False) as f:
+                f.write(self._urdf)
+            try:
+                self._arm = ArmRobot(self._client, f.name, cfg.arm_base_pose, cfg.arm_park,
+                                     spec.friction_pusher, scene.table, scene.object)
+            finally:
+                os.unlink(f.name)
         self._physics.step(INITIAL_SETTLE_STEPS)
 
     def close(self) -> None:
@@ -400,8 +431,46 @@ class PushWorld:
         return object_to_world(self.object_pose(), self._spec.polyline())
 
     def pusher_position(self) -> NDArray[np.float64]:
-        """Measured (x, y) of the pusher axis in ``world``, m (the parked pose between pushes)."""
+        """Measured (x, y) of the pusher axis in ``world``, m (the parked pose between pushes;
+        in arm mode the tool tip's)."""
+        if self._arm is not None:
+            return self._arm.tip_position()[:2]
         return self._physics.pusher_position()
+
+    # ------------------------------------------------------------------ arm mode
+    @property
+    def arm(self) -> ArmRobot | None:
+        """The arm (arm mode) or None (pusher mode)."""
+        return self._arm
+
+    @property
+    def robot_description(self) -> str:
+        """The URDF the arm was loaded from (arm mode; "" in pusher mode)."""
+        return self._urdf
+
+    def arm_state(self) -> JointState:
+        """Measured joint state of the arm (``ValueError`` in pusher mode)."""
+        return self._require_arm().state()
+
+    def run_arm(self, follower: TrajectoryFollower, sample_every: int = 1,
+                on_sample: Callable[[float, JointState], None] | None = None,
+                monitor: MonitorConfig | None = None,
+                on_frame: Callable[[Frame], None] | None = None) -> ArmRun:
+        """Step the physics while the arm follows ``follower``'s trajectories, until they
+        have ended, the arm is still and the object has settled
+        (:func:`sim_bridge.arm_motion.run_arm`; ``monitor`` / ``on_frame`` as in
+        :meth:`execute_push`)."""
+        arm = self._require_arm()
+        on_step = None
+        if monitor is not None and on_frame is not None:
+            on_step = self._monitor_hook(monitor, on_frame)
+        return run_arm(self._physics, arm, follower, self._object,
+                       self._config.settle_timeout, sample_every, on_sample, on_step)
+
+    def _require_arm(self) -> ArmRobot:
+        if self._arm is None:
+            raise ValueError("the world has no arm (robot = 'pusher')")
+        return self._arm
 
     def set_object_pose(self, pose: ArrayLike) -> None:
         """Teleport the object to ``(x, y, theta)`` at rest (addition; data generation, tests).
@@ -476,6 +545,8 @@ class PushWorld:
             point inside the object or closer than ``pusher_radius + 0.5 mm`` to its outline.
             Nothing has moved when it is raised.
         """
+        if self._arm is not None:
+            raise ValueError("arm mode: the arm executes joint trajectories, not pushes")
         a, c, e = self.check_push(approach, contact, end)
         on_step = None
         if monitor is not None and on_frame is not None:

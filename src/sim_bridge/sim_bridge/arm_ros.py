@@ -1,0 +1,166 @@
+"""The arm mode's ROS endpoints of ``sim_bridge_node`` (composed by the node; no physics here).
+
+Endpoints (only with ``robot: arm``; docs/ARCHITECTURE.md, "Arm mode of the simulator"):
+
+- ``/joint_states`` (sensor_msgs/JointState; reliable, depth 10): the 7 Panda joints
+  (positions rad, velocities rad/s, efforts N m), stamp = sim time. At ``arm.joint_state_rate``
+  Hz of sim time while a trajectory runs (from the physics thread), and at
+  ``IDLE_JOINT_STATE_RATE`` Hz of wall time while idle (same stamp: sim time stands still).
+- ``/robot_description`` (std_msgs/String; reliable, transient local): the URDF the arm was
+  loaded from (Panda + pusher rod, absolute mesh paths).
+- ``sim/tool_tip`` (nav_msgs/Path; reliable): ground truth for benchmarks, after every run of
+  trajectories (published before its camera frame): frame ``world``, the true tool tip
+  positions (x, y, z, m; orientation identity) sampled at ``arm.joint_state_rate`` Hz of sim
+  time during the run, each pose stamped with its sim time, header stamp = the run's end.
+- ``<arm.controller_topic>`` (in; trajectory_msgs/JointTrajectory; reliable, depth 10): checked
+  with :func:`sim_bridge.arm.check_trajectory` at the current sim time; a rejected message is
+  logged and counted (``trajectories_rejected``, reason in ``last_error``), nothing moves.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from builtin_interfaces.msg import Duration
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import Path
+from rclpy.clock import Clock, ClockType
+from sensor_msgs.msg import JointState as JointStateMsg
+from std_msgs.msg import String
+from trajectory_msgs.msg import JointTrajectory
+
+from push_ros.frames import WORLD_FRAME
+from push_ros.qos import LATCHED_QOS, RELIABLE_QOS
+from push_ros.stamps import seconds_from_stamp, stamp_from_seconds
+from sim_bridge.arm import (
+    Trajectory,
+    TrajectoryCommand,
+    TrajectoryFollower,
+    TrajectoryRejected,
+    check_trajectory,
+)
+from sim_bridge.arm_motion import ArmRun
+from sim_bridge.arm_robot import ARM_JOINTS, JointState
+
+__all__ = ["IDLE_JOINT_STATE_RATE", "ArmEndpoints", "command_from_msg"]
+
+#: /joint_states rate while no trajectory runs, Hz of wall time.
+IDLE_JOINT_STATE_RATE = 10.0
+#: Most points / joints read from one JointTrajectory (bounded work per message).
+MAX_POINTS = 100000
+MAX_JOINTS = 64
+
+
+def _seconds(duration: Duration) -> float:
+    return float(duration.sec) + 1e-9 * float(duration.nanosec)
+
+
+def command_from_msg(msg: JointTrajectory) -> TrajectoryCommand:
+    """A ``JointTrajectory`` as a :class:`TrajectoryCommand` (float seconds).
+
+    Raises
+    ------
+    TrajectoryRejected
+        ``stamp``: a header stamp :func:`push_ros.stamps.seconds_from_stamp` refuses;
+        ``size``: more than ``MAX_POINTS`` points or ``MAX_JOINTS`` joint names.
+    """
+    if len(msg.points) > MAX_POINTS or len(msg.joint_names) > MAX_JOINTS:
+        raise TrajectoryRejected("size", f"{len(msg.points)} points / {len(msg.joint_names)} "
+                                         f"joints: at most {MAX_POINTS} / {MAX_JOINTS}")
+    try:
+        stamp = seconds_from_stamp(msg.header.stamp)
+    except ValueError as exc:
+        raise TrajectoryRejected("stamp", str(exc)) from None
+    return TrajectoryCommand(
+        joint_names=[str(n)[:256] for n in msg.joint_names],
+        stamp=stamp,
+        times=[_seconds(pt.time_from_start) for pt in msg.points],
+        positions=[list(pt.positions) for pt in msg.points],
+        velocities=[list(pt.velocities) for pt in msg.points],
+        accelerations=[list(pt.accelerations) for pt in msg.points])
+
+
+class ArmEndpoints:
+    """Publishers, the trajectory subscription and the follower of the arm mode.
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+    controller_topic : str
+    max_duration : float
+        Longest accepted trajectory, s (:func:`check_trajectory`).
+    now : callable
+        The current published sim time, s.
+    guard : callable
+        Wraps a callback so that nothing escapes it (the node's guard).
+    on_rejected : callable
+        ``on_rejected(reason)``: count and report a rejected trajectory.
+    on_accepted : callable
+        ``on_accepted(trajectory)``: hand an accepted trajectory to the physics; returns a
+        reason if the simulator cannot take it (then it counts as rejected).
+    """
+
+    def __init__(self, node: Any, controller_topic: str, max_duration: float,
+                 now: Callable[[], float], guard: Callable[..., Any],
+                 on_rejected: Callable[[str], None],
+                 on_accepted: Callable[[Trajectory], str | None]) -> None:
+        self.follower = TrajectoryFollower(ARM_JOINTS)
+        self._node = node
+        self._now = now
+        self._max_duration = max_duration
+        self._on_rejected = on_rejected
+        self._on_accepted = on_accepted
+        self._last: tuple[float, JointState] | None = None
+        self.pub_joint_states = node.create_publisher(JointStateMsg, "/joint_states",
+                                                      RELIABLE_QOS)
+        self.pub_description = node.create_publisher(String, "/robot_description", LATCHED_QOS)
+        self.pub_tool_tip = node.create_publisher(Path, "sim/tool_tip", RELIABLE_QOS)
+        self.on_trajectory = guard(self._on_trajectory)
+        node.create_subscription(JointTrajectory, controller_topic, self.on_trajectory,
+                                 RELIABLE_QOS)
+        node.create_timer(1.0 / IDLE_JOINT_STATE_RATE, guard(self._on_idle_timer),
+                          clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def _on_trajectory(self, msg: JointTrajectory) -> None:
+        try:
+            trajectory = check_trajectory(command_from_msg(msg), ARM_JOINTS, self._now(),
+                                          self._max_duration)
+        except TrajectoryRejected as exc:
+            self._on_rejected(f"rejected trajectory ({exc.kind}): {exc}")
+            return
+        reason = self._on_accepted(trajectory)
+        if reason is not None:
+            self._on_rejected(f"rejected trajectory: {reason}")
+
+    def publish_state(self, time: float, state: JointState) -> None:
+        """Publish ``/joint_states`` at sim time ``time`` (s) and keep it for the idle timer."""
+        self._last = (time, state)
+        msg = JointStateMsg(name=list(state.names), position=state.positions.tolist(),
+                            velocity=state.velocities.tolist(), effort=state.efforts.tolist())
+        msg.header.stamp = stamp_from_seconds(time)
+        self.pub_joint_states.publish(msg)
+
+    def _on_idle_timer(self) -> None:
+        last = self._last
+        if last is not None and not self.follower.running:
+            self.publish_state(*last)
+
+    def publish_description(self, urdf: str) -> None:
+        """Latch the URDF on ``/robot_description``."""
+        self.pub_description.publish(String(data=urdf))
+
+    def publish_tool_tip(self, run: ArmRun, epoch: float) -> None:
+        """``sim/tool_tip`` of one run (module docstring); times are ``epoch + sim_time``."""
+        path = Path()
+        path.header.frame_id = WORLD_FRAME
+        path.header.stamp = stamp_from_seconds(epoch + run.t_done)
+        for t, xyz in zip(run.tip_times, np.asarray(run.tip_positions), strict=True):
+            pose = PoseStamped()
+            pose.header.frame_id = WORLD_FRAME
+            pose.header.stamp = stamp_from_seconds(epoch + float(t))
+            pose.pose.position.x, pose.pose.position.y, pose.pose.position.z = map(float, xyz)
+            pose.pose.orientation.w = 1.0
+            path.poses.append(pose)
+        self.pub_tool_tip.publish(path)

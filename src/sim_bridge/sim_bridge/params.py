@@ -1,0 +1,340 @@
+"""The parameters of ``sim_bridge_node``: declarations, the typed set and its checks.
+
+ROS-free apart from the :class:`push_ros.node.ParamSpec` table (declared by the node with
+:func:`push_ros.node.declare_config`). Documented with defaults and units in
+``pushbot_bringup/config/sim_bridge.yaml`` and the node's module docstring.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import os
+import stat
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from push_core.objects import library_names, load_object
+from push_ros.node import ParamSpec
+from sim_bridge.arm_robot import DEFAULT_BASE_POSE, DEFAULT_PARK
+from sim_bridge.world import CameraConfig, MonitorConfig, WorldConfig
+
+__all__ = ["PARAMETERS", "FaultConfig", "SimBridgeParams", "check_object_parameter"]
+
+#: Suffixes of the object specification files the ``object`` parameter accepts.
+SPEC_SUFFIXES = (".json", ".yaml", ".yml")
+#: Largest object specification file the ``object`` parameter reads, bytes (a spec is < 10 kB).
+MAX_SPEC_BYTES = 1 << 20
+
+
+# --------------------------------------------------------------------------------------------
+# Parameters
+# --------------------------------------------------------------------------------------------
+_UNSET_OR_NEGATIVE = "negative = the object spec's value"
+PARAMETERS: tuple[ParamSpec, ...] = (
+    ParamSpec("object", "butter", "Object library name (e.g. butter, rect1) or path to a "
+              ".json/.yaml object specification file."),
+    ParamSpec("initial_pose.x", 0.0, "Initial x of the object frame in world, m.", (-1.0, 1.0)),
+    ParamSpec("initial_pose.y", 0.0, "Initial y of the object frame in world, m.", (-1.0, 1.0)),
+    ParamSpec("initial_pose.theta", 0.0, "Initial yaw of the object frame in world, rad.",
+              (-math.pi, math.pi)),
+    ParamSpec("com_offset", None, "Centre of mass (x, y) in the object frame, m; unset or "
+              "empty = the object spec's COM.", constraints="2 values or empty"),
+    ParamSpec("mass", -1.0, "Object mass, kg.", (-1.0, 100.0), constraints=_UNSET_OR_NEGATIVE),
+    ParamSpec("friction_table", -1.0, "Object-table Coulomb friction coefficient.",
+              (-1.0, 10.0), constraints=_UNSET_OR_NEGATIVE),
+    ParamSpec("friction_pusher", -1.0, "Pusher-object Coulomb friction coefficient.",
+              (-1.0, 10.0), constraints=_UNSET_OR_NEGATIVE),
+    ParamSpec("seed", 0, "Seed of the randomisation (physics and appearance).", (0, 2**31 - 1)),
+    ParamSpec("randomize", False, "Randomise mass, COM and frictions from the seed."),
+    ParamSpec("image_width", 640, "Camera image width, px.", (32, 1920)),
+    ParamSpec("image_height", 480, "Camera image height, px.", (24, 1080)),
+    ParamSpec("depth_noise", False, "Add D415-like depth noise and dropouts."),
+    ParamSpec("randomize_appearance", False, "Randomise lighting, table and object colours "
+              "from the seed."),
+    ParamSpec("randomize_camera", False, "Jitter the camera pose from the seed (the published "
+              "extrinsics are the true, jittered pose)."),
+    ParamSpec("idle_frame_rate", 2.0, "Rate of repeated camera frames, object pose and /clock "
+              "while idle, Hz (wall time).", (0.1, 30.0), read_only=True),
+    ParamSpec("clock_rate", 50.0, "Rate of /clock messages while the physics runs, Hz (wall "
+              "time).", (1.0, 1000.0), read_only=True),
+    ParamSpec("push_speed", 0.02, "Pusher speed along the push, m/s.", (0.001, 0.2)),
+    ParamSpec("pusher_radius", 0.0048, "Radius of the cylindrical pusher, m.", (0.001, 0.05)),
+    ParamSpec("faults.frame_drop", 0.0, "Fault injection: probability that a camera frame "
+              "publication (colour, depth, camera_info together) is dropped.", (0.0, 0.9)),
+    ParamSpec("faults.frame_delay", 0.0, "Fault injection: probability that a camera frame "
+              "publication is held back and published right after the next newer frame "
+              "(delayed and reordered).", (0.0, 0.9)),
+    ParamSpec("faults.push_refusal", 0.0, "Fault injection: probability that a valid push is "
+              "refused (as a robot refuses a command).", (0.0, 1.0)),
+    ParamSpec("faults.seed", 0, "Seed of the fault injection draws (re-seeded on ~/reset).",
+              (0, 2**31 - 1)),
+    ParamSpec("monitor.rate", 0.0, "Monitor stream (sim/monitor/*): frames per second of sim "
+              "time rendered while a push executes; 0 = off.", (0.0, 60.0)),
+    ParamSpec("monitor.width", 320, "Monitor image width, px.", (32, 1920)),
+    ParamSpec("monitor.height", 240, "Monitor image height, px.", (24, 1080)),
+    ParamSpec("robot", "pusher", "What pushes: 'pusher' (a free cylinder executing "
+              "planner/push) or 'arm' (a Franka Panda with the pusher rod following joint "
+              "trajectories).", read_only=True, constraints="pusher or arm"),
+    ParamSpec("arm.base_pose", list(DEFAULT_BASE_POSE), "Arm mode: x, y, z (m) and yaw (rad) "
+              "of the arm's base panda_link0 in world.", constraints="4 finite values"),
+    ParamSpec("arm.park_positions", list(DEFAULT_PARK), "Arm mode: the 7 joint positions "
+              "after a reset (out of the camera's view), rad.", constraints="7 finite values"),
+    ParamSpec("arm.controller_topic", "/joint_trajectory_controller/joint_trajectory",
+              "Arm mode: the trajectory_msgs/JointTrajectory command topic.", read_only=True),
+    ParamSpec("arm.joint_state_rate", 100.0, "Arm mode: /joint_states rate while a "
+              "trajectory runs, Hz of sim time.", (1.0, 240.0), read_only=True),
+    ParamSpec("arm.max_duration", 600.0, "Arm mode: longest accepted trajectory (from now to "
+              "its end), s of sim time.", (1.0, 3600.0), read_only=True),
+)
+
+
+@dataclass(frozen=True)
+class FaultConfig:
+    """Fault injection of the bridge (docs/ARCHITECTURE.md, "Faults"); all off by default.
+
+    Attributes
+    ----------
+    frame_drop : float
+        Probability in [0, 0.9] that one publication of a camera frame (colour, depth and
+        camera_info together) is dropped; ``sim/object_pose`` (ground truth) is never dropped.
+    frame_delay : float
+        Probability in [0, 0.9] that one publication of a camera frame is held back and
+        published right after the next publication of a *newer* frame (so it arrives late and
+        out of order; the idle re-publications of its own frame still go out meanwhile).
+    push_refusal : float
+        Probability in [0, 1] that a valid push is refused (``pushes_refused_fault``).
+    seed : int
+        Seed of the draws, re-seeded on every ``~/reset``. Which publications are hit also
+        depends on how many idle re-publications happen, i.e. on wall time.
+    """
+
+    frame_drop: float = 0.0
+    frame_delay: float = 0.0
+    push_refusal: float = 0.0
+    seed: int = 0
+
+
+@dataclass(frozen=True)
+class SimBridgeParams:
+    """The node's parameters, typed; sentinels already turned into None (= spec default).
+
+    Attributes
+    ----------
+    object : str
+        Library name or spec-file path.
+    initial_pose : tuple of 3 float
+        x, y (m) and theta (rad) of the object frame in ``world``.
+    com_offset : tuple of 2 float or None
+        COM in the object frame, m; None = the spec's.
+    mass, friction_table, friction_pusher : float or None
+        kg and Coulomb coefficients; None = the spec's.
+    seed : int
+    randomize, depth_noise, randomize_appearance, randomize_camera : bool
+    image_width, image_height : int
+        px.
+    idle_frame_rate, clock_rate : float
+        Hz of wall time.
+    push_speed : float
+        m/s.
+    pusher_radius : float
+        m.
+    faults : FaultConfig
+        Fault injection (all off by default).
+    monitor : MonitorConfig or None
+        The monitor stream; None = off (``monitor.rate`` 0).
+    robot : str
+        ``pusher`` or ``arm``.
+    arm_base_pose, arm_park : tuple of float
+        Arm mode: base (x, y, z m, yaw rad) in ``world``; 7 park joint positions, rad.
+    arm_controller_topic : str
+    arm_joint_state_rate : float
+        Hz of sim time.
+    arm_max_duration : float
+        s of sim time.
+    """
+
+    object: str
+    initial_pose: tuple[float, float, float]
+    com_offset: tuple[float, float] | None
+    mass: float | None
+    friction_table: float | None
+    friction_pusher: float | None
+    seed: int
+    randomize: bool
+    image_width: int
+    image_height: int
+    depth_noise: bool
+    randomize_appearance: bool
+    randomize_camera: bool
+    idle_frame_rate: float
+    clock_rate: float
+    push_speed: float
+    pusher_radius: float
+    faults: FaultConfig = FaultConfig()
+    monitor: MonitorConfig | None = None
+    robot: str = "pusher"
+    arm_base_pose: tuple[float, ...] = DEFAULT_BASE_POSE
+    arm_park: tuple[float, ...] = DEFAULT_PARK
+    arm_controller_topic: str = "/joint_trajectory_controller/joint_trajectory"
+    arm_joint_state_rate: float = 100.0
+    arm_max_duration: float = 600.0
+
+    @classmethod
+    def from_values(cls, values: dict[str, Any]) -> SimBridgeParams:
+        """Build from ``{parameter name: value}`` and check what the descriptors cannot.
+
+        Raises
+        ------
+        ValueError
+            Naming the parameter: an unknown object, a COM offset that is not 2 finite values,
+            a zero mass.
+        """
+        name = str(values["object"]).strip()
+        if not name:
+            raise ValueError("parameter 'object' is empty; give a library name or a spec path")
+        check_object_parameter(name)
+        try:
+            if name in library_names():
+                _check_library_object(name)
+            else:
+                load_object(name)
+        except (ValueError, OSError) as exc:  # load_object's messages never quote a file
+            raise ValueError(f"parameter 'object' = {name[:200]!r}: {exc}") from None
+        com = values["com_offset"]
+        if com is not None and len(com) > 0:
+            com_arr = np.asarray(com, dtype=float)
+            if com_arr.shape != (2,) or not np.all(np.isfinite(com_arr)):
+                raise ValueError(
+                    f"parameter 'com_offset' must be 2 finite values (x, y in metres, object "
+                    f"frame) or empty, got {list(com)}"
+                )
+            com_offset: tuple[float, float] | None = (float(com_arr[0]), float(com_arr[1]))
+        else:
+            com_offset = None
+        robot = str(values.get("robot", "pusher"))
+        if robot not in ("pusher", "arm"):
+            raise ValueError(f"parameter 'robot' must be 'pusher' or 'arm', got {robot[:40]!r}")
+        arm = {}
+        for key, size in (("arm.base_pose", 4), ("arm.park_positions", 7)):
+            arr = np.asarray(values.get(key, ()), dtype=float).reshape(-1)
+            if arr.shape != (size,) or not np.all(np.isfinite(arr)):
+                raise ValueError(f"parameter {key!r} must be {size} finite values, got "
+                                 f"{list(arr)[:10]}")
+            arm[key] = tuple(float(v) for v in arr)
+        if values["mass"] == 0.0:
+            raise ValueError("parameter 'mass' must be > 0 kg, or negative for the spec's mass")
+        return cls(
+            object=name,
+            initial_pose=(
+                float(values["initial_pose.x"]),
+                float(values["initial_pose.y"]),
+                float(values["initial_pose.theta"]),
+            ),
+            com_offset=com_offset,
+            mass=_spec_default_if_negative(values["mass"]),
+            friction_table=_spec_default_if_negative(values["friction_table"]),
+            friction_pusher=_spec_default_if_negative(values["friction_pusher"]),
+            seed=int(values["seed"]),
+            randomize=bool(values["randomize"]),
+            image_width=int(values["image_width"]),
+            image_height=int(values["image_height"]),
+            depth_noise=bool(values["depth_noise"]),
+            randomize_appearance=bool(values["randomize_appearance"]),
+            randomize_camera=bool(values["randomize_camera"]),
+            idle_frame_rate=float(values["idle_frame_rate"]),
+            clock_rate=float(values["clock_rate"]),
+            push_speed=float(values["push_speed"]),
+            pusher_radius=float(values["pusher_radius"]),
+            faults=FaultConfig(frame_drop=float(values["faults.frame_drop"]),
+                               frame_delay=float(values["faults.frame_delay"]),
+                               push_refusal=float(values["faults.push_refusal"]),
+                               seed=int(values["faults.seed"])),
+            monitor=(MonitorConfig(rate=float(values["monitor.rate"]),
+                                   width=int(values["monitor.width"]),
+                                   height=int(values["monitor.height"]))
+                     if values["monitor.rate"] > 0.0 else None),
+            robot=robot,
+            arm_base_pose=arm["arm.base_pose"],
+            arm_park=arm["arm.park_positions"],
+            arm_controller_topic=str(values.get("arm.controller_topic",
+                                                cls.arm_controller_topic)),
+            arm_joint_state_rate=float(values.get("arm.joint_state_rate", 100.0)),
+            arm_max_duration=float(values.get("arm.max_duration", 600.0)),
+        )
+
+    def world_config(self) -> WorldConfig:
+        """The :class:`~sim_bridge.world.WorldConfig` these parameters describe.
+
+        Raises
+        ------
+        ValueError
+            If the world rejects a value.
+        """
+        return WorldConfig(
+            object=self.object,
+            object_pose=self.initial_pose,
+            com_offset=self.com_offset,
+            mass=self.mass,
+            friction_table=self.friction_table,
+            friction_pusher=self.friction_pusher,
+            randomize=self.randomize,
+            seed=self.seed,
+            pusher_radius=self.pusher_radius,
+            push_speed=self.push_speed,
+            camera=CameraConfig(width=self.image_width, height=self.image_height),
+            depth_noise=self.depth_noise,
+            randomize_appearance=self.randomize_appearance,
+            randomize_camera=self.randomize_camera,
+            robot=self.robot,
+            arm_base_pose=self.arm_base_pose,
+            arm_park=self.arm_park,
+        )
+
+    def summary(self) -> str:
+        """One line naming what these parameters build."""
+        x, y, theta = self.initial_pose
+        return (
+            f"object {self.object!r} at (x={x:.4f} m, y={y:.4f} m, theta={theta:.4f} rad), "
+            f"camera {self.image_width}x{self.image_height}, seed {self.seed}"
+            f"{', randomized' if self.randomize else ''}"
+        )
+
+
+@functools.cache
+def _check_library_object(name: str) -> None:
+    """``load_object`` of a bundled library entry, once (up to 0.2 s each: every parameter set
+    re-validates the whole table)."""
+    load_object(name)
+
+
+def check_object_parameter(name: str) -> None:
+    """Accept a library name or a readable object specification file; nothing else.
+
+    A file must end in ``.json``, ``.yaml`` or ``.yml``, be a regular file and hold at most
+    ``MAX_SPEC_BYTES``; it is then parsed as a specification by ``load_object``, whose errors
+    name the schema field and never quote the file. Raises ``ValueError`` otherwise.
+    """
+    if name in library_names():
+        return
+    shown = f"{name[:200]!r}"
+    if not name.lower().endswith(SPEC_SUFFIXES):
+        raise ValueError(f"parameter 'object' = {shown}: unknown object {shown}; library "
+                         f"objects are {', '.join(library_names())}, or give the path of an "
+                         f"object specification file ({', '.join(SPEC_SUFFIXES)})")
+    try:
+        info = os.stat(name)
+    except (OSError, ValueError):
+        raise ValueError(f"parameter 'object' = {shown}: no such object specification "
+                         "file") from None
+    if not stat.S_ISREG(info.st_mode):
+        raise ValueError(f"parameter 'object' = {shown}: not a regular file")
+    if info.st_size > MAX_SPEC_BYTES:
+        raise ValueError(f"parameter 'object' = {shown}: {info.st_size} bytes, larger than "
+                         f"an object specification file may be ({MAX_SPEC_BYTES} bytes)")
+
+
+def _spec_default_if_negative(value: float) -> float | None:
+    return None if value < 0.0 else float(value)
