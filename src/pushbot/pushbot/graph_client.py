@@ -45,6 +45,8 @@ class Recorded:
     status: list[dict[str, str]] = field(default_factory=list)
     #: ``executor/status`` values as they came (``robot`` arm).
     executor_status: list[dict[str, str]] = field(default_factory=list)
+    #: ``sim/tool_tip`` (``robot`` arm): (run end stamp, (K,) sample stamps, (K, 3) true tip).
+    tool_tip: list[tuple[float, np.ndarray, np.ndarray]] = field(default_factory=list)
     #: The last ``/diagnostics`` values per status name (``/sim_bridge_node: simulation``...).
     diagnostics: dict[str, dict[str, str]] = field(default_factory=dict)
     frames: dict[float, np.ndarray] = field(default_factory=dict)  # stamp -> rgb
@@ -151,6 +153,7 @@ class GraphClient:
         self._reset = {n: node.create_client(Trigger, f"/{n}/reset") for n in NODES}
         if self.robot == "arm":  # the executor has ~/cancel and ~/enable, no ~/reset
             sub(DiagnosticStatus, "executor/status", self._on_executor_status, latched)
+            sub(PathMsg, "sim/tool_tip", self._on_tool_tip, reliable)
         self._set_params = {n: node.create_client(SetParameters, f"/{n}/set_parameters")
                             for n in ("sim_bridge_node", "planner_node")}
 
@@ -204,6 +207,14 @@ class GraphClient:
         values = {kv.key: kv.value for kv in msg.values}
         values["_message"] = msg.message
         self.rec.status.append(values)
+
+    def _on_tool_tip(self, msg: Any) -> None:
+        from push_ros.stamps import seconds_from_stamp
+
+        stamps = np.array([seconds_from_stamp(p.header.stamp) for p in msg.poses])
+        points = np.array([[p.pose.position.x, p.pose.position.y, p.pose.position.z]
+                           for p in msg.poses], dtype=float).reshape(-1, 3)
+        self.rec.tool_tip.append((seconds_from_stamp(msg.header.stamp), stamps, points))
 
     def _on_executor_status(self, msg: Any) -> None:
         self.rec.executor_status.append({kv.key: kv.value for kv in msg.values}

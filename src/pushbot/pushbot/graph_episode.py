@@ -72,7 +72,7 @@ from pushbot.graph_nodes import (
 from pushbot.protocol import Trial, planner_episode_params
 
 __all__ = ["NODES", "GraphError", "GraphNodes", "GraphRunner", "Recorded", "check_trial",
-           "run_graph_trials", "sigterm_as_keyboard_interrupt"]
+           "line_deviation", "run_graph_trials", "sigterm_as_keyboard_interrupt"]
 
 #: Seconds from the scene reset to the first estimate (segmentation of the first frame), and
 #: how often the episode set-up is repeated when none arrives.
@@ -270,6 +270,8 @@ class GraphRunner:
         rec["frame_stamps"] = [first_stamp] + [
             next((st for st, _ in self.rec.est if st >= t1), t1) for _, _, t1 in executed]
         rec["step_latency_ms"] = _latencies(executed, pushes)
+        if self.robot == "arm":
+            rec["contact_line_error_mm"] = self._line_errors(executed, pushes)
         end_true = self._true_after(executed[-1][2]) if executed else pose0_true
         from push_core.episode import end_score
         from push_core.objects import load_object
@@ -289,6 +291,27 @@ class GraphRunner:
         rec["com_est"] = self.rec.com[-1][1].tolist() if self.rec.com else None
         rec["wall_s"] = time.perf_counter() - t_start
         return rec
+
+    def _line_errors(self, executed: list[tuple[float, float, float]],
+                     pushes: list[tuple[float, np.ndarray]]) -> list[float]:
+        """Per executed arm push: the true tool tip's largest distance from the commanded
+        contact segment (``sim/tool_tip`` vs ``planner/push``), mm (:func:`line_deviation`)."""
+        def runs_in() -> bool:  # sim/tool_tip goes out before the run's camera frame
+            return all(any(st[0] <= t0 and st[-1] >= t1 for _, st, _ in self.rec.tool_tip
+                           if len(st)) for _, t0, t1 in executed)
+
+        self.wait(runs_in, STEP_TIMEOUT, "sim/tool_tip of every executed push")
+        errors = []
+        for wall, t0, t1 in executed:
+            commanded = [p for w, p in pushes if w <= wall]
+            run = next((tip for _, st, tip in self.rec.tool_tip
+                        if len(st) and st[0] <= t0 and st[-1] >= t1), None)
+            if not commanded or run is None:
+                continue
+            deviation = line_deviation(run, commanded[-1][1], commanded[-1][2])
+            if deviation is not None:
+                errors.append(1e3 * deviation)
+        return errors
 
     def _setup_episode(self, trial: Trial, fault: Fault) -> None:
         self.set_parameters("planner_node", {**planner_episode_params(trial),
@@ -441,6 +464,44 @@ def _reason(message: str) -> str:
     if message.startswith("failed: no feasible push"):
         return "no feasible push"
     return message
+
+
+#: Tool tip samples lower than this above the table count as "in contact" for the line error
+#: of an arm push (the executor pushes at 1 cm; transit and park moves are far higher), m.
+CONTACT_HEIGHT = 0.02
+
+
+def line_deviation(tip: np.ndarray, contact: np.ndarray, end: np.ndarray,
+                   max_height: float = CONTACT_HEIGHT) -> float | None:
+    """Largest horizontal distance of tool tip samples from a commanded push line, m.
+
+    Parameters
+    ----------
+    tip : (K, 3) array
+        True tool tip positions in ``world`` (m).
+    contact, end : (2,) arrays
+        The commanded contact segment (``planner/push``'s contact and end points, m).
+    max_height : float
+        Only samples at most this high count (the pushing height; not transit), m.
+
+    Returns
+    -------
+    float or None
+        The maximum over the samples whose projection falls on the segment, or None when
+        there is none.
+    """
+    tip = np.asarray(tip, dtype=float).reshape(-1, 3)
+    a, b = np.asarray(contact, dtype=float), np.asarray(end, dtype=float)
+    d = b - a
+    length = float(np.hypot(*d))
+    if length == 0.0:
+        return None
+    u = d / length
+    rel = tip[:, :2] - a
+    along = rel @ u
+    off = np.abs(rel @ np.array([-u[1], u[0]]))
+    on = (tip[:, 2] <= max_height) & (along >= 0.0) & (along <= length)
+    return float(off[on].max()) if on.any() else None
 
 
 def _latencies(executed: list[tuple[float, float, float]],
