@@ -96,3 +96,26 @@ def test_rod_pushes_the_object(world) -> None:
     q_e = arm.inverse_kinematics([0.04, 0.0, 0.01], q_a)
     _follow(world, q_e, 4.0)
     assert world.object_pose()[0] - before[0] > 0.02  # pushed along +x
+
+
+def test_real_time_factor_paces_the_run(world) -> None:
+    # Sleeping only ever slows the run down: sim time never runs ahead of factor x wall time.
+    import time
+
+    arm = world.arm
+    q_goal = np.asarray(world.config.arm_park) + 0.05
+    state = world.arm_state()
+    times = np.linspace(0.05, 0.5, 10)
+    u = times / 0.5
+    pos = state.positions + (3 * u**2 - 2 * u**3)[:, None] * (q_goal - state.positions)
+    vel = ((6 * u - 6 * u**2) / 0.5)[:, None] * (q_goal - state.positions)
+    traj = check_trajectory(TrajectoryCommand(list(ARM_JOINTS), 0.0, times, pos.tolist(),
+                                              vel.tolist()), ARM_JOINTS, world.sim_time)
+    follower = TrajectoryFollower(ARM_JOINTS)
+    follower.offer(traj)
+    wall0 = time.monotonic()
+    run = world.run_arm(follower, 24, real_time_factor=2.0)
+    wall = time.monotonic() - wall0
+    assert run.t_done - run.t_start >= 0.5
+    assert wall >= (run.t_done - run.t_start) / 2.0 - 0.01
+    arm.set_positions(world.config.arm_park)

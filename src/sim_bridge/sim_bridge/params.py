@@ -88,6 +88,9 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               "trajectory runs, Hz of sim time.", (1.0, 240.0), read_only=True),
     ParamSpec("arm.max_duration", 600.0, "Arm mode: longest accepted trajectory (from now to "
               "its end), s of sim time.", (1.0, 3600.0), read_only=True),
+    ParamSpec("arm.real_time_factor", 0.0, "Arm mode: sim time runs at most this many times "
+              "faster than wall time while the arm moves (1 = like a real robot, for timing "
+              "the executor's reactions); 0 = as fast as the CPU allows.", (0.0, 1000.0)),
 )
 
 
@@ -154,6 +157,8 @@ class SimBridgeParams:
         Hz of sim time.
     arm_max_duration : float
         s of sim time.
+    arm_real_time_factor : float
+        Largest sim time / wall time ratio while the arm moves; 0 = unpaced.
     """
 
     object: str
@@ -181,6 +186,7 @@ class SimBridgeParams:
     arm_controller_topic: str = "/joint_trajectory_controller/joint_trajectory"
     arm_joint_state_rate: float = 100.0
     arm_max_duration: float = 600.0
+    arm_real_time_factor: float = 0.0
 
     @classmethod
     def from_values(cls, values: dict[str, Any]) -> SimBridgeParams:
@@ -263,6 +269,7 @@ class SimBridgeParams:
                                                 cls.arm_controller_topic)),
             arm_joint_state_rate=float(values.get("arm.joint_state_rate", 100.0)),
             arm_max_duration=float(values.get("arm.max_duration", 600.0)),
+            arm_real_time_factor=float(values.get("arm.real_time_factor", 0.0)),
         )
 
     def world_config(self) -> WorldConfig:

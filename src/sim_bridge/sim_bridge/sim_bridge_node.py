@@ -741,7 +741,8 @@ class SimBridgeNode(Node):
             run = self._world.run_arm(
                 self._arm.follower, max(1, round(1.0 / (self._params.arm_joint_state_rate * dt))),
                 self._publish_joint_state, monitor,
-                None if monitor is None else self._publish_monitor)
+                None if monitor is None else self._publish_monitor,
+                self._params.arm_real_time_factor)
             capture = self._capture_scene()
         except Exception as exc:  # keep the node alive; the arm holds where it is
             self.get_logger().error(f"arm run failed:\n{traceback.format_exc()}")

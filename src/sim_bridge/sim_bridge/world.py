@@ -57,6 +57,7 @@ import contextlib
 import os
 import sys
 import tempfile
+import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -455,17 +456,34 @@ class PushWorld:
     def run_arm(self, follower: TrajectoryFollower, sample_every: int = 1,
                 on_sample: Callable[[float, JointState], None] | None = None,
                 monitor: MonitorConfig | None = None,
-                on_frame: Callable[[Frame], None] | None = None) -> ArmRun:
+                on_frame: Callable[[Frame], None] | None = None,
+                real_time_factor: float = 0.0) -> ArmRun:
         """Step the physics while the arm follows ``follower``'s trajectories, until they
         have ended, the arm is still and the object has settled
         (:func:`sim_bridge.arm_motion.run_arm`; ``monitor`` / ``on_frame`` as in
-        :meth:`execute_push`)."""
+        :meth:`execute_push`). ``real_time_factor`` > 0: sim time advances at most that many
+        times faster than wall time (the steps wait), as a real arm's controller runs."""
         arm = self._require_arm()
         on_step = None
         if monitor is not None and on_frame is not None:
             on_step = self._monitor_hook(monitor, on_frame)
+        if real_time_factor > 0.0:
+            on_step = self._pacer(real_time_factor, on_step)
         return run_arm(self._physics, arm, follower, self._object,
                        self._config.settle_timeout, sample_every, on_sample, on_step)
+
+    def _pacer(self, factor: float, inner: Callable[[], None] | None) -> Callable[[], None]:
+        """A per-step hook that sleeps while sim time is ahead of ``factor`` x wall time."""
+        wall0, sim0 = time.monotonic(), self.sim_time
+
+        def on_step() -> None:
+            if inner is not None:
+                inner()
+            ahead = (self.sim_time - sim0) / factor - (time.monotonic() - wall0)
+            if ahead > 1e-3:
+                time.sleep(ahead)
+
+        return on_step
 
     def _require_arm(self) -> ArmRobot:
         if self._arm is None:
