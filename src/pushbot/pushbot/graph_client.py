@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,6 +23,8 @@ import numpy as np
 from push_ros.dds import apply_default_profile
 from pushbot.graph_nodes import EXECUTOR_NODE, NODES, GraphError, graph_node_names
 
+#: Newest ``/joint_states`` samples a client keeps (100 Hz of sim time while the arm moves).
+JOINT_STATES_KEPT = 20000
 #: The simulated arm's controller topic (push_executor_node's and sim_bridge_node's default).
 ARM_TRAJECTORY_TOPIC = "/joint_trajectory_controller/joint_trajectory"
 
@@ -47,6 +50,13 @@ class Recorded:
     executor_status: list[dict[str, str]] = field(default_factory=list)
     #: ``sim/tool_tip`` (``robot`` arm): (run end stamp, (K,) sample stamps, (K, 3) true tip).
     tool_tip: list[tuple[float, np.ndarray, np.ndarray]] = field(default_factory=list)
+    #: ``/joint_states`` (``robot`` arm): (stamp s, positions, velocities), the newest kept.
+    joint_states: deque[tuple[float, np.ndarray, np.ndarray]] = field(
+        default_factory=lambda: deque(maxlen=JOINT_STATES_KEPT))
+    #: ``pusher/refused`` values (``push_ros.refusal``) with ``who`` and ``reason``.
+    refusals: list[dict[str, str]] = field(default_factory=list)
+    #: ``executor/path`` messages received (the executor's planned tool paths).
+    executor_paths: int = 0
     #: The last ``/diagnostics`` values per status name (``/sim_bridge_node: simulation``...).
     diagnostics: dict[str, dict[str, str]] = field(default_factory=dict)
     frames: dict[float, np.ndarray] = field(default_factory=dict)  # stamp -> rgb
@@ -154,6 +164,14 @@ class GraphClient:
         if self.robot == "arm":  # the executor has ~/cancel and ~/enable, no ~/reset
             sub(DiagnosticStatus, "executor/status", self._on_executor_status, latched)
             sub(PathMsg, "sim/tool_tip", self._on_tool_tip, reliable)
+            sub(PathMsg, "executor/path", self._on_executor_path, latched)
+            sub(DiagnosticStatus, "pusher/refused", self._on_refused, reliable)
+            from sensor_msgs.msg import JointState
+            from std_srvs.srv import SetBool
+
+            sub(JointState, "/joint_states", self._on_joint_state, reliable)
+            self._executor_enable = node.create_client(SetBool, f"/{EXECUTOR_NODE}/enable")
+            self._executor_cancel = node.create_client(Trigger, f"/{EXECUTOR_NODE}/cancel")
         self._set_params = {n: node.create_client(SetParameters, f"/{n}/set_parameters")
                             for n in ("sim_bridge_node", "planner_node")}
 
@@ -215,6 +233,20 @@ class GraphClient:
         points = np.array([[p.pose.position.x, p.pose.position.y, p.pose.position.z]
                            for p in msg.poses], dtype=float).reshape(-1, 3)
         self.rec.tool_tip.append((seconds_from_stamp(msg.header.stamp), stamps, points))
+
+    def _on_executor_path(self, msg: Any) -> None:
+        self.rec.executor_paths += 1
+
+    def _on_refused(self, msg: Any) -> None:
+        self.rec.refusals.append({kv.key: kv.value for kv in msg.values[:16]}
+                                 | {"who": msg.name, "reason": msg.message})
+
+    def _on_joint_state(self, msg: Any) -> None:
+        from push_ros.stamps import seconds_from_stamp
+
+        self.rec.joint_states.append((seconds_from_stamp(msg.header.stamp),
+                                      np.asarray(msg.position, dtype=float),
+                                      np.asarray(msg.velocity, dtype=float)))
 
     def _on_executor_status(self, msg: Any) -> None:
         self.rec.executor_status.append({kv.key: kv.value for kv in msg.values}
@@ -343,6 +375,26 @@ class GraphClient:
             if not result.successful:
                 raise GraphError(f"{node_name} refused parameter {name!r} = {values[name]!r}: "
                                  f"{result.reason}")
+
+    def executor_enable(self, enable: bool) -> str:
+        """``/push_executor_node/enable`` (``robot`` arm); returns its message."""
+        from std_srvs.srv import SetBool
+
+        response = self._call(self._executor_enable, SetBool.Request(data=bool(enable)),
+                              f"/{EXECUTOR_NODE}/enable")
+        if not response.success:
+            raise GraphError(f"/{EXECUTOR_NODE}/enable refused: {response.message}")
+        return response.message
+
+    def executor_cancel(self) -> str:
+        """``/push_executor_node/cancel`` (``robot`` arm); returns its message."""
+        from std_srvs.srv import Trigger
+
+        response = self._call(self._executor_cancel, Trigger.Request(),
+                              f"/{EXECUTOR_NODE}/cancel")
+        if not response.success:
+            raise GraphError(f"/{EXECUTOR_NODE}/cancel refused: {response.message}")
+        return response.message
 
     def publish_goal(self, goal: np.ndarray, other: bool = False) -> str:
         """Send ``goal`` (x, y, theta) on ``goal_pose`` (``other``: from the second, volatile

@@ -1,0 +1,114 @@
+"""The arm through the real graph (issue 20): push_executor_node drives the simulated Panda.
+
+Real processes (sim_bridge_node with ``robot:=arm``, segmentation_node, ekf_node, planner_node,
+push_executor_node) over DDS on simulated time; no mocks. One graph serves the module.
+
+- one episode reaches the goal by ground truth, every push executed by the arm, the true tool
+  tip within 1 mm of each commanded contact segment (``sim/tool_tip``);
+- a dry run (``~/enable`` false) plans, publishes the tool path and refuses the push with kind
+  ``disabled`` on ``pusher/refused``; nothing moves (sim time stands still, the joints and the
+  object stay);
+- ``~/cancel`` holds the arm within 0.1 s of sim time (the simulator paced to real time,
+  ``arm.real_time_factor`` 1, as a real controller runs).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+
+from pushbot.graph_episode import GraphRunner
+from pushbot.protocol import Trial
+
+pytestmark = [pytest.mark.ros, pytest.mark.graph, pytest.mark.slow]
+
+#: A push far from the object at the origin (approach, contact, end; world, m): the executor
+#: does not know the object, the arm moves all the same.
+FAR_PUSH = np.array([[0.15, -0.22], [0.15, -0.20], [0.15, -0.15]])
+#: Joint speed below which the arm counts as held, rad/s.
+HELD = 0.01
+
+
+@pytest.fixture(scope="module")
+def graph(tmp_path_factory: pytest.TempPathFactory) -> Iterator[GraphRunner]:
+    with GraphRunner(log_dir=tmp_path_factory.mktemp("arm_graph_logs"), robot="arm") as runner:
+        yield runner
+
+
+def test_an_arm_episode_reaches_the_goal_along_the_commanded_lines(graph: GraphRunner) -> None:
+    trial = Trial(object="rect1", task="mixed", method="ana", k=3, state="filter",
+                  com="centre", index=0, seed=0)
+    rec = graph.run(trial)
+    assert rec["reason"] == "goal reached" and rec["success"], rec
+    executed = rec["steps"] - rec["refused"]
+    assert executed >= 1
+    # one contact-line figure per executed push, all within the acceptance's 1 mm
+    assert len(rec["contact_line_error_mm"]) == executed, rec["contact_line_error_mm"]
+    assert max(rec["contact_line_error_mm"]) <= 1.0, rec["contact_line_error_mm"]
+    assert np.linalg.norm(np.asarray(rec["poses_true"][-1])[:2]
+                          - np.asarray(rec["poses_true"][0])[:2]) > 0.05
+
+
+def _latest_joint_state(graph: GraphRunner) -> tuple[float, np.ndarray, np.ndarray]:
+    graph.wait(lambda: len(graph.rec.joint_states) > 0, 30.0, "/joint_states")
+    return graph.rec.joint_states[-1]
+
+
+def test_a_dry_run_plans_and_refuses_and_moves_nothing(graph: GraphRunner) -> None:
+    client = graph._client()
+    client.executor_enable(False)
+    try:
+        stamp0, q0, _ = _latest_joint_state(graph)
+        true0 = graph.rec.true[-1][1].copy()
+        n_refusals, n_paths = len(graph.rec.refusals), graph.rec.executor_paths
+        client.publish_push(FAR_PUSH)
+        graph.wait(lambda: any(r.get("kind") == "disabled"
+                               for r in graph.rec.refusals[n_refusals:]),
+                   30.0, "a 'disabled' refusal on pusher/refused")
+        graph.wait(lambda: graph.rec.executor_paths > n_paths, 30.0, "executor/path")
+        refusal = next(r for r in graph.rec.refusals[n_refusals:] if r["kind"] == "disabled")
+        assert refusal["push_stamp"] == "0.000000000"  # the push's own header stamp
+        # Idle joint states keep coming (10 Hz wall) with the same stamp: nothing ran.
+        count = len(graph.rec.joint_states)
+        graph.wait(lambda: len(graph.rec.joint_states) >= count + 5, 30.0, "idle joint states")
+        stamp1, q1, _ = graph.rec.joint_states[-1]
+        assert stamp1 == stamp0
+        np.testing.assert_allclose(q1, q0, atol=1e-9)
+        np.testing.assert_allclose(graph.rec.true[-1][1], true0, atol=1e-9)
+    finally:
+        client.executor_enable(True)
+
+
+def test_cancel_holds_the_arm_within_a_tenth_of_a_second(graph: GraphRunner) -> None:
+    client = graph._client()
+    graph.set_parameters("sim_bridge_node", {"arm.real_time_factor": 1.0})
+    graph.reset("sim_bridge_node")
+    try:
+        n = len(graph.rec.joint_states)
+        client.publish_push(FAR_PUSH)
+        graph.wait(lambda: any(np.max(np.abs(v)) > 0.05
+                               for _, _, v in list(graph.rec.joint_states)[n:]),
+                   60.0, "the arm to move")
+        t_cancel = graph.rec.joint_states[-1][0]  # sim time at the cancel, at least
+        client.executor_cancel()
+
+        def watched() -> bool:
+            # half a second of sim time after the cancel, or the simulator idle again (its
+            # run ended: idle joint states repeat one stamp)
+            stamps = [t for t, _, _ in list(graph.rec.joint_states)[-3:]]
+            return bool(stamps) and (stamps[-1] >= t_cancel + 0.5
+                                     or (len(stamps) == 3 and len(set(stamps)) == 1
+                                         and stamps[-1] > t_cancel))
+
+        graph.wait(watched, 60.0, "the arm's motion after ~/cancel")
+        after = [(t, v) for t, _, v in list(graph.rec.joint_states) if t > t_cancel]
+        moving = [t for t, v in after if np.max(np.abs(v)) >= HELD]
+        t_held = next(t for t, _ in after if not moving or t > moving[-1])
+        assert t_held - t_cancel <= 0.1, (t_cancel, t_held)
+        status = graph.rec.executor_status[-1]
+        assert status["state"] == "stopped", status
+    finally:
+        graph.set_parameters("sim_bridge_node", {"arm.real_time_factor": 0.0})
+        graph.reset("sim_bridge_node")
