@@ -37,6 +37,12 @@ Subscriptions (names relative and remappable; QoS as in ``docs/ARCHITECTURE.md``
   restarted publisher); a ``publisher_gid`` in the info (later rclpy) is compared instead.
 - ``pusher/executed`` (nav_msgs/Path, ``world``; reliable): the executed push; its header stamp
   (= the stamp of its last pose) is the time the push ended.
+- ``pusher/refused`` (diagnostic_msgs/DiagnosticStatus; reliable; codec
+  :mod:`push_ros.refusal`): whatever executes pushes refuses one. A refusal whose
+  ``push_stamp`` is the header stamp of the push in flight counts as a lost push at once (as
+  after ``push_timeout``: a step, its contact region avoided; ``pushes_refused``; the status
+  notes ``push of step n refused by <who> (<kind>): <reason>``) and the node re-plans; any other
+  refusal (stale, another planner's) is ignored (``refusals_ignored``), a malformed one refused.
 - ``/clock`` only with ``use_sim_time`` true (default false: wall time; the simulation sets
   it).
 
@@ -44,7 +50,9 @@ Publications:
 
 - ``planner/push`` (nav_msgs/Path, ``world``; reliable): 3 poses, approach, contact (pusher
   axis touching the outline), end; z = 0, oriented along the push, pose stamps = when a pusher
-  moving at ``push_speed`` from the approach point at the path's stamp reaches them.
+  moving at ``push_speed`` from the approach point at the path's stamp reaches them. The
+  header stamps of successive pushes strictly increase (a push at the same clock reading as the
+  previous one is stamped ``PUSH_STAMP_STEP_NS`` later), so a refusal names one push.
 - ``planner/affordances`` (visualization_msgs/MarkerArray, ``world``; reliable): outline
   coloured by eq. (5.1) score (green = best), the sampled candidates, the chosen push
   (:func:`push_planner.conversions.affordance_markers`).
@@ -188,6 +196,7 @@ from push_ros.outline import outline_from_cloud
 from push_ros.paths import push_path
 from push_ros.poses import check_frame, pose_with_covariance_from_msg, xytheta_from_pose
 from push_ros.qos import LATCHED_QOS, RELIABLE_QOS, latched_reader_qos
+from push_ros.refusal import read_refusal, stamp_key
 from push_ros.stamps import seconds_from_stamp
 from push_ros.state import state_from_array_msg
 
@@ -204,6 +213,8 @@ PAIR_BUFFER = 10
 GOAL_SAMPLES_KEPT = 16
 #: Said in planner/status when the outline is continuously symmetric (push_core.symmetry).
 ORIENTATION_IGNORED = "orientation ignored: rotationally symmetric outline"
+#: Least step between the header stamps of two pushes, ns (a refusal names one push).
+PUSH_STAMP_STEP_NS = 1000
 #: Seconds between two log lines of one kind of refused input or callback error (each is
 #: counted on planner/status and /diagnostics regardless).
 LOG_THROTTLE_S = 2.0
@@ -399,6 +410,14 @@ class PlannerNode(Node):
         self._last_error = ""
         #: Goals taken from another publisher than the previous goal's (logged, in the status).
         self._goal_switches = 0
+        #: Pushes refused by their executor (pusher/refused matching the push in flight), and
+        #: refusals of another push (stale, another planner's), ignored.
+        self._pushes_refused = 0
+        self._refusals_ignored = 0
+        #: Header stamp of the newest push published (ns; strictly increasing), and its
+        #: ``push_ros.refusal.stamp_key`` while that push is in flight.
+        self._push_ns = -1
+        self._push_key = ""
         #: (publication sequence number, source timestamp) of the last goal samples: a latched
         #: sender's sample arrives on both goal readers and is taken once.
         self._goal_samples: deque[tuple[int, int]] = deque(maxlen=GOAL_SAMPLES_KEPT)
@@ -435,6 +454,8 @@ class PlannerNode(Node):
                     "a volatile goal_pose publisher (e.g. RViz) does not match the latched "
                     "goal reader; its goals arrive on the volatile one")))
         self.create_subscription(Path, "pusher/executed", guard(self._on_executed),
+                                 RELIABLE_QOS)
+        self.create_subscription(DiagnosticStatus, "pusher/refused", guard(self._on_refused),
                                  RELIABLE_QOS)
         self.create_service(Trigger, "~/reset", guard(self._on_reset))
         steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -492,6 +513,7 @@ class PlannerNode(Node):
         self._level = DiagnosticStatus.OK
         self._poses.clear()
         self._states.clear()
+        self._push_key = ""
         #: Who published the current goal (:func:`_goal_source`), "" = nobody yet.
         self._goal_source = ""
         self._goal_sequence: int | None = None
@@ -670,6 +692,30 @@ class PlannerNode(Node):
         self._try_plan()
         self._publish_status()
 
+    def _on_refused(self, msg: DiagnosticStatus) -> None:
+        try:
+            refusal = read_refusal(msg)
+        except ValueError as exc:
+            self._refuse("pusher/refused", str(exc).removeprefix("pusher/refused: "))
+            return
+        if not (self._engine.in_flight and refusal.push_stamp == self._push_key):
+            self._refusals_ignored += 1
+            self._info("refusal_ignored", f"ignored a refusal of push {refusal.push_stamp} by "
+                       f"{refusal.who!r}: not the push in flight")
+            self._publish_status()
+            return
+        note = (f"push of step {self._engine.steps} refused by {refusal.who} ({refusal.kind}): "
+                f"{refusal.reason}")[:500]
+        self._pushes_refused += 1
+        self._push_key = ""
+        self._engine.push_lost()  # as after push_timeout: its contact region avoided
+        self._log.warning("push_refused", f"{note}; counted as a step, planning again")
+        self._note, self._level = "", DiagnosticStatus.OK
+        self._try_plan()
+        if not self._note:
+            self._note, self._level = note, DiagnosticStatus.WARN
+        self._publish_status()
+
     def _on_timer(self) -> None:
         if self._engine.in_flight and (self._steady_now() - self._in_flight_since
                                        > self.params.push_timeout):
@@ -718,8 +764,11 @@ class PlannerNode(Node):
         self._note, self._level = "", DiagnosticStatus.OK
         now = self.get_clock().now()
         outline = self._engine.outline
-        self._pub_push.publish(push_path(plan.approach, plan.contact, plan.end,
-                                         now.nanoseconds * 1e-9, self.params.push_speed))
+        self._push_ns = max(now.nanoseconds, self._push_ns + PUSH_STAMP_STEP_NS)
+        path = push_path(plan.approach, plan.contact, plan.end, self._push_ns * 1e-9,
+                         self.params.push_speed)
+        self._push_key = stamp_key(path.header.stamp)
+        self._pub_push.publish(path)
         self._pub_markers.publish(affordance_markers(outline, state[:3], plan, now.to_msg()))
         self._in_flight_since = self._steady_now()
         self.get_logger().info(
@@ -761,6 +810,8 @@ class PlannerNode(Node):
                   "outline_stamp": f"{self._outline_stamp:.6f}",
                   "left_goal": engine.counts["left"], "after_goal": self.params.after_goal,
                   "goal_source": self._goal_source, "goal_switches": self._goal_switches,
+                  "pushes_refused": self._pushes_refused,
+                  "refusals_ignored": self._refusals_ignored,
                   "errors": self._errors, "last_error": self._last_error}
         return self._diagnostics.status(self._level, message, values)
 
