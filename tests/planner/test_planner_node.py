@@ -660,7 +660,7 @@ def test_an_exception_in_a_callback_is_counted_and_the_node_keeps_working(
     h.publish_outline(*rect1_outline())
     h.publish_goal(0.1, 0.0, 0.0)
     h.publish_estimate((0.0, 0.0, 0.0), stamp=1.0)
-    assert h.spin_until(lambda: h.values().get("errors") == "1")
+    assert h.spin_until(lambda: h.values().get("callback_errors") == "1")
     assert "injected fault" in h.values()["last_error"]
     assert h.status[-1].level == DiagnosticStatus.WARN
     planner.plan = original

@@ -18,7 +18,7 @@ strategies, no DDS, at least 2,000 messages per topic:
   and a new plan, until the episode fails and is reset);
 - parameter sets (random values of every parameter, then ``~/reset``).
 
-After every message: no exception reached a guard (the node's ``errors`` counter stays 0);
+After every message: no exception reached a guard (the node's ``callback_errors`` counter stays 0);
 a refused message (``refused`` counter up) changed nothing (:func:`snapshot`). At the end the
 node still plans a correct push for a valid outline + estimate + goal. Caps are asserted by
 counters and sizes, never by timing.
@@ -358,11 +358,11 @@ class Probe:
 
     @property
     def errors(self) -> int:
-        return self.node._errors
+        return self.node.health.get("callback_errors")
 
     @property
     def refused(self) -> int:
-        return self.node._refused
+        return self.node.health.get("refused")
 
 
 def snapshot(node: PlannerNode) -> tuple:
@@ -371,15 +371,15 @@ def snapshot(node: PlannerNode) -> tuple:
     latest = None if e.latest is None else (e.latest[0], e.latest[1].tobytes())
     return (None if e.goal is None else e.goal.tobytes(), id(e.outline), latest,
             e.last_push_end, e.steps, e.phase, e.in_flight, len(e._avoid),
-            tuple((s, p.tobytes()) for s, p in node._poses),
-            tuple(s.tobytes() for s, _ in node._states), node._goal_source,
+            tuple((s, p.tobytes()) for s, p in node._pairing.poses),
+            tuple(s.tobytes() for s, _ in node._pairing.states), node._goals.source,
             node.params)
 
 
 def send_checked(probe: Probe, topic: str, msg: Any, info: Any = None) -> None:
     before, refused = snapshot(probe.node), probe.refused
     probe.send(topic, msg, info)
-    assert probe.errors == 0, probe.node._last_error
+    assert probe.errors == 0, probe.node.health.last_error
     if probe.refused > refused and topic not in ("estimator/object_pose", "estimator/state"):
         assert snapshot(probe.node) == before, f"refused {topic} changed the state"
 
@@ -390,8 +390,8 @@ def send_estimate_checked(probe: Probe, msgs: list[Any]) -> None:
             "estimator/object_pose"
         before, refused = snapshot(probe.node), probe.refused
         probe.send(topic, msg)
-        assert probe.errors == 0, probe.node._last_error
-        if probe.refused > refused and probe.node._last_refusal.startswith(topic):
+        assert probe.errors == 0, probe.node.health.last_error
+        if probe.refused > refused and probe.node.health.last_refusal.startswith(topic):
             assert snapshot(probe.node) == before, f"refused {topic} changed the state"
 
 
@@ -458,7 +458,7 @@ def test_fuzz_outlines(probe: Probe) -> None:
     # An object larger than the workspace is refused with the reason.
     pts, normals = star(40, 1000.0, 0.0, 0)
     send_checked(probe, "perception/outline", outline_cloud_msg(pts, normals))
-    assert "workspace diagonal" in probe.node._last_refusal
+    assert "workspace diagonal" in probe.node.health.last_refusal
     assert probe.errors == 0
 
 
@@ -531,10 +531,10 @@ def test_fuzz_refusals(probe: Probe) -> None:
             if kv.value == "IN_FLIGHT":
                 kv.value = in_flight or "0.000000000"
         before, lost, pushes = snapshot(node), node._engine.counts["lost"], len(probe.pushes)
-        refused_before = node._pushes_refused
+        refused_before = node.health.get("pushes_refused")
         probe.send("pusher/refused", msg)
-        assert probe.errors == 0, node._last_error
-        if node._pushes_refused == refused_before:  # refused or ignored: nothing changed
+        assert probe.errors == 0, node.health.last_error
+        if node.health.get("pushes_refused") == refused_before:  # refused or ignored: no change
             assert snapshot(node) == before and len(probe.pushes) == pushes
             return
         matched[0] += 1
@@ -546,7 +546,7 @@ def test_fuzz_refusals(probe: Probe) -> None:
 
     run()
     assert matched[0] >= N_FUZZ // 20 and probe.errors == 0
-    assert probe.refused > 0 and probe.node._refusals_ignored > 0
+    assert probe.refused > 0 and probe.node.health.get("refusals_ignored") > 0
 
 
 def parameter_values() -> st.SearchStrategy[tuple[str, Any]]:
@@ -664,7 +664,7 @@ def test_fuzz_over_dds_the_node_stays_alive_and_answers_reset(
         assert wait_for(lambda: "waiting" in status[-1].message, timeout=10.0,
                         executor=executor)
         values = {kv.key: kv.value for kv in status[-1].values}
-        assert values["errors"] == "0", values["last_error"]
+        assert values["callback_errors"] == "0", values["last_error"]
     finally:
         executor.shutdown()
         client.destroy_node()
