@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from push_core.episode import EpisodeEngine, end_score, true_errors
+from push_core.episode import ORIENTATION_IGNORED, EpisodeEngine, end_score, true_errors
 from push_core.objects import load_object
 from push_core.planner import AVOID_RADIUS, Planner, PlannerConfig, prepare_outline
 
@@ -152,3 +152,32 @@ def test_after_the_goal_report_only_and_max_steps_still_bound_a_resumed_episode(
     assert step.action == "failed" and step.reason == "max steps" and step.resumed
     with pytest.raises(ValueError, match="after_goal"):
         EpisodeEngine(Planner(), 3, after_goal="ignore")
+
+
+def test_status_text_says_the_phase_and_what_is_missing() -> None:
+    e = EpisodeEngine(Planner(PlannerConfig(k=1, seed=3)), max_steps=1)
+    assert e.status_text() == "waiting for goal, outline, estimate"
+    e.set_outline(prepare_outline(*SPEC.outline(0.002)))
+    e.new_goal([0.1, 0.0, 0.0])
+    assert e.status_text() == "waiting for estimate" and e.orientation_matters
+    e.estimate(1.0, state_at(0.0))
+    assert e.status_text() == "waiting"
+    assert e.step().action == "push" and e.status_text() == "pushing step 1"
+    e.push_executed(2.0)
+    e.estimate(3.0, state_at(0.05))
+    assert e.step().action == "failed" and e.status_text() == "failed after max steps"
+    e.new_goal([0.05, 0.0, 0.0])
+    assert e.step().action == "reached" and e.status_text() == "goal reached"
+    # a disc: reached whatever the orientation, and the text says why
+    e.set_outline(prepare_outline(*load_object("ellip1").outline(0.002)))
+    e.new_goal([0.05, 0.0, 1.0])
+    assert e.step().action == "reached" and not e.orientation_matters
+    assert e.status_text() == f"goal reached ({ORIENTATION_IGNORED})"
+
+
+def test_status_text_of_a_report_only_left_goal_and_of_no_feasible_push() -> None:
+    e = reached_engine(after_goal="report")
+    e.estimate(20.0, state_at(0.0))
+    assert e.step().action == "left" and e.status_text() == "goal left"
+    e.phase, e.failure = "failed", "no feasible push"
+    assert e.status_text() == "failed: no feasible push"

@@ -27,13 +27,14 @@ from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
 from push_core.estimator import EKFConfig, PushEKF, predict_push
-from push_estimator.ekf_node import EkfNode, TFMessage
+from push_estimator.ekf_node import EkfNode
 from push_ros.outline import outline_cloud_msg
 from push_ros.poses import pose_with_covariance_msg, yaw_from_quaternion
 from push_ros.qos import LATCHED_QOS as LATCHED
 from push_ros.qos import RELIABLE_QOS as RELIABLE
 from push_ros.stamps import stamp_from_seconds
 from push_ros.state import state_from_array_msg
+from push_ros.tf import TFMessage
 
 HALF = 0.03
 #: A 6 cm square, 10 points per side, counter-clockwise, with outward normals.
@@ -242,37 +243,37 @@ def seconds_from(msg: Any) -> float:
 
 def test_bad_inputs_are_dropped_diagnosed_and_the_node_keeps_working(tester: EkfHarness) -> None:
     tester.observe((0.0, 0.0, 0.0), 0.5)  # before any outline
-    tester.wait_count("dropped_before_outline", 1)
+    tester.wait_count("refused_before_outline", 1)
     assert tester.status.level == DiagnosticStatus.WARN
     tester.outline(SQUARE[::-1], SQUARE_NORMALS[::-1])  # clockwise
-    tester.wait_count("rejected_outlines", 1)
+    tester.wait_count("refused_outline", 1)
     tester.outline(frame="world")  # wrong frame
-    tester.wait_count("rejected_outlines", 2)
+    tester.wait_count("refused_outline", 2)
     tester.outline()
     tester.wait_count("outlines", 1)
     assert tester.status.level == DiagnosticStatus.OK
     tester.push((-0.05, 0.0), (0.0, 0.0), 0.6, 0.7)  # before the first observation
-    tester.wait_count("dropped_before_init", 1)
+    tester.wait_count("refused_before_init", 1)
     tester.observe((math.nan, 0.0, 0.0), 0.8)
-    tester.wait_count("dropped_nan", 1)
+    tester.wait_count("refused_nan", 1)
     tester.observe((0.0, 0.0, 0.0), 0.9, frame="map")
-    tester.wait_count("dropped_invalid", 1)
+    tester.wait_count("refused_invalid", 1)
     assert not tester.poses
 
     tester.observe((0.0, 0.0, 0.0), 1.0)  # good: initialises
     assert tester.wait(lambda: len(tester.poses) == 1)
     tester.observe((0.0, 0.0, 0.0), 1.0)  # the same stamp again
-    tester.wait_count("dropped_duplicate", 1)
+    tester.wait_count("refused_duplicate", 1)
     tester.observe((0.0, 0.0, 0.0), 0.95)  # older than the last applied input
-    tester.wait_count("dropped_out_of_order", 1)
+    tester.wait_count("refused_out_of_order", 1)
     tester.push((-0.05, 0.0), (0.0, 0.0), 2.0, 3.0, n_poses=1)
-    tester.wait_count("dropped_invalid", 2)
+    tester.wait_count("refused_invalid", 2)
     tester.push((-0.05, math.inf), (0.0, 0.0), 2.0, 3.0)
-    tester.wait_count("dropped_nan", 2)
+    tester.wait_count("refused_nan", 2)
     tester.push((-0.05, 0.0), (0.0, 0.0), 0.9, 1.2)  # starts before the last observation
-    tester.wait_count("dropped_out_of_order", 2)
+    tester.wait_count("refused_out_of_order", 2)
     assert tester.status.level == DiagnosticStatus.WARN
-    assert "dropped pusher/executed" in tester.value("last_problem")
+    assert "refused pusher/executed" in tester.value("last_problem")
     assert len(tester.poses) == 1
 
     start = np.array([-HALF - 0.0048 - 0.005, 0.0])
@@ -307,9 +308,9 @@ def test_a_push_arriving_after_its_observation_is_re_filtered(tester: EkfHarness
     np.testing.assert_allclose(x, reference.state, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(p, reference.covariance, rtol=1e-9, atol=1e-15)
     tester.push(start, end, 2.0, 3.25)  # the same push again
-    tester.wait_count("dropped_duplicate", 1)
+    tester.wait_count("refused_duplicate", 1)
     tester.push(start, end, 3.5, 4.5)  # overlaps the observation at 4.0: cannot be placed
-    tester.wait_count("dropped_out_of_order", 1)
+    tester.wait_count("refused_out_of_order", 1)
     assert tester.count("pushes") == 1
 
 
@@ -340,7 +341,7 @@ def test_reset_service_starts_a_new_episode(tester: EkfHarness) -> None:
     assert "first observation" in future.result().message
     assert tester.wait(lambda: tester.value("state") == "waiting for first observation")
     tester.observe((0.0, 0.0, 0.0), 1.0)  # the previous episode's frame, repeated: dropped
-    tester.wait_count("dropped_duplicate", 1)
+    tester.wait_count("refused_duplicate", 1)
     assert len(tester.poses) == 1 and tester.value("state") == "waiting for first observation"
     tester.observe((0.2, -0.1, -2.0), 0.5)  # earlier stamp and far away: a new episode
     assert tester.wait(lambda: len(tester.poses) == 2)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path as FilePath
 from typing import Any
@@ -17,6 +18,7 @@ from typing import Any
 import numpy as np
 import pytest
 import yaml
+from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from nav_msgs.msg import Path
@@ -125,6 +127,7 @@ def make_harness(ros_context: Any, wait_for: Callable[..., bool],
         "pose": client.create_publisher(PoseWithCovarianceStamped, "estimator/object_pose",
                                         LATCHED_QOS),
         "executed": client.create_publisher(Path, "pusher/executed", RELIABLE_QOS),
+        "refused": client.create_publisher(DiagnosticStatus, "pusher/refused", RELIABLE_QOS),
     }
     h = Harness(node, client, executor, wait_for, pubs)
     client.create_subscription(Path, "planner/push", h.pushes.append, RELIABLE_QOS)
@@ -260,31 +263,82 @@ def test_plans_once_per_fresh_estimate(harness: Harness) -> None:
     assert h.spin_until(lambda: h.status[-1].message == "pushing step 1")
 
 
-def test_a_lost_push_is_not_planned_again(ros_context: Any,
-                                          wait_for: Callable[..., bool]) -> None:
-    """A push not reported within push_timeout (e.g. refused by the robot) counts as a step;
-    the next plans from the same estimate avoid its contact region until a push is executed."""
+@contextmanager
+def pushing_rect1(ros_context: Any, wait_for: Callable[..., bool], push_timeout: float
+                  ) -> Iterator[tuple[Harness, np.ndarray]]:
+    """A harness (k 1, seed 3, ``push_timeout``) sent rect1's outline, a goal 10 cm along +x
+    and the estimate (0, 0, 0) at 10 s; yields it and the outline points."""
     h = make_harness(ros_context, wait_for, [Parameter("k", value=1), Parameter("seed", value=3),
-                                             Parameter("push_timeout", value=0.5)])
+                                             Parameter("push_timeout", value=push_timeout)])
     try:
         points, normals = rect1_outline()
         h.publish_outline(points, normals)
         h.publish_goal(0.1, 0.0, 0.0)
         h.publish_estimate((0.0, 0.0, 0.0), stamp=10.0)
-        assert h.spin_until(lambda: len(h.pushes) == 3, timeout=20.0)  # two pushes lost
-        # Pose (0, 0, 0): world = object frame. The outline point of each push is the one
-        # nearest to its contact (the pusher axis, R_P outside the outline).
-        feet = []
-        for path in h.pushes:
-            contact = check_push(path, (0.0, 0.0, 0.0))[1]
-            feet.append(points[np.argmin(np.linalg.norm(points - contact, axis=1))])
-        for i, j in ((0, 1), (0, 2), (1, 2)):
-            assert np.linalg.norm(feet[i] - feet[j]) > AVOID_RADIUS - 2e-3, (i, j, feet)
-        assert h.spin_until(lambda: h.values().get("step") == "3")
+        yield h, points
     finally:
         h.executor.shutdown()
         h.client.destroy_node()
         h.node.destroy_node()
+
+
+def contact_feet(pushes: list[Path], points: np.ndarray) -> list[np.ndarray]:
+    """The outline point of each push against rect1 at (0, 0, 0) (world = object frame): the
+    one nearest to its contact (the pusher axis, R_P outside the outline)."""
+    return [points[np.argmin(np.linalg.norm(points - check_push(p, (0.0, 0.0, 0.0))[1],
+                                            axis=1))] for p in pushes]
+
+
+def test_a_lost_push_is_not_planned_again(ros_context: Any,
+                                          wait_for: Callable[..., bool]) -> None:
+    """A push not reported within push_timeout (e.g. refused by the robot) counts as a step;
+    the next plans from the same estimate avoid its contact region until a push is executed."""
+    with pushing_rect1(ros_context, wait_for, 0.5) as (h, points):
+        assert h.spin_until(lambda: len(h.pushes) == 3, timeout=20.0)  # two pushes lost
+        feet = contact_feet(h.pushes, points)
+        for i, j in ((0, 1), (0, 2), (1, 2)):
+            assert np.linalg.norm(feet[i] - feet[j]) > AVOID_RADIUS - 2e-3, (i, j, feet)
+        assert h.spin_until(lambda: h.values().get("step") == "3")
+
+
+def test_a_refused_push_is_lost_at_once_and_the_planner_plans_again(
+        ros_context: Any, wait_for: Callable[..., bool]) -> None:
+    """Issue 20: a pusher/refused naming the push in flight counts as a lost push at once (no
+    wait for push_timeout, here 1000 s) and the next push avoids its contact region; a refusal
+    of another push, and a malformed one, change nothing."""
+    from push_ros.refusal import refusal_msg
+
+    with pushing_rect1(ros_context, wait_for, 1000.0) as (h, points):
+        assert h.spin_until(lambda: len(h.pushes) == 1)
+        first = h.pushes[0]
+        # Another push's refusal (1 ns off the push in flight): ignored.
+        other = Time(sec=first.header.stamp.sec, nanosec=(first.header.stamp.nanosec + 1)
+                     % 1_000_000_000)
+        h.pubs["refused"].publish(refusal_msg("/other", other, "busy", "not yours"))
+        assert h.spin_until(lambda: h.count("refusals_ignored") == 1)
+        # Malformed: refused with the reason.
+        bad = refusal_msg("/other", first.header.stamp, "busy", "no stamp")
+        bad.values = [kv for kv in bad.values if kv.key != "push_stamp"]
+        h.pubs["refused"].publish(bad)
+        assert h.spin_until(lambda: h.count("refused") == 1)
+        assert h.values()["last_refusal"].startswith("pusher/refused: push_stamp")
+        assert len(h.pushes) == 1 and h.count("step") == 1 and h.count("pushes_refused") == 0
+        # The push in flight refused: a new push at once, away from the refused contact.
+        h.pubs["refused"].publish(refusal_msg("/executor", first.header.stamp, "ik",
+                                              "no IK solution at the contact point"))
+        assert h.spin_until(lambda: len(h.pushes) == 2, timeout=20.0)
+        assert h.spin_until(lambda: h.count("pushes_refused") == 1 and h.count("step") == 2)
+        assert h.count("lost") == 1 and h.status[-1].level == DiagnosticStatus.WARN
+        assert h.status[-1].message == ("pushing step 2 - push of step 1 refused by /executor "
+                                        "(ik): no IK solution at the contact point")
+        feet = contact_feet(h.pushes, points)
+        assert np.linalg.norm(feet[0] - feet[1]) > AVOID_RADIUS - 2e-3
+        key = [(p.header.stamp.sec, p.header.stamp.nanosec) for p in h.pushes]
+        assert key[1] > key[0]
+        # The same refusal again names a push no longer in flight: ignored.
+        h.pubs["refused"].publish(refusal_msg("/executor", first.header.stamp, "ik", "again"))
+        assert h.spin_until(lambda: h.count("refusals_ignored") == 2)
+        assert len(h.pushes) == 2 and h.count("step") == 2 and h.count("pushes_refused") == 1
 
 
 def test_bad_inputs_are_refused_and_the_node_keeps_working(harness: Harness) -> None:
@@ -606,7 +660,7 @@ def test_an_exception_in_a_callback_is_counted_and_the_node_keeps_working(
     h.publish_outline(*rect1_outline())
     h.publish_goal(0.1, 0.0, 0.0)
     h.publish_estimate((0.0, 0.0, 0.0), stamp=1.0)
-    assert h.spin_until(lambda: h.values().get("errors") == "1")
+    assert h.spin_until(lambda: h.values().get("callback_errors") == "1")
     assert "injected fault" in h.values()["last_error"]
     assert h.status[-1].level == DiagnosticStatus.WARN
     planner.plan = original

@@ -294,7 +294,7 @@ class Harness:
             return (None,)
         x, p, initialized, *_ = ekf.snapshot()
         return (id(ekf), x.tobytes(), p.tobytes(), initialized,
-                tuple((e.key, e.push) for e in self.node._history))
+                tuple((e.key, e.push) for e in self.node._replay.entries))
 
     def check_valid_episode(self) -> None:
         """The test of test_ekf_node.py: outline, observation, push, observation."""
@@ -340,9 +340,9 @@ def harness(ros_context: Any, monkeypatch: pytest.MonkeyPatch) -> Iterator[Harne
         h.node.destroy_node()
 
 
-_OWN_COUNTERS = {"dropped_nan", "dropped_invalid", "dropped_out_of_range", "dropped_future",
-                 "dropped_duplicate", "dropped_out_of_order", "dropped_before_init",
-                 "dropped_before_outline", "dropped_filter_error"}
+_OWN_COUNTERS = {"refused_nan", "refused_invalid", "refused_out_of_range", "refused_future",
+                 "refused_duplicate", "refused_out_of_order", "refused_before_init",
+                 "refused_before_outline", "refused_filter_error"}
 
 
 def _assert_rejected_or_applied(h: Harness, before_state: tuple, before: dict[str, int],
@@ -353,9 +353,9 @@ def _assert_rejected_or_applied(h: Harness, before_state: tuple, before: dict[st
     if applied in changed:
         ekf = h.node.filter
         assert np.all(np.isfinite(ekf.state)) and np.all(np.isfinite(ekf.covariance))
-    else:  # rejected: exactly one drop counter moved and nothing else changed
-        assert len(changed & _OWN_COUNTERS) == 1, changed
-        assert changed <= _OWN_COUNTERS | {"replaced_covariance"}, changed
+    else:  # refused: ``refused`` and exactly one refusal class moved, nothing else changed
+        assert len(changed & _OWN_COUNTERS) == 1 and "refused" in changed, changed
+        assert changed <= _OWN_COUNTERS | {"refused", "replaced_covariance"}, changed
         assert h.state() == before_state
 
 
@@ -379,8 +379,8 @@ def test_fuzz_observations(harness: Harness) -> None:
 
     run()
     counts = h.node.counts
-    assert counts["dropped_future"] > 0 and counts["dropped_nan"] > 0
-    assert counts["dropped_invalid"] > 0 and counts["observations"] > 0
+    assert counts["refused_future"] > 0 and counts["refused_nan"] > 0
+    assert counts["refused_invalid"] > 0 and counts["observations"] > 0
     # The issue's stamps: 2147483647 s 999999999 ns is refused when read, and a far-future
     # stamp (2147483646 s) is refused, so it cannot wedge the node.
     stamp = (h.published[-1].header.stamp.sec if h.published else 0)
@@ -418,8 +418,8 @@ def test_fuzz_pushes(harness: Harness) -> None:
 
     run()
     counts = h.node.counts
-    assert counts["dropped_out_of_range"] > 0 and counts["pushes"] > 0
-    assert counts["dropped_invalid"] > 0 and counts["dropped_nan"] > 0
+    assert counts["refused_out_of_range"] > 0 and counts["pushes"] > 0
+    assert counts["refused_invalid"] > 0 and counts["refused_nan"] > 0
     h.check_valid_episode()
 
 
@@ -430,7 +430,7 @@ def test_a_long_push_is_refused_before_any_model_step_and_the_loop_is_bounded(
     h.observe((0.0, 0.0, 0.0), 1.0)
     for length in (1e9, 1e4, 1.5):
         h.push((-0.05, 0.0), (-0.05 + length, 0.0), 2.0, 3.0)
-    assert h.model_calls == [] and h.node.counts["dropped_out_of_range"] == 3
+    assert h.model_calls == [] and h.node.counts["refused_out_of_range"] == 3
     # A 1 m push with 0.1 mm substeps would take 10,000 model steps: bounded at max_substeps.
     h.node.set_parameters([Parameter("substep", value=1e-4),
                            Parameter("max_substeps", value=500)])
@@ -466,7 +466,7 @@ def test_fuzz_outlines(harness: Harness) -> None:
 
     run()
     counts = h.node.counts
-    assert counts["rejected_outlines"] > N_FUZZ // 2 and counts["outlines"] > 10
+    assert counts["refused_outline"] > N_FUZZ // 2 and counts["outlines"] > 10
     assert counts["decimated_outlines"] >= 1  # the 3,000-point circle
     h.check_valid_episode()
 
@@ -529,14 +529,14 @@ def test_stamps_cannot_wedge_the_node_and_reset_clears_them(harness: Harness) ->
     msg = pose_with_covariance_msg((0.0, 0.0, 0.0), np.zeros((3, 3)),
                                    Time(sec=2147483646, nanosec=0))
     h.callbacks["/perception/object_pose"](msg)
-    assert h.node.counts["dropped_future"] == 1
+    assert h.node.counts["refused_future"] == 1
     msg.header.stamp = Time(sec=2147483647, nanosec=999_999_999)
     h.callbacks["/perception/object_pose"](msg)
-    assert h.node.counts["dropped_invalid"] == 1
+    assert h.node.counts["refused_invalid"] == 1
     h.observe((0.001, 0.0, 0.0), 2.0)  # still accepted: not wedged
     assert h.node.counts["observations"] == 2
     h.observe((0.001, 0.0, 0.0), 0.5)  # before the episode
-    assert h.node.counts["dropped_out_of_order"] == 1
+    assert h.node.counts["refused_out_of_order"] == 1
     assert "before the episode" in h.node._problem
     assert h.reset().success
     h.observe((0.0, 0.0, 0.0), 0.5)  # a new episode may start earlier
@@ -557,9 +557,9 @@ def test_with_sim_time_before_the_first_clock_the_future_rule_waits_and_reset_re
         h.outline()
         h.observe((0.0, 0.0, 0.0), 1.0)
         h.observe((0.0, 0.0, 0.0), 2147483646.0)  # cannot be judged yet: applied
-        assert node.counts["observations"] == 2 and node.counts["dropped_future"] == 0
+        assert node.counts["observations"] == 2 and node.counts["refused_future"] == 0
         h.observe((0.0, 0.0, 0.0), 3.0)  # older than the last applied input
-        assert node.counts["dropped_out_of_order"] == 1
+        assert node.counts["refused_out_of_order"] == 1
         assert h.reset().success  # clears every "last applied" time
         h.observe((0.0, 0.0, 0.0), 3.0)
         assert node.counts["observations"] == 3 and node.filter.initialized

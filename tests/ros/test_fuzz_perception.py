@@ -9,7 +9,7 @@ TiB remap grid of the issue), non-unit quaternions, 1e30 m translations, extreme
 complete colour + depth + camera_info triples of small valid-layout images with random
 content (the whole pipeline: CNN, geometry). Afterwards:
 
-- no exception reached the guard (``callback_error`` stays 0): every rejection was a checked
+- no exception reached the guard (``callback_errors`` stays 0): every rejection was a checked
   one, counted under its kind;
 - a rejected message changed nothing (the pending triples, the latched extrinsics);
 - the node still measures a rendered pybullet frame correctly (pose on
@@ -240,7 +240,7 @@ def _feed(n: SegmentationNode, callback: Callable[[Any], Any], msg: Any) -> None
     assert callback(msg) is None
     if _rejects(n) > rejected:
         assert _state(n) == before, "a rejected message changed the node's state"
-    assert n._counts["callback_error"] == 0, n._last_error
+    assert n._counts["callback_errors"] == 0, n._last_error
 
 
 # ---- in-process fuzzing: >= 2,000 messages per topic -------------------------------------------
@@ -382,7 +382,7 @@ def test_fuzz_complete_frames(node: SegmentationNode) -> None:
 def test_after_the_fuzz_the_node_measures_a_rendered_frame(node: SegmentationNode,
                                                            rendered: dict[str, Any]) -> None:
     """Runs after the fuzz tests above (file order): no escaped exception, correct poses."""
-    assert node._counts["callback_error"] == 0
+    assert node._counts["callback_errors"] == 0
     response = node.on_reset(Trigger.Request(), Trigger.Response())
     assert response.success, response.message
     poses = []
@@ -401,7 +401,7 @@ def test_after_the_fuzz_the_node_measures_a_rendered_frame(node: SegmentationNod
         assert np.hypot(*(pose[:2] - truth[:2])) < 0.003
     turn = rendered["b"].object_pose[2] - rendered["a"].object_pose[2]
     assert abs(math.remainder(poses[1][2] - turn, math.pi)) < math.radians(2.0)
-    assert node._counts["callback_error"] == 0
+    assert node._counts["callback_errors"] == 0
 
 
 # ---- over DDS: 100 hostile messages per topic on the real topics -------------------------------
@@ -435,7 +435,7 @@ def test_fuzz_over_dds_node_stays_alive_and_answers_reset(module_ros_context: An
         future = reset.call_async(Trigger.Request())
         assert spin_until(executor, future.done, time.monotonic() + 30.0)
         assert future.result().success, future.result().message
-        assert node._counts["callback_error"] == 0, node._last_error
+        assert node._counts["callback_errors"] == 0, node._last_error
         assert _rejects(node) > 0
     finally:
         executor.shutdown()

@@ -13,9 +13,12 @@ strategies, no DDS, at least 2,000 messages per topic:
   self-intersecting outlines, objects larger than the workspace, counts up to 200 (and,
   deterministically, 1,001 and 20,000: decimated to ``MAX_OUTLINE_POINTS``);
 - ``pusher/executed``: empty, other frames, NaN poses, extreme and reversed stamps;
+- ``pusher/refused`` (issue 20): malformed and foreign ``push_stamp`` values, missing and
+  repeated keys, huge names and reasons, and refusals of the push in flight (each a lost push
+  and a new plan, until the episode fails and is reset);
 - parameter sets (random values of every parameter, then ``~/reset``).
 
-After every message: no exception reached a guard (the node's ``errors`` counter stays 0);
+After every message: no exception reached a guard (the node's ``callback_errors`` counter stays 0);
 a refused message (``refused`` counter up) changed nothing (:func:`snapshot`). At the end the
 node still plans a correct push for a valid outline + estimate + goal. Caps are asserted by
 counters and sizes, never by timing.
@@ -41,7 +44,7 @@ pytestmark = [pytest.mark.ros]
 hypothesis = pytest.importorskip("hypothesis")
 
 from builtin_interfaces.msg import Time  # noqa: E402
-from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue  # noqa: E402
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped  # noqa: E402
 from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
@@ -306,6 +309,32 @@ def paths(draw: Callable) -> Path:
     return msg
 
 
+TEXT = st.one_of(st.text(max_size=40), st.sampled_from(["", "x" * 100_000, "\x00", "busy"]))
+PUSH_STAMP = st.one_of(
+    st.just("IN_FLIGHT"),
+    st.builds(lambda s, n: f"{s}.{n:09d}", st.integers(0, 2**31), st.integers(0, 10**9 - 1)),
+    st.sampled_from(["", "1", "1.5", "-1.000000000", "1.0000000000", "\u00b21.000000000",
+                     "1.00000000a", "99999999999.000000000", " 1.000000000", "nan"]),
+    TEXT)
+KEY = st.sampled_from(["push_stamp", "push_stamp", "kind", "stage", "other", ""])
+
+
+@st.composite
+def refusals(draw: Callable) -> tuple[DiagnosticStatus, bool]:
+    """A ``pusher/refused`` message; the flag: its push_stamp is the push in flight's
+    (``IN_FLIGHT`` is replaced when sent)."""
+    msg = DiagnosticStatus(level=bytes([draw(st.integers(0, 255))]), name=draw(TEXT),
+                           message=draw(TEXT), hardware_id=draw(TEXT))
+    pairs = draw(st.lists(st.tuples(KEY, st.one_of(PUSH_STAMP, TEXT)), max_size=6))
+    stamp = draw(PUSH_STAMP)
+    if draw(st.integers(0, 4)):  # mostly with a push_stamp first
+        pairs.insert(0, ("push_stamp", stamp))
+    msg.values = [KeyValue(key=k, value=v) for k, v in pairs]
+    if draw(st.integers(0, 9)) == 0:
+        msg.values = [KeyValue(key="other", value="")] * 40 + msg.values
+    return msg, any(v == "IN_FLIGHT" for _, v in pairs)
+
+
 # ---- the node ----------------------------------------------------------------------------------
 class Probe:
     """The node, its subscription callbacks by topic, its service and what it publishes."""
@@ -329,11 +358,11 @@ class Probe:
 
     @property
     def errors(self) -> int:
-        return self.node._errors
+        return self.node.health.get("callback_errors")
 
     @property
     def refused(self) -> int:
-        return self.node._refused
+        return self.node.health.get("refused")
 
 
 def snapshot(node: PlannerNode) -> tuple:
@@ -342,15 +371,15 @@ def snapshot(node: PlannerNode) -> tuple:
     latest = None if e.latest is None else (e.latest[0], e.latest[1].tobytes())
     return (None if e.goal is None else e.goal.tobytes(), id(e.outline), latest,
             e.last_push_end, e.steps, e.phase, e.in_flight, len(e._avoid),
-            tuple((s, p.tobytes()) for s, p in node._poses),
-            tuple(s.tobytes() for s, _ in node._states), node._goal_source,
+            tuple((s, p.tobytes()) for s, p in node._pairing.poses),
+            tuple(s.tobytes() for s, _ in node._pairing.states), node._goals.source,
             node.params)
 
 
 def send_checked(probe: Probe, topic: str, msg: Any, info: Any = None) -> None:
     before, refused = snapshot(probe.node), probe.refused
     probe.send(topic, msg, info)
-    assert probe.errors == 0, probe.node._last_error
+    assert probe.errors == 0, probe.node.health.last_error
     if probe.refused > refused and topic not in ("estimator/object_pose", "estimator/state"):
         assert snapshot(probe.node) == before, f"refused {topic} changed the state"
 
@@ -361,8 +390,8 @@ def send_estimate_checked(probe: Probe, msgs: list[Any]) -> None:
             "estimator/object_pose"
         before, refused = snapshot(probe.node), probe.refused
         probe.send(topic, msg)
-        assert probe.errors == 0, probe.node._last_error
-        if probe.refused > refused and probe.node._last_refusal.startswith(topic):
+        assert probe.errors == 0, probe.node.health.last_error
+        if probe.refused > refused and probe.node.health.last_refusal.startswith(topic):
             assert snapshot(probe.node) == before, f"refused {topic} changed the state"
 
 
@@ -429,7 +458,7 @@ def test_fuzz_outlines(probe: Probe) -> None:
     # An object larger than the workspace is refused with the reason.
     pts, normals = star(40, 1000.0, 0.0, 0)
     send_checked(probe, "perception/outline", outline_cloud_msg(pts, normals))
-    assert "workspace diagonal" in probe.node._last_refusal
+    assert "workspace diagonal" in probe.node.health.last_refusal
     assert probe.errors == 0
 
 
@@ -477,6 +506,47 @@ def test_fuzz_executed(probe: Probe) -> None:
 
     run()
     assert probe.errors == 0
+
+
+def start_pushing(probe: Probe) -> None:
+    """A new episode with a push in flight."""
+    assert probe.reset().success
+    probe.send("perception/outline", valid_cloud())
+    probe.send("goal_pose", valid_goal(), None)
+    send_valid_estimate(probe, (0.0, 0.0, 0.0), T0)
+    assert probe.node._engine.in_flight
+
+
+def test_fuzz_refusals(probe: Probe) -> None:
+    start_pushing(probe)
+    matched = [0]
+
+    @FUZZ
+    @given(refusals())
+    def run(case: tuple[DiagnosticStatus, bool]) -> None:
+        msg, _ = case
+        node = probe.node
+        in_flight = node._push_key
+        for kv in msg.values:
+            if kv.value == "IN_FLIGHT":
+                kv.value = in_flight or "0.000000000"
+        before, lost, pushes = snapshot(node), node._engine.counts["lost"], len(probe.pushes)
+        refused_before = node.health.get("pushes_refused")
+        probe.send("pusher/refused", msg)
+        assert probe.errors == 0, node.health.last_error
+        if node.health.get("pushes_refused") == refused_before:  # refused or ignored: no change
+            assert snapshot(node) == before and len(probe.pushes) == pushes
+            return
+        matched[0] += 1
+        assert node._engine.counts["lost"] == lost + 1
+        assert "refused" in node._status().message
+        assert len(probe.pushes) == pushes + (node._engine.phase == "pushing")
+        if not node._engine.in_flight:  # failed (max steps, no feasible push): a new episode
+            start_pushing(probe)
+
+    run()
+    assert matched[0] >= N_FUZZ // 20 and probe.errors == 0
+    assert probe.refused > 0 and probe.node.health.get("refusals_ignored") > 0
 
 
 def parameter_values() -> st.SearchStrategy[tuple[str, Any]]:
@@ -557,6 +627,8 @@ def test_fuzz_over_dds_the_node_stays_alive_and_answers_reset(
         "estimator/object_pose": client.create_publisher(
             PoseWithCovarianceStamped, "estimator/object_pose", LATCHED_QOS),
         "pusher/executed": client.create_publisher(Path, "pusher/executed", RELIABLE_QOS),
+        "pusher/refused": client.create_publisher(DiagnosticStatus, "pusher/refused",
+                                                  RELIABLE_QOS),
     }
     reset = client.create_client(Trigger, "planner_node/reset")
     try:
@@ -565,15 +637,16 @@ def test_fuzz_over_dds_the_node_stays_alive_and_answers_reset(
         sent = []
 
         @settings(FUZZ, max_examples=N_DDS)
-        @given(goals(), clouds(), estimates(), paths())
+        @given(goals(), clouds(), estimates(), paths(), refusals())
         def run(goal: tuple[PoseStamped, Any], cloud: PointCloud2, est: list[Any],
-                path: Path) -> None:
+                path: Path, refusal: tuple[DiagnosticStatus, bool]) -> None:
             pubs["goal_pose"].publish(goal[0])
             pubs["perception/outline"].publish(cloud)
             for msg in est:
                 pubs["estimator/state" if isinstance(msg, Float64MultiArray)
                      else "estimator/object_pose"].publish(msg)
             pubs["pusher/executed"].publish(path)
+            pubs["pusher/refused"].publish(refusal[0])
             sent.append(1)
             executor.spin_once(timeout_sec=0.0)
 
@@ -591,7 +664,7 @@ def test_fuzz_over_dds_the_node_stays_alive_and_answers_reset(
         assert wait_for(lambda: "waiting" in status[-1].message, timeout=10.0,
                         executor=executor)
         values = {kv.key: kv.value for kv in status[-1].values}
-        assert values["errors"] == "0", values["last_error"]
+        assert values["callback_errors"] == "0", values["last_error"]
     finally:
         executor.shutdown()
         client.destroy_node()

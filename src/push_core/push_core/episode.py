@@ -71,6 +71,7 @@ from push_core.symmetry import has_continuous_symmetry, symmetry_order_of_polygo
 __all__ = [
     "AFTER_GOAL",
     "COUNTERS",
+    "ORIENTATION_IGNORED",
     "EpisodeEngine",
     "Step",
     "end_score",
@@ -83,6 +84,8 @@ COUNTERS = ("estimates", "planned", "ignored_stale", "ignored_duplicate", "ignor
             "lost", "left")
 #: What the engine does when the object leaves the goal region after ``reached`` (rule 7).
 AFTER_GOAL = ("resume", "report")
+#: Said by :meth:`EpisodeEngine.status_text` when the outline is continuously symmetric.
+ORIENTATION_IGNORED = "orientation ignored: rotationally symmetric outline"
 
 
 @dataclass(frozen=True)
@@ -239,6 +242,31 @@ class EpisodeEngine:
     def latest(self) -> tuple[float, NDArray[np.float64], NDArray[np.float64] | None] | None:
         """(stamp, state, covariance) of the newest estimate, or None."""
         return self._latest
+
+    @property
+    def orientation_matters(self) -> bool:
+        """False for a continuously symmetric outline (the stop rule ignores theta)."""
+        return self.outline is None or self.outline.orientation_matters
+
+    def status_text(self) -> str:
+        """The episode in words: ``waiting`` (``for goal, outline, estimate`` what is missing),
+        ``pushing step n``, ``goal reached`` (with ``(ORIENTATION_IGNORED)`` for a continuously
+        symmetric outline), ``goal left``, ``failed after max steps`` or ``failed: no feasible
+        push``."""
+        if self.phase == "pushing":
+            return f"pushing step {self.steps}"
+        if self.phase == "reached":
+            return "goal reached" + ("" if self.orientation_matters
+                                     else f" ({ORIENTATION_IGNORED})")
+        if self.phase == "left":
+            return "goal left"
+        if self.phase == "failed":
+            return ("failed after max steps" if self.failure == "max steps"
+                    else "failed: no feasible push")
+        missing = [name for name, have in (("goal", self.goal is not None),
+                                           ("outline", self.outline is not None),
+                                           ("estimate", self._latest is not None)) if not have]
+        return "waiting" + (f" for {', '.join(missing)}" if missing else "")
 
     def step(self) -> Step:
         """Decide on the newest estimate if rule 1 allows it (module docstring, rules 2-3)."""

@@ -92,7 +92,7 @@ than a few millimetres), ``too_large`` (object points more than 2048 raster cell
 allocated). Work per frame is bounded (:mod:`push_perception.core`, "Bounded work per
 frame": outline at most 1000 points). Every callback (subscriptions, the reset service, the
 diagnostics timer) is wrapped by :func:`push_ros.node.guarded`: an exception that still
-escaped would be logged, counted as ``callback_error`` and reported, and the node keeps
+escaped would be logged, counted as ``callback_errors`` and reported, and the node keeps
 running (the fuzz tests, ``tests/ros/test_fuzz_perception.py``, expect none).
 
 Parameters (declared below with descriptions and ranges; defaults and units commented in
@@ -176,7 +176,7 @@ LATENCY_WINDOW = 100
 FAILURE_KINDS = ("bad_color", "bad_depth", "size_mismatch", "bad_camera_info",
                  "bad_extrinsics", "bad_stamp", "frame_mismatch", "missing_camera_info",
                  "no_extrinsics", "empty_mask", "out_of_view", "few_pixels", "no_depth",
-                 "fragmented", "too_large", "bad_input", "callback_error")
+                 "fragmented", "too_large", "bad_input", "callback_errors")
 #: Encodings of the colour and the depth stream.
 COLOR_ENCODINGS = ("rgb8", "bgr8")
 DEPTH_ENCODINGS = ("32FC1", "16UC1", "mono16")
@@ -330,7 +330,7 @@ class SegmentationNode(Node):
         self._diagnostics = DiagnosticsPublisher(self, "perception", "rgbd_camera")
         sensor = SENSOR_QOS
         # Every callback is guarded: no exception leaves it (it is logged, counted as
-        # callback_error and reported on /diagnostics). The guarded callables are attributes
+        # callback_errors and reported on /diagnostics). The guarded callables are attributes
         # so tests can call them directly with real messages.
         self.on_color = self._guard(self._on_color)
         self.on_depth = self._guard(self._on_depth)
@@ -371,8 +371,8 @@ class SegmentationNode(Node):
 
     def _on_callback_error(self, name: str, message: str) -> None:
         """An exception inside a callback (already logged by ``guarded``): count, report."""
-        self._counts["callback_error"] += 1
-        self._last_error = f"callback_error: {name}: {message}"
+        self._counts["callback_errors"] += 1
+        self._last_error = f"callback_errors: {name}: {message}"
         self._ok = False
         self._publish_diagnostics()
 

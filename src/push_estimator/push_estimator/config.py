@@ -1,0 +1,181 @@
+"""``ekf_node``'s parameters: the declared table and the typed, validated configuration.
+
+:data:`PARAMETERS` is the one declaration of every parameter (name, default, description with
+unit, bounds, read-only), node-only parameters first; :data:`_FIELDS` maps the others to the
+:class:`~push_core.estimator.EKFConfig` field they set. :meth:`EkfNodeParams.from_values` builds
+the frozen configuration and raises ``ValueError`` naming the parameter.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+from typing import Any
+
+from push_core.estimator import EKFConfig
+from push_ros.frames import OBJECT_FRAME, WORLD_FRAME
+from push_ros.node import ParamSpec
+
+__all__ = ["PARAMETERS", "EkfNodeParams"]
+
+_DEFAULTS = EKFConfig()
+#: The parameter table (node-only parameters first); :data:`_FIELDS` maps the others to the
+#: :class:`EKFConfig` field they set.
+PARAMETERS: tuple[ParamSpec, ...] = (
+    ParamSpec("world_frame", WORLD_FRAME, "Frame of observations, pushes and the estimated pose.",
+              read_only=True),
+    ParamSpec("object_frame", OBJECT_FRAME, "Frame of the outline and the COM.", read_only=True),
+    ParamSpec("publish_tf", True, "Publish world -> object on /tf (only where tf2_msgs "
+              "exists).", read_only=True),
+    ParamSpec("diagnostics_period", 1.0, "Period of the regular /diagnostics message, s (wall "
+              "time).", (0.1, 60.0), read_only=True),
+    ParamSpec("max_future_stamp", 10.0, "Inputs stamped more than this ahead of the node's "
+              "clock are dropped, s (not applied while use_sim_time has no /clock yet).",
+              (0.0, 3600.0)),
+    ParamSpec("max_push_length", 1.0, "Longest pusher travel of one pusher/executed, m; a "
+              "longer push is dropped before any model step.", (1e-3, 10.0)),
+    ParamSpec("observation.use_message_covariance", True, "Use the covariance of "
+              "perception/object_pose when it is symmetric positive definite."),
+    ParamSpec("observation.position_sigma", _DEFAULTS.position_sigma,
+              "Observation noise of x and y (standard deviation), m.", (1e-5, 0.1)),
+    ParamSpec("observation.angle_sigma", _DEFAULTS.angle_sigma,
+              "Observation noise of theta (standard deviation), rad.", (1e-5, 1.0)),
+    ParamSpec("symmetry_order", 0, "Rotational symmetry order of the object's outline: 1 = "
+              "none, k = looks the same after 2 pi / k, 0 = detect from the outline.", (0, 64)),
+    ParamSpec("symmetry_tolerance", _DEFAULTS.symmetry_tolerance,
+              "Largest outline mismatch of a symmetry when detecting it, m.", (1e-5, 0.02)),
+    ParamSpec("pusher_radius", _DEFAULTS.pusher_radius, "Radius of the pusher, m.",
+              (0.0, 0.05)),
+    ParamSpec("substep", _DEFAULTS.substep, "Longest model step along a push, m.", (1e-4, 0.2)),
+    ParamSpec("max_substeps", _DEFAULTS.max_substeps, "Most model steps of one push (a longer "
+              "push is integrated in this many equal, longer steps).", (1, 100000)),
+    ParamSpec("contact_tol", _DEFAULTS.contact_tol, "Contact test tolerance, m.", (0.0, 0.01)),
+    ParamSpec("outline_tolerance", _DEFAULTS.outline_tolerance,
+              "Douglas-Peucker tolerance of the contact outline, m.", (1e-5, 0.01)),
+    ParamSpec("iterations", _DEFAULTS.iterations, "Linearisations of a push per observation "
+              "(1 = plain EKF, 2 = one re-linearisation).", (1, 10)),
+    ParamSpec("initial.com_prior_fraction", _DEFAULTS.com_prior_fraction,
+              "COM prior covariance = fraction^2 x the outline area's second moment (1 = "
+              "anywhere in the object).", (1e-3, 10.0)),
+    ParamSpec("initial.l_sigma_fraction", _DEFAULTS.l_sigma_fraction,
+              "Initial standard deviation of l as a fraction of l_0.", (1e-3, 10.0)),
+    ParamSpec("initial.m", _DEFAULTS.m_init, "Initial pusher-object friction coefficient.",
+              (0.01, 5.0)),
+    ParamSpec("initial.m_sigma", _DEFAULTS.m_sigma, "Initial standard deviation of m.",
+              (1e-4, 5.0)),
+    ParamSpec("limits.l_min_fraction", _DEFAULTS.l_min_fraction,
+              "Lower clip of l as a fraction of l_0 (upper clip: outline radius).",
+              (1e-3, 0.99)),
+    ParamSpec("limits.m_min", _DEFAULTS.m_range[0], "Lower clip of m.", (1e-3, 5.0)),
+    ParamSpec("limits.m_max", _DEFAULTS.m_range[1], "Upper clip of m.", (1e-3, 5.0)),
+    ParamSpec("process_noise.position_min", _DEFAULTS.position_noise_min,
+              "x, y process noise per push, constant part, m.", (0.0, 0.1)),
+    ParamSpec("process_noise.position_per_metre", _DEFAULTS.position_noise_per_metre,
+              "x, y process noise per metre of pusher travel in contact, m/m.", (0.0, 10.0)),
+    ParamSpec("process_noise.angle_min", _DEFAULTS.angle_noise_min,
+              "theta process noise per push, constant part, rad.", (0.0, 1.0)),
+    ParamSpec("process_noise.angle_per_metre", _DEFAULTS.angle_noise_per_metre,
+              "theta process noise per metre of pusher travel in contact, rad/m.",
+              (0.0, 100.0)),
+    ParamSpec("process_noise.com", _DEFAULTS.com_noise, "COM random walk per push (each "
+              "axis), m.", (0.0, 0.1)),
+    ParamSpec("process_noise.l", _DEFAULTS.l_noise, "l random walk per push, m.", (0.0, 0.1)),
+    ParamSpec("process_noise.m", _DEFAULTS.m_noise, "m random walk per push.", (0.0, 1.0)),
+    ParamSpec("gate_probability", _DEFAULTS.gate_probability, "Chi-square probability (3 dof) "
+              "of the innovation gate; 1 disables gating.", (1e-6, 1.0)),
+)
+_FIELDS: dict[str, str] = {
+    "observation.position_sigma": "position_sigma",
+    "observation.angle_sigma": "angle_sigma",
+    "symmetry_order": "symmetry_order",
+    "symmetry_tolerance": "symmetry_tolerance",
+    "pusher_radius": "pusher_radius",
+    "substep": "substep",
+    "max_substeps": "max_substeps",
+    "contact_tol": "contact_tol",
+    "outline_tolerance": "outline_tolerance",
+    "iterations": "iterations",
+    "initial.com_prior_fraction": "com_prior_fraction",
+    "initial.l_sigma_fraction": "l_sigma_fraction",
+    "initial.m": "m_init",
+    "initial.m_sigma": "m_sigma",
+    "limits.l_min_fraction": "l_min_fraction",
+    "process_noise.position_min": "position_noise_min",
+    "process_noise.position_per_metre": "position_noise_per_metre",
+    "process_noise.angle_min": "angle_noise_min",
+    "process_noise.angle_per_metre": "angle_noise_per_metre",
+    "process_noise.com": "com_noise",
+    "process_noise.l": "l_noise",
+    "process_noise.m": "m_noise",
+    "gate_probability": "gate_probability",
+}
+_PARAMETER_NAMES = frozenset(spec.name for spec in PARAMETERS)
+
+
+@dataclass(frozen=True)
+class EkfNodeParams:
+    """The node's parameters, typed and validated.
+
+    Attributes
+    ----------
+    config : EKFConfig
+        The filter's settings.
+    world_frame, object_frame : str
+    publish_tf : bool
+    diagnostics_period : float
+        s (wall time).
+    use_message_covariance : bool
+    max_future_stamp : float
+        s ahead of the node's clock.
+    max_push_length : float
+        m of pusher travel.
+    """
+
+    config: EKFConfig
+    world_frame: str
+    object_frame: str
+    publish_tf: bool
+    diagnostics_period: float
+    use_message_covariance: bool
+    max_future_stamp: float = 10.0
+    max_push_length: float = 1.0
+
+    @classmethod
+    def from_values(cls, values: dict[str, Any]) -> EkfNodeParams:
+        """Build from ``{parameter name: value}``.
+
+        Raises
+        ------
+        ValueError
+            Naming the parameter (through :class:`EKFConfig` validation where it is a filter
+            setting).
+        """
+        kwargs = {field: values[name] for name, field in _FIELDS.items()}
+        kwargs["m_range"] = (values["limits.m_min"], values["limits.m_max"])
+        try:
+            config = EKFConfig(**kwargs)
+        except ValueError as exc:
+            names = {field: name for name, field in _FIELDS.items()}
+            names["m_range"] = "limits.m_min/limits.m_max"
+            field = next((f.name for f in fields(EKFConfig) if str(exc).startswith(f.name)),
+                         None)
+            raise ValueError(f"parameter {names.get(field, field)!r}: {exc}") from None
+        for name in ("world_frame", "object_frame"):
+            if not str(values[name]).strip():
+                raise ValueError(f"parameter {name!r} must not be empty")
+        limits = {}
+        for name, (low, high) in (("max_future_stamp", (0.0, 3600.0)),
+                                  ("max_push_length", (1e-3, 10.0))):
+            value = values[name]
+            if isinstance(value, bool) or not isinstance(value, int | float) or \
+                    not low <= value <= high:
+                raise ValueError(f"parameter {name!r} must be a number in [{low:g}, {high:g}], "
+                                 f"got {value!r}")
+            limits[name] = float(value)
+        return cls(config=config, world_frame=str(values["world_frame"]),
+                   object_frame=str(values["object_frame"]),
+                   publish_tf=bool(values["publish_tf"]),
+                   diagnostics_period=float(values["diagnostics_period"]),
+                   use_message_covariance=bool(values["observation.use_message_covariance"]),
+                   **limits)
+
+
