@@ -308,3 +308,37 @@ def test_play_leaves_command_topics_out_unless_asked(tmp_path: Path, capsys) -> 
     assert cli.main(['bag', 'play', str(bag), '--rate', '100', '--topics', 'goal_pose']) == 0
     captured = capsys.readouterr()
     assert 'published 1 messages: /goal_pose 1' in captured.out and 'leaving' not in captured.err
+
+
+# --- record: short-lived publishers and the default folder (issue 23, item 10) -------------
+
+def test_record_all_catches_a_short_lived_publisher(tmp_path: Path, processes) -> None:
+    # What `pushbot goal` does: a new process, a new topic, one message once a subscriber
+    # matched (at most 2 s), the publisher gone 2 s later. `bag record --all`, already running,
+    # must subscribe within those 2 s (a recorder that looks too rarely misses the message).
+    from rosbags.rosbag2 import Reader
+
+    from pushbot.bag import BagRecorder, TopicSelection
+
+    topic = f'/short_lived_{time.monotonic_ns()}'
+    with BagRecorder(tmp_path / 'bag', TopicSelection(all_topics=True)) as recorder:
+        proc = processes.start([PUSHBOT, 'topic', 'pub', topic, 'std_msgs/msg/String',
+                                '{data: once}', '--once', '-w', '1', '--max-wait-time-secs', '2',
+                                '--keep-alive', '2'],
+                               name='pub')
+        assert proc.wait(timeout=60) == 0, processes.output(proc)
+        time.sleep(0.5)  # the last sample's way to the recorder
+        counts = recorder.counts()
+    assert counts.get(topic) == 1, (counts, processes.output(proc))
+    with Reader(tmp_path / 'bag') as reader:
+        assert {c.topic: c.msgcount for c in reader.connections}[topic] == 1
+
+
+def test_record_without_output_writes_under_out(tmp_path: Path, monkeypatch, capsys) -> None:
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(['bag', 'record', '/nobody_publishes_this', '--duration', '0.5']) == 1
+    out = capsys.readouterr().out
+    (bag,) = (tmp_path / 'out').iterdir()
+    assert bag.name.startswith('rosbag2_') and (bag / 'metadata.yaml').is_file()
+    assert f'recording to out/{bag.name}' in out
+    assert not list(tmp_path.glob('rosbag2_*'))

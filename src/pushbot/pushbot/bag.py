@@ -59,8 +59,13 @@ if TYPE_CHECKING:
 ROSBAG2_VERSION = 9
 #: Topics ``record --all`` leaves out unless named: rosout and the parameter event stream.
 DEFAULT_EXCLUDED = ('/rosout', '/parameter_events')
-#: Seconds between two looks at the graph for new topics while recording.
-DISCOVERY_PERIOD = 0.5
+#: Seconds between two looks at the graph for new topics while recording: short, so that a
+#: short-lived publisher (``pushbot goal``, ``topic pub --once``) is subscribed while it lives
+#: (a look costs well under a millisecond on a graph of this size).
+DISCOVERY_PERIOD = 0.1
+#: Where ``record`` without ``-o`` creates its bag folder (git-ignored), as
+#: ``rosbag2_YYYY_MM_DD-HH_MM_SS`` under it.
+DEFAULT_BAG_DIR = Path('out')
 #: Default rate of ``/clock`` during ``play --clock`` (rosbag2's default), Hz.
 CLOCK_HZ = 40.0
 #: Command topics of the graph (matched as the last segments of a topic name, so namespaced
@@ -246,6 +251,7 @@ class BagRecorder:
         # metadata: the storage compresses, not rosbag2).
         writer.set_compression(rosbag2.CompressionMode.STORAGE, rosbag2.CompressionFormat.ZSTD)
         try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
             writer.open()
         except (OSError, rosbag2.WriterError) as exc:
             raise BagError(f'cannot create bag {self.path}: {exc}') from exc
@@ -400,7 +406,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument('-a', '--all', action='store_true',
                    help=f'record every topic (except {", ".join(DEFAULT_EXCLUDED)})')
     p.add_argument('-o', '--output', type=Path, default=None,
-                   help='bag folder to create (default: rosbag2_YYYY_MM_DD-HH_MM_SS)')
+                   help=f'bag folder to create (default: {DEFAULT_BAG_DIR}/'
+                   'rosbag2_YYYY_MM_DD-HH_MM_SS)')
     p.add_argument('--duration', type=float, default=None,
                    help='stop after this many seconds (default: until Ctrl-C)')
     p.add_argument('-e', '--exclude', default=None, metavar='REGEX',
@@ -462,7 +469,8 @@ def cmd_record(args: argparse.Namespace) -> int:
         exclude = re.compile(args.exclude) if args.exclude else None
     except re.error as exc:
         raise BagError(f'--exclude {args.exclude!r} is not a regular expression: {exc}') from exc
-    out = args.output or Path(datetime.datetime.now().strftime('rosbag2_%Y_%m_%d-%H_%M_%S'))
+    out = args.output or DEFAULT_BAG_DIR / datetime.datetime.now().strftime(
+        'rosbag2_%Y_%m_%d-%H_%M_%S')
     selection = TopicSelection(tuple(_absolute(t) for t in args.topics), args.all, exclude)
     recorder = BagRecorder(out, selection)
     deadline = math.inf if args.duration is None else time.monotonic() + args.duration
