@@ -314,8 +314,9 @@ def test_play_leaves_command_topics_out_unless_asked(tmp_path: Path, capsys) -> 
 
 def test_record_all_catches_a_short_lived_publisher(tmp_path: Path, processes) -> None:
     # What `pushbot goal` does: a new process, a new topic, one message once a subscriber
-    # matched (at most 2 s), the publisher gone 2 s later. `bag record --all`, already running,
-    # must subscribe within those 2 s (a recorder that looks too rarely misses the message).
+    # matched (waiting at most 4 s, DDS discovery of the new process included), the publisher
+    # gone 2 s later. `bag record --all`, already running, must subscribe within that window
+    # (a recorder that looks for new topics too rarely misses the message).
     from rosbags.rosbag2 import Reader
 
     from pushbot.bag import BagRecorder, TopicSelection
@@ -323,7 +324,7 @@ def test_record_all_catches_a_short_lived_publisher(tmp_path: Path, processes) -
     topic = f'/short_lived_{time.monotonic_ns()}'
     with BagRecorder(tmp_path / 'bag', TopicSelection(all_topics=True)) as recorder:
         proc = processes.start([PUSHBOT, 'topic', 'pub', topic, 'std_msgs/msg/String',
-                                '{data: once}', '--once', '-w', '1', '--max-wait-time-secs', '2',
+                                '{data: once}', '--once', '-w', '1', '--max-wait-time-secs', '4',
                                 '--keep-alive', '2'],
                                name='pub')
         assert proc.wait(timeout=60) == 0, processes.output(proc)
