@@ -13,6 +13,7 @@ import signal
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 import yaml
@@ -238,3 +239,107 @@ def test_a_failing_write_is_counted_not_silent(tmp_path: Path, ros_context, wait
         node.destroy_node()
     with Reader(tmp_path / 'bag') as reader:
         assert reader.message_count == 2
+
+
+# --- bag play leaves command topics out (issue 23, item 7) ---------------------------------
+
+def _write_bag(path: Path, topics: dict[str, tuple[str, Any]]) -> None:
+    """A bag of one message per topic (``{topic: (msgtype, message)}``), written with rosbags
+    as ``bag record`` writes it."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    from pushbot.bag import ROSBAG2_VERSION, message_definition
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    with Writer(path, version=ROSBAG2_VERSION, storage_plugin=StoragePlugin.MCAP) as writer:
+        for k, (name, (msgtype, message)) in enumerate(sorted(topics.items())):
+            msgdef, rihs01 = message_definition(msgtype)
+            conn = writer.add_connection(name, msgtype, msgdef=msgdef, rihs01=rihs01,
+                                         serialization_format='cdr', offered_qos_profiles=[])
+            writer.write(conn, 1_000_000_000 + k * 1_000_000,
+                         bytes(store.serialize_cdr(message, msgtype)))
+
+
+def test_command_topics_are_recognised() -> None:
+    from pushbot.bag import is_command_topic
+
+    string = 'std_msgs/msg/String'
+    for name in ('/goal_pose', '/planner/push', '/sim/knock', '/robot1/goal_pose',
+                 '/executor/cancel', '/cmd_vel'):
+        assert is_command_topic(name, string), name
+    assert is_command_topic('/arm/joint_trajectory', 'trajectory_msgs/msg/JointTrajectory')
+    for name in ('/planner/status', '/planner/pushes', '/estimator/state', '/my_goal_pose',
+                 '/camera/color/image_raw', '/pusher/executed'):
+        assert not is_command_topic(name, string), name
+
+
+def test_play_leaves_command_topics_out_unless_asked(tmp_path: Path, capsys) -> None:
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    string = store.types['std_msgs/msg/String']
+    pose = store.types['geometry_msgs/msg/PoseStamped']
+    header = store.types['std_msgs/msg/Header'](
+        stamp=store.types['builtin_interfaces/msg/Time'](sec=0, nanosec=0), frame_id='world')
+    point = store.types['geometry_msgs/msg/Point'](x=0.0, y=0.0, z=0.0)
+    quat = store.types['geometry_msgs/msg/Quaternion'](x=0.0, y=0.0, z=0.0, w=1.0)
+    goal = pose(header=header, pose=store.types['geometry_msgs/msg/Pose'](
+        position=point, orientation=quat))
+    trajectory = store.types['trajectory_msgs/msg/JointTrajectory'](
+        header=header, joint_names=['j1'], points=[])
+    bag = tmp_path / 'bag'
+    _write_bag(bag, {
+        '/chatter': ('std_msgs/msg/String', string(data='hello')),
+        '/goal_pose': ('geometry_msgs/msg/PoseStamped', goal),
+        '/planner/push': ('std_msgs/msg/String', string(data='push')),
+        '/arm/trajectory': ('trajectory_msgs/msg/JointTrajectory', trajectory),
+    })
+    assert cli.main(['bag', 'play', str(bag), '--rate', '100']) == 0
+    captured = capsys.readouterr()
+    assert 'published 1 messages: /chatter 1' in captured.out
+    assert ('leaving out the command topics /arm/trajectory, /goal_pose, /planner/push'
+            in captured.err)
+    assert cli.main(['bag', 'play', str(bag), '--rate', '100', '--include-commands']) == 0
+    captured = capsys.readouterr()
+    assert ('published 4 messages: /arm/trajectory 1, /chatter 1, /goal_pose 1, '
+            '/planner/push 1') in captured.out
+    assert 'leaving out' not in captured.err
+    assert cli.main(['bag', 'play', str(bag), '--rate', '100', '--topics', 'goal_pose']) == 0
+    captured = capsys.readouterr()
+    assert 'published 1 messages: /goal_pose 1' in captured.out and 'leaving' not in captured.err
+
+
+# --- record: short-lived publishers and the default folder (issue 23, item 10) -------------
+
+def test_record_all_catches_a_short_lived_publisher(tmp_path: Path, processes) -> None:
+    # What `pushbot goal` does: a new process, a new topic, one message once a subscriber
+    # matched (waiting at most 4 s, DDS discovery of the new process included), the publisher
+    # gone 2 s later. `bag record --all`, already running, must subscribe within that window
+    # (a recorder that looks for new topics too rarely misses the message).
+    from rosbags.rosbag2 import Reader
+
+    from pushbot.bag import BagRecorder, TopicSelection
+
+    topic = f'/short_lived_{time.monotonic_ns()}'
+    with BagRecorder(tmp_path / 'bag', TopicSelection(all_topics=True)) as recorder:
+        proc = processes.start([PUSHBOT, 'topic', 'pub', topic, 'std_msgs/msg/String',
+                                '{data: once}', '--once', '-w', '1', '--max-wait-time-secs', '4',
+                                '--keep-alive', '2'],
+                               name='pub')
+        assert proc.wait(timeout=60) == 0, processes.output(proc)
+        time.sleep(0.5)  # the last sample's way to the recorder
+        counts = recorder.counts()
+    assert counts.get(topic) == 1, (counts, processes.output(proc))
+    with Reader(tmp_path / 'bag') as reader:
+        assert {c.topic: c.msgcount for c in reader.connections}[topic] == 1
+
+
+def test_record_without_output_writes_under_out(tmp_path: Path, monkeypatch, capsys) -> None:
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(['bag', 'record', '/nobody_publishes_this', '--duration', '0.5']) == 1
+    out = capsys.readouterr().out
+    (bag,) = (tmp_path / 'out').iterdir()
+    assert bag.name.startswith('rosbag2_') and (bag / 'metadata.yaml').is_file()
+    assert f'recording to out/{bag.name}' in out
+    assert not list(tmp_path.glob('rosbag2_*'))

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import yaml
 
 from pushbot import cli, nodes, param, up
 from pushbot.messages import MessageFieldError, fill_message, message_from_yaml
@@ -291,3 +292,90 @@ def test_a_closed_stdout_ends_quietly_with_141() -> None:
         os.close(write_end)
     assert result.returncode == cli.EXIT_BROKEN_PIPE
     assert result.stderr == ''
+
+
+# --- what ros2 prints (issue 23, item 4) ----------------------------------------------------
+
+def test_byte_fields_print_as_ros2_prints_them() -> None:
+    from diagnostic_msgs.msg import DiagnosticStatus
+    from std_msgs.msg import ByteMultiArray, UInt8MultiArray
+
+    from pushbot.messages import message_to_dict, to_yaml
+
+    status = DiagnosticStatus(level=DiagnosticStatus.ERROR, name='n')
+    assert message_to_dict(status)['level'] == '\x02'
+    assert 'level: "\\x02"' in to_yaml(message_to_dict(status)).splitlines()
+    assert to_yaml(message_to_dict(DiagnosticStatus())).splitlines()[0] == 'level: "\\0"'
+    assert message_to_dict(ByteMultiArray(data=[b'a', b'\x01']))['data'] == ['a', '\x01']
+    assert message_to_dict(UInt8MultiArray(data=[0, 7, 255]))['data'] == [0, 7, 255]
+
+
+def test_parameter_types_and_values_print_as_ros2_param_does() -> None:
+    from rcl_interfaces.msg import ParameterType, ParameterValue
+
+    assert param.type_name(ParameterType.PARAMETER_DOUBLE_ARRAY) == 'double array'
+    assert param.type_name(ParameterType.PARAMETER_INTEGER) == 'integer'
+    assert param.type_name(ParameterType.PARAMETER_BOOL) == 'boolean'
+    assert param.type_name(ParameterType.PARAMETER_NOT_SET) == 'not set'
+    T = ParameterType  # noqa: N806 - rcl_interfaces' name
+    cases = [
+        (ParameterValue(type=T.PARAMETER_DOUBLE, double_value=0.25), 'Double value is: 0.25'),
+        (ParameterValue(type=T.PARAMETER_INTEGER, integer_value=7), 'Integer value is: 7'),
+        (ParameterValue(type=T.PARAMETER_BOOL, bool_value=False), 'Boolean value is: False'),
+        (ParameterValue(type=T.PARAMETER_STRING, string_value='rect1'),
+         'String value is: rect1'),
+        (ParameterValue(type=T.PARAMETER_DOUBLE_ARRAY, double_array_value=[0.0, 1.5]),
+         'Double values are: [0.0, 1.5]'),
+        (ParameterValue(type=T.PARAMETER_INTEGER_ARRAY, integer_array_value=[1, 2]),
+         'Integer values are: [1, 2]'),
+        (ParameterValue(type=T.PARAMETER_STRING_ARRAY, string_array_value=['a', 'b']),
+         "String values are: ['a', 'b']"),
+        (ParameterValue(), 'Parameter not set.'),
+    ]
+    for value, line in cases:
+        assert param.value_line(value) == line
+    assert param.value_line(cases[4][0], hide_type=True) == '[0.0, 1.5]'
+
+
+def test_topic_echo_accepts_once() -> None:
+    parser = cli.build_parser()
+    assert parser.parse_args(['topic', 'echo', '/x', '--once']).count == 1
+    assert parser.parse_args(['topic', 'echo', '/x']).count is None
+    result = pushbot('topic', 'echo', '/x', '--once', '--count', '3')
+    assert result.returncode == 2 and result.stderr.count('\n') == 1, result.stderr
+    assert 'not allowed with argument' in result.stderr
+
+
+def test_service_call_prints_the_response_as_ros2_does(ros_context: Any) -> None:
+    import threading
+
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from std_srvs.srv import Trigger
+
+    def on_call(_request: Any, response: Any) -> Any:
+        response.success, response.message = True, "it's done"
+        return response
+
+    node = Node('service_test_server', context=ros_context)
+    name = f'/service_test_{os.getpid()}/reset'
+    node.create_service(Trigger, name, on_call)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    thread = threading.Thread(target=executor.spin, daemon=True)
+    thread.start()
+    try:
+        plain = pushbot('service', 'call', name, 'std_srvs/srv/Trigger')
+        as_yaml = pushbot('service', 'call', name, 'std_srvs/srv/Trigger', '--yaml')
+    finally:
+        executor.shutdown()
+        thread.join(timeout=10)
+        node.destroy_node()
+    assert plain.returncode == 0, plain.stderr
+    assert plain.stdout == (
+        'requester: making request: std_srvs.srv.Trigger_Request()\n\n'
+        'response:\n'
+        'std_srvs.srv.Trigger_Response(success=True, message="it\'s done")\n\n')
+    assert as_yaml.returncode == 0, as_yaml.stderr
+    assert yaml.safe_load(as_yaml.stdout.split('response:')[1]) == {
+        'success': True, 'message': "it's done"}

@@ -112,7 +112,7 @@ def graph(module_processes: Any) -> Iterator[tuple[subprocess.Popen, Callable[[]
 def reset_scene() -> None:
     """A new episode on the bridge's current parameters, as the graph runner starts one."""
     for node in ('segmentation_node', 'ekf_node', 'planner_node', 'sim_bridge_node'):
-        result = pushbot('service', 'call', f'/{node}/reset', 'std_srvs/srv/Trigger')
+        result = pushbot('service', 'call', f'/{node}/reset', 'std_srvs/srv/Trigger', '--yaml')
         assert result.returncode == 0, result.stderr
         assert yaml.safe_load(result.stdout.split('response:')[1])['success'] is True, \
             result.stdout
@@ -195,8 +195,12 @@ def test_param_set_then_reset_rebuilds_the_scene(graph: Graph) -> None:
             == 'butter\n'
         call = pushbot('service', 'call', '/sim_bridge_node/reset', 'std_srvs/srv/Trigger')
         assert call.returncode == 0, call.stderr
-        response = yaml.safe_load(call.stdout.split('response:')[1])
-        assert response['success'] is True and 'butter' in response['message'], call.stdout
+        # As `ros2 service call` prints it: the request's and the response's repr.
+        assert call.stdout.startswith('requester: making request: std_srvs.srv.Trigger_Request('
+                                      ), call.stdout
+        response = call.stdout.split('response:\n')[1]
+        assert response.startswith("std_srvs.srv.Trigger_Response(success=True, message='") \
+            and 'butter' in response, call.stdout
     finally:
         pushbot('param', 'set', '/sim_bridge_node', 'object', 'rect1')
     # An integer for a double parameter is sent as a double; read-only ones are refused by the

@@ -153,6 +153,16 @@ def test_evaluate_writes_lerobot_metrics(tmp_path: Path) -> None:
     assert (tmp_path / "videos" / "episode_0000.mp4").stat().st_size > 10_000
 
 
+def test_evaluate_reports_progress_from_the_start(capsys) -> None:
+    # A long run (the README's 500 episodes) says at once what it runs and then how far it is.
+    assert [P.progress_interval(n) for n in (1, 2, 40, 100, 500, 5000)] == [1, 1, 2, 5, 25, 25]
+    P.evaluate(2, seed0=0, max_steps=3, obs="state", progress=True)
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == "  2 episodes (state, 1 worker(s)); progress every 1"
+    assert [line.split(",")[0] for line in lines[1:]] == ["  1/2 episodes", "  2/2 episodes"]
+    assert all("s left" in line for line in lines[1:])
+
+
 def test_wilson_interval() -> None:
     lo, hi = P.wilson_interval(500, 500)
     assert hi == 1.0 and lo == pytest.approx(0.99238, abs=1e-4)

@@ -18,9 +18,13 @@ read these bags, and these commands read bags of ``ros2 bag record -s mcap``.
   ``--duration`` end it cleanly: the MCAP summary and metadata.yaml are written and the
   message count of every topic is printed.
 - ``info DIR``: files, size, duration, start and end, message counts and types per topic.
-- ``play DIR [--rate R] [--topics ...] [--clock [HZ]]``: publishes the messages with their
-  recorded spacing divided by ``--rate``, with the recorded QoS (transient local where every
-  recorded publisher was), optionally ``/clock`` with the bag time.
+- ``play DIR [--rate R] [--topics ...] [--include-commands] [--clock [HZ]]``: publishes the
+  messages with their recorded spacing divided by ``--rate``, with the recorded QoS (transient
+  local where every recorded publisher was), optionally ``/clock`` with the bag time. Command
+  topics (:func:`is_command_topic`: goals, pushes, knocks, joint trajectories, cancels,
+  velocity commands) are left out unless ``--include-commands`` is given or they are named in
+  ``--topics``, and the player says which it left out: played into a running graph they would
+  move the object, or the robot, again.
 
 Exit codes: 0 success, 1 a runtime failure (no rclpy, nothing recorded), 2 bad input.
 """
@@ -55,10 +59,32 @@ if TYPE_CHECKING:
 ROSBAG2_VERSION = 9
 #: Topics ``record --all`` leaves out unless named: rosout and the parameter event stream.
 DEFAULT_EXCLUDED = ('/rosout', '/parameter_events')
-#: Seconds between two looks at the graph for new topics while recording.
-DISCOVERY_PERIOD = 0.5
+#: Seconds between two looks at the graph for new topics while recording: short, so that a
+#: short-lived publisher (``pushbot goal``, ``topic pub --once``) is subscribed while it lives
+#: (a look costs well under a millisecond on a graph of this size).
+DISCOVERY_PERIOD = 0.1
+#: Where ``record`` without ``-o`` creates its bag folder (git-ignored), as
+#: ``rosbag2_YYYY_MM_DD-HH_MM_SS`` under it.
+DEFAULT_BAG_DIR = Path('out')
 #: Default rate of ``/clock`` during ``play --clock`` (rosbag2's default), Hz.
 CLOCK_HZ = 40.0
+#: Command topics of the graph (matched as the last segments of a topic name, so namespaced
+#: copies count too): a goal, a push for the pusher, a knock of the simulated object.
+COMMAND_TOPICS = ('goal_pose', 'planner/push', 'sim/knock')
+#: Last segments of topic names that command something in any ROS graph.
+COMMAND_SUFFIXES = ('cancel', 'cmd_vel')
+#: Message types that command motion wherever they are published.
+COMMAND_TYPES = ('trajectory_msgs/msg/JointTrajectory',
+                 'trajectory_msgs/msg/MultiDOFJointTrajectory')
+
+
+def is_command_topic(name: str, msgtype: str) -> bool:
+    """Whether topic ``name`` of type ``msgtype`` commands the graph (``bag play`` leaves it
+    out unless asked): a name ending in one of :data:`COMMAND_TOPICS` or
+    :data:`COMMAND_SUFFIXES`, or a type of :data:`COMMAND_TYPES`."""
+    path = name.strip('/')
+    ends = (*COMMAND_TOPICS, *COMMAND_SUFFIXES)
+    return msgtype in COMMAND_TYPES or any(path == e or path.endswith('/' + e) for e in ends)
 
 
 class BagError(ValueError):
@@ -225,6 +251,7 @@ class BagRecorder:
         # metadata: the storage compresses, not rosbag2).
         writer.set_compression(rosbag2.CompressionMode.STORAGE, rosbag2.CompressionFormat.ZSTD)
         try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
             writer.open()
         except (OSError, rosbag2.WriterError) as exc:
             raise BagError(f'cannot create bag {self.path}: {exc}') from exc
@@ -379,7 +406,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument('-a', '--all', action='store_true',
                    help=f'record every topic (except {", ".join(DEFAULT_EXCLUDED)})')
     p.add_argument('-o', '--output', type=Path, default=None,
-                   help='bag folder to create (default: rosbag2_YYYY_MM_DD-HH_MM_SS)')
+                   help=f'bag folder to create (default: {DEFAULT_BAG_DIR}/'
+                   'rosbag2_YYYY_MM_DD-HH_MM_SS)')
     p.add_argument('--duration', type=float, default=None,
                    help='stop after this many seconds (default: until Ctrl-C)')
     p.add_argument('-e', '--exclude', default=None, metavar='REGEX',
@@ -398,7 +426,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument('-r', '--rate', type=float, default=1.0,
                    help='playback speed factor (default: %(default)s)')
     p.add_argument('--topics', nargs='+', default=None, metavar='TOPIC',
-                   help='play only these topics (default: all)')
+                   help='play only these topics, command topics included (default: all but '
+                   'the command topics)')
+    p.add_argument('--include-commands', action='store_true',
+                   help='also play the command topics (' + ', '.join(COMMAND_TOPICS)
+                   + ', */cancel, */cmd_vel, joint trajectories): they move the object or the '
+                   'robot again in a running graph')
     p.add_argument('--clock', type=float, nargs='?', const=CLOCK_HZ, default=None,
                    metavar='HZ', help=f'also publish /clock with the bag time at HZ '
                    f'(default {CLOCK_HZ:g} Hz when given without a value)')
@@ -436,7 +469,8 @@ def cmd_record(args: argparse.Namespace) -> int:
         exclude = re.compile(args.exclude) if args.exclude else None
     except re.error as exc:
         raise BagError(f'--exclude {args.exclude!r} is not a regular expression: {exc}') from exc
-    out = args.output or Path(datetime.datetime.now().strftime('rosbag2_%Y_%m_%d-%H_%M_%S'))
+    out = args.output or DEFAULT_BAG_DIR / datetime.datetime.now().strftime(
+        'rosbag2_%Y_%m_%d-%H_%M_%S')
     selection = TopicSelection(tuple(_absolute(t) for t in args.topics), args.all, exclude)
     recorder = BagRecorder(out, selection)
     deadline = math.inf if args.duration is None else time.monotonic() + args.duration
@@ -553,6 +587,13 @@ def cmd_play(args: argparse.Namespace) -> int:
         conns = [c for c in reader.connections if wanted is None or c.topic in wanted]
         if wanted is not None and (missing := wanted - {c.topic for c in conns}):
             raise BagError(f'topics not in the bag: {", ".join(sorted(missing))}')
+        if wanted is None and not args.include_commands:
+            commands = sorted({c.topic for c in conns if is_command_topic(c.topic, c.msgtype)})
+            conns = [c for c in conns if c.topic not in commands]
+            if commands:
+                print(f'bag play: leaving out the command topics {", ".join(commands)} (they '
+                      'would move the object or the robot again); --include-commands or '
+                      '--topics plays them', file=sys.stderr, flush=True)
         classes = {}
         for c in conns:
             try:
@@ -574,7 +615,7 @@ def cmd_play(args: argparse.Namespace) -> int:
                 spin_until(executor, lambda: all(p.get_subscription_count() > 0
                                                  for p in publishers.values()),
                            time.monotonic() + args.wait_for_subscribers)
-            print(f'playing {args.bag} ({reader.message_count} messages, '
+            print(f'playing {args.bag} ({sum(c.msgcount for c in conns)} messages, '
                   f'{reader.duration / 1e9:.1f} s at rate {args.rate:g}; Ctrl-C to stop)',
                   flush=True)
             t0_bag, t0_wall = reader.start_time, time.monotonic()

@@ -18,8 +18,15 @@ Every subcommand runs with the project's Fast DDS profile (``pushbot.dds``) unle
 Heavy imports (rclpy, torch) happen inside the subcommands, so ``pushbot --help`` always works
 and missing dependencies are reported by ``pushbot doctor`` instead of a traceback. Help texts
 come from the modules' docstrings through :func:`plain_help` (reStructuredText markup
-removed). A closed output pipe (``pushbot topic echo X | head -3``) ends the command quietly
-with status 141, handled once here.
+removed); every option's default is shown (:class:`HelpFormatter`). A closed output pipe
+(``pushbot topic echo X | head -3``) ends the command quietly with status 141, handled once
+here.
+
+Bad input ends in one line on stderr and exit status 2, for every command: a malformed command
+line (:meth:`Parser.error`) and a value the command refuses (a ``ValueError`` or a file-system
+error such as a missing or unwritable path, raised by the handler), handled once in
+:func:`main` as ``pushbot <command> [<target>]: <reason>``. ``PUSHBOT_TRACEBACK=1`` shows the
+traceback instead (for bug reports).
 """
 
 from __future__ import annotations
@@ -31,6 +38,7 @@ import os
 import re
 import signal
 import sys
+import typing
 from collections.abc import Sequence
 
 from pushbot import (
@@ -52,6 +60,46 @@ from pushbot import (
 #: Exit status after a closed output pipe: 128 + SIGPIPE, what a shell reports for a command
 #: killed by it.
 EXIT_BROKEN_PIPE = 141
+#: Exit status of bad input (a malformed command line or a refused value), as argparse uses.
+EXIT_BAD_INPUT = 2
+#: Errors of a handler that mean bad input (one line, exit 2) rather than a bug.
+BAD_INPUT_ERRORS = (ValueError, FileNotFoundError, FileExistsError, NotADirectoryError,
+                    IsADirectoryError, PermissionError)
+
+
+class HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """Descriptions kept as written; every option's help ends with its default.
+
+    ``(default: X)`` is appended unless the help already names its default, the option is a
+    flag (takes no value), the default is ``None`` (unset) or suppressed, or the argument is a
+    required positional.
+    """
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ''
+        default = action.default
+        if ('default' in text.lower() or default is None or action.nargs == 0
+                or default is argparse.SUPPRESS or action.required
+                or (not action.option_strings and action.nargs not in ('?', '*'))):
+            return text
+        if isinstance(default, (list, tuple)):
+            shown = ' '.join(str(d) for d in default)
+            shown = shown.replace('%', '%%')
+            return f'{text} (default: {shown})' if text else f'default: {shown}'
+        return f'{text} (default: %(default)s)' if text else 'default: %(default)s'
+
+
+class Parser(argparse.ArgumentParser):
+    """The argument parser of every ``pushbot`` (sub)command: :class:`HelpFormatter` by default,
+    subparsers of the same class, and a one-line error (``pushbot X: error: ... (see pushbot X
+    --help)``) with exit status 2 instead of argparse's usage block."""
+
+    def __init__(self, *args: object, **kwargs: object) -> None:
+        kwargs.setdefault('formatter_class', HelpFormatter)
+        super().__init__(*args, **kwargs)  # type: ignore[arg-type]
+
+    def error(self, message: str) -> typing.NoReturn:  # noqa: D102 - argparse's contract
+        self.exit(EXIT_BAD_INPUT, f'{self.prog}: error: {message} (see {self.prog} --help)\n')
 
 
 def _version() -> str:
@@ -139,15 +187,14 @@ def _add_targets(sub: argparse._SubParsersAction) -> None:
         for target, (module_name, help_text) in targets.items():
             module = importlib.import_module(module_name)
             p = group_sub.add_parser(target, help=help_text,
-                                     description=plain_help(module.__doc__),
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+                                     description=plain_help(module.__doc__))
             module.add_arguments(p)
             p.set_defaults(handler=module.run)
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The full argument parser with every subcommand."""
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog='pushbot',
         description='Vision-based planar pushing on ROS 2 Jazzy: tools for the pip install.',
     )
@@ -183,8 +230,7 @@ def build_parser() -> argparse.ArgumentParser:
          'what `make demo` runs: doctor, then one pushing episode through the ROS graph',
          {}),
     ):
-        p = sub.add_parser(name, help=summary, description=plain_help(module.__doc__),
-                           formatter_class=argparse.RawDescriptionHelpFormatter, **extra)
+        p = sub.add_parser(name, help=summary, description=plain_help(module.__doc__), **extra)
         module.add_arguments(p)
         p.set_defaults(handler=handler)
         if name == 'demo':
@@ -213,12 +259,25 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print('interrupted', file=sys.stderr)
         return 130
+    except BAD_INPUT_ERRORS as exc:
+        if os.environ.get('PUSHBOT_TRACEBACK'):
+            raise
+        return _bad_input(args, exc)
     except Exception as exc:
         # rclpy's SIGINT handler shuts the context down; spinning then raises this.
         if type(exc).__name__ != 'ExternalShutdownException':
             raise
         print('interrupted', file=sys.stderr)
         return 130
+
+
+def _bad_input(args: argparse.Namespace, exc: BaseException) -> int:
+    """One line on stderr naming the command and the reason; the exit status of bad input."""
+    command = ' '.join(str(part) for part in (args.command, getattr(args, 'target', None))
+                       if part)
+    reason = ' '.join(str(exc).split()) or type(exc).__name__
+    print(f'pushbot {command}: {reason}', file=sys.stderr)
+    return EXIT_BAD_INPUT
 
 
 def _closed_pipe() -> int:

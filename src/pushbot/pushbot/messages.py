@@ -65,8 +65,10 @@ def _to_plain(value: Any, field_type: str, max_array: int) -> Any:
     if hasattr(value, 'get_fields_and_field_types'):
         return message_to_dict(value, max_array)
     if isinstance(value, (bytes, bytearray)):
-        value = list(value)
-    elif hasattr(value, 'tolist') and not isinstance(value, (list, tuple)):
+        # A byte (octet) field: rclpy holds it as bytes; ros2 prints it as the string of those
+        # characters (rosidl_runtime_py), e.g. DiagnosticStatus.level 0 as "\0".
+        return ''.join(chr(c) for c in value)
+    if hasattr(value, 'tolist') and not isinstance(value, (list, tuple)):
         # numpy arrays (fixed-size numeric fields) and numpy scalars
         value = value.tolist()
     if isinstance(value, (list, tuple, array.array)):
@@ -100,6 +102,9 @@ def _scalar(value: Any) -> str:
     if isinstance(value, int):
         return str(value)
     text = str(value)
+    if not text.isprintable():
+        # Control characters as YAML escapes them (what ros2 prints: "\0", "\x02").
+        return yaml.safe_dump(text, default_style='"', width=math.inf).rstrip('\n')
     if _needs_quotes(text):
         return json.dumps(text)
     return text

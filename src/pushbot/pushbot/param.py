@@ -4,7 +4,9 @@ Through the node's parameter services (rcl_interfaces ``ListParameters``, ``GetP
 ``SetParameters``, ``DescribeParameters``), waiting only for the ones a command calls:
 
 - ``param list NODE``: the parameter names, one per line (indented, as ``ros2 param list``);
-- ``param get NODE NAME``: ``<Type> value is: <value>`` (``--hide-type``: the value only);
+- ``param get NODE NAME``: what ``ros2 param get`` prints (``Double value is: 0.1``,
+  ``Double values are: [0.0, 1.0]``, ``Parameter not set.``; ``--hide-type``: the value only);
+  ``param list --param-type`` names the types as ``ros2 param`` does (``double array``);
 - ``param set NODE NAME VALUE``: the value is read as YAML, as ``ros2 param set`` does
   (``3`` an integer, ``3.0`` a double, ``true`` a bool, ``[1.0, 2.0]`` a double array, anything
   else a string); an integer for a double parameter is sent as a double. The node may refuse
@@ -170,17 +172,35 @@ def _service_types() -> dict[str, type]:
             'get_parameters': GetParameters, 'set_parameters': SetParameters}
 
 
-def _type_names() -> dict[int, str]:
-    from rcl_interfaces.msg import ParameterType
+def type_name(parameter_type: int) -> str:
+    """The parameter type as ``ros2 param`` names it (``double array``, ``integer``, ...)."""
+    names = ('not set', 'boolean', 'integer', 'double', 'string', 'byte array',
+             'boolean array', 'integer array', 'double array', 'string array')
+    return names[parameter_type] if 0 <= parameter_type < len(names) else 'unknown'
 
-    return {ParameterType.PARAMETER_BOOL: 'Boolean', ParameterType.PARAMETER_INTEGER: 'Integer',
-            ParameterType.PARAMETER_DOUBLE: 'Double', ParameterType.PARAMETER_STRING: 'String',
-            ParameterType.PARAMETER_BYTE_ARRAY: 'Byte values',
-            ParameterType.PARAMETER_BOOL_ARRAY: 'Boolean values',
-            ParameterType.PARAMETER_INTEGER_ARRAY: 'Integer values',
-            ParameterType.PARAMETER_DOUBLE_ARRAY: 'Double values',
-            ParameterType.PARAMETER_STRING_ARRAY: 'String values',
-            ParameterType.PARAMETER_NOT_SET: 'Parameter not set'}
+
+def value_line(value: Any, hide_type: bool = False) -> str:
+    """What ``ros2 param get`` prints for a ``ParameterValue``: ``Double value is: 0.1``,
+    ``Double values are: [0.0, 1.0]``, ``Parameter not set.``; only the value with
+    ``hide_type``. Values print as Python prints them (``True``, ``['a', 'b']``)."""
+    from rcl_interfaces.msg import ParameterType as T
+
+    fields = {T.PARAMETER_BOOL: ('Boolean value is:', 'bool_value'),
+              T.PARAMETER_INTEGER: ('Integer value is:', 'integer_value'),
+              T.PARAMETER_DOUBLE: ('Double value is:', 'double_value'),
+              T.PARAMETER_STRING: ('String value is:', 'string_value'),
+              T.PARAMETER_BYTE_ARRAY: ('Byte values are:', 'byte_array_value'),
+              T.PARAMETER_BOOL_ARRAY: ('Boolean values are:', 'bool_array_value'),
+              T.PARAMETER_INTEGER_ARRAY: ('Integer values are:', 'integer_array_value'),
+              T.PARAMETER_DOUBLE_ARRAY: ('Double values are:', 'double_array_value'),
+              T.PARAMETER_STRING_ARRAY: ('String values are:', 'string_array_value')}
+    if value.type not in fields:
+        return 'None' if hide_type else 'Parameter not set.'
+    label, field_name = fields[value.type]
+    python = getattr(value, field_name)
+    python = python.tolist() if hasattr(python, 'tolist') else python
+    python = list(python) if isinstance(python, tuple) else python
+    return str(python) if hide_type else f'{label} {python}'
 
 
 def cmd_list(args: argparse.Namespace) -> int:
@@ -189,31 +209,21 @@ def cmd_list(args: argparse.Namespace) -> int:
         client = _Client(node, executor, args.node, args.timeout)
         names = client.names()
         types = [d.type for d in client.describe(names)] if args.param_type and names else []
-    labels = _type_names()
     for i, name in enumerate(names):
-        print(f'  {name}' + (f' (type: {labels.get(types[i], "?")})' if types else ''))
+        print(f'  {name}' + (f' (type: {type_name(types[i])})' if types else ''))
     return 0
-
-
-def _format_value(value: Any) -> str:
-    if isinstance(value, bool):
-        return 'True' if value else 'False'
-    return str(value)
 
 
 def cmd_get(args: argparse.Namespace) -> int:
     """``pushbot param get NODE NAME [--hide-type]``."""
-    from rclpy.parameter import parameter_value_to_python
+    from rcl_interfaces.msg import ParameterValue
 
     with cli_node('param_get') as (node, executor):
         client = _Client(node, executor, args.node, args.timeout)
         client.require(args.name)
-        value = client.values([args.name])[0]
-    python = parameter_value_to_python(value)
-    if args.hide_type:
-        print(_format_value(python))
-    else:
-        print(f'{_type_names().get(value.type, "Unknown")} value is: {_format_value(python)}')
+        values = client.values([args.name])
+    # rclpy answers no value at all for a parameter declared without one.
+    print(value_line(values[0] if values else ParameterValue(), args.hide_type))
     return 0
 
 
@@ -277,9 +287,13 @@ def cmd_dump(args: argparse.Namespace) -> int:
         client = _Client(node, executor, args.node, args.timeout)
         names = client.names()
         values = client.values(names) if names else []
+        if len(values) != len(names):
+            # rclpy answers an empty list when one of the names has no value (declared
+            # without one): ask one by one and leave those out, as they cannot be loaded.
+            values = [(client.values([name]) or [None])[0] for name in names]
         full = client.name
     data = {name: parameter_value_to_python(v) for name, v in zip(names, values, strict=True)
-            if v.type != 0}
+            if v is not None and v.type != 0}
     print(yaml.safe_dump({full: {'ros__parameters': nest(data)}}, default_flow_style=False,
                          sort_keys=True), end='')
     return 0

@@ -4,10 +4,16 @@
 for 2 s after at least 3 s, ``pushbot.graph.wait_for_stable_graph``); ``service call
 SERVICE TYPE [YAML]`` builds the request from YAML as ``ros2 service call`` does
 (``pushbot.messages``, the CLI's one message codec; type as ``pkg/srv/Type`` or ``pkg/Type``),
-waits for the server (at most ``--timeout``), calls it once and prints the response as YAML,
-e.g.::
+waits for the server (at most ``--timeout``), calls it once and prints what ``ros2 service
+call`` prints: the request and the response objects' repr, e.g.::
 
-    pushbot service call /sim_bridge_node/reset std_srvs/srv/Trigger
+    $ pushbot service call /sim_bridge_node/reset std_srvs/srv/Trigger
+    requester: making request: std_srvs.srv.Trigger_Request()
+
+    response:
+    std_srvs.srv.Trigger_Response(success=True, message='scene reset: rect1 ...')
+
+``--yaml`` prints the response as YAML instead (for scripts; ``yaml.safe_load`` reads it).
 
 Exit codes: 0 when the response arrived, 1 when the service did not appear or answer within
 ``--timeout``, 2 for usage errors (unknown type, fields or values that do not fit the request).
@@ -62,6 +68,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument('--timeout', type=float, default=DEFAULT_TIMEOUT,
                    help='seconds to wait for the server and, then, for its response '
                         '(default: %(default)s)')
+    p.add_argument('--yaml', action='store_true',
+                   help="print the response as YAML (default: its repr, as `ros2 service call`)")
     p.set_defaults(service_handler=cmd_call)
 
 
@@ -128,6 +136,9 @@ def cmd_call(args: argparse.Namespace) -> int:
             print(f'pushbot service call: {name} failed: {future.exception()}', file=sys.stderr)
             return 1
         response = future.result()
-    print('response:')
-    print(to_yaml(message_to_dict(response), indent=2))
+    if args.yaml:
+        print('response:')
+        print(to_yaml(message_to_dict(response), indent=2))
+    else:
+        print(f'response:\n{response!r}\n')
     return 0

@@ -73,8 +73,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                     'from the graph; the subscription QoS matches the publishers (best effort '
                     'if any publisher is, transient local if all are).')
     p.add_argument('topic')
-    p.add_argument('-n', '--count', type=int, default=None,
-                   help='exit after N messages (default: run until Ctrl-C)')
+    count = p.add_mutually_exclusive_group()
+    count.add_argument('-n', '--count', type=int, default=None,
+                       help='exit after N messages (default: run until Ctrl-C)')
+    count.add_argument('--once', dest='count', action='store_const', const=1,
+                       help='exit after the first message (as `ros2 topic echo --once`)')
     p.add_argument('--timeout', type=float, default=DEFAULT_TIMEOUT,
                    help='seconds to wait for a publisher of the topic and, with --count, for '
                         'the N messages (default: %(default)s)')

@@ -20,7 +20,8 @@ from :func:`pushbot.experiments.perception_data.random_shape` (convex polygons, 
 stars, smooth blobs with waists, L/T shapes; 5-18 cm). ``--test`` instead draws only the
 held-out objects (the evaluation set).
 
-Files: ``DIR/shard_00000.npz`` ... with ``shard_size`` samples each, shard ``k`` generated from
+Files: ``DIR/shard_00000.npz`` ... with ``shard_size`` samples each (the last
+one may be shorter), shard ``k`` generated from
 ``numpy.random.SeedSequence([seed, k])`` only (reproducible, resumable: existing shards are
 kept), and ``DIR/meta.json``. Arrays (S samples, P = points_per_sample, 10 pushes):
 ``motion`` (S, P, 10, 3) float32 (m, m, rad), ``valid`` (S, P, 10) bool (False where the world
@@ -53,6 +54,8 @@ from push_core.objects import TEST_OBJECTS, library_names
 __all__ = ["DataConfig", "add_arguments", "generate", "generate_shard", "load", "run"]
 
 FORMAT_VERSION = 1
+#: Smallest training set ``pushbot train affordances`` accepts (one sample is held out).
+MIN_TRAINING_SAMPLES = 2
 
 
 @dataclass(frozen=True)
@@ -62,7 +65,7 @@ class DataConfig:
     Attributes
     ----------
     n_samples : int
-        Object samples in total (rounded up to whole shards).
+        Object samples in total, >= 1 (the last shard may be shorter).
     seed : int
     shard_size : int
         Samples per file.
@@ -87,9 +90,24 @@ class DataConfig:
     outline_spacing: float = 0.002
     gap: float = 0.003
 
+    def __post_init__(self) -> None:
+        for name in ("n_samples", "shard_size", "points_per_sample"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or int(value) != value or value < 1:
+                raise ValueError(f"{name}: expected an integer >= 1, got {value!r}")
+        if self.seed < 0:
+            raise ValueError(f"seed: expected an integer >= 0, got {self.seed!r}")
+
     @property
     def n_shards(self) -> int:
+        """Number of shards, ``ceil(n_samples / shard_size)``."""
         return -(-self.n_samples // self.shard_size)
+
+    def shard_length(self, index: int) -> int:
+        """Samples in shard ``index`` (the last one may be short)."""
+        if not 0 <= index < self.n_shards:
+            raise ValueError(f"shard index {index} outside [0, {self.n_shards})")
+        return min(self.shard_size, self.n_samples - index * self.shard_size)
 
 
 def _objects(test: bool) -> tuple[str, ...]:
@@ -110,7 +128,7 @@ def generate_shard(cfg: DataConfig, index: int, workdir: Path) -> dict[str, NDAr
     records: list[dict[str, Any]] = []
     world = None
     try:
-        for s in range(cfg.shard_size):
+        for s in range(cfg.shard_length(index)):
             names = _objects(cfg.test)
             if cfg.test or rng.random() < cfg.library_fraction:
                 obj = names[int(rng.integers(len(names)))]
@@ -228,19 +246,32 @@ def load(directory: Path) -> dict[str, NDArray[Any]]:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``pushbot data affordances``."""
     parser.add_argument("--n", type=int, default=DataConfig.n_samples,
-                        help="object samples (20 contact points x 10 pushes each)")
+                        help="object samples (20 contact points x 10 pushes each); a training "
+                             f"set needs at least {MIN_TRAINING_SAMPLES} (one is held out)")
     parser.add_argument("--out", type=Path, required=True, help="output directory")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--shard-size", type=int, default=DataConfig.shard_size)
+    parser.add_argument("--seed", type=int, default=0, help="seed of the data set")
+    parser.add_argument("--shard-size", type=int, default=DataConfig.shard_size,
+                        help="object samples per .npz shard (the last one may be shorter)")
     parser.add_argument("--test", action="store_true",
                         help="held-out test objects only (tri1, butter, hex)")
 
 
 def run(args: argparse.Namespace) -> int:
-    """Entry point of ``pushbot data affordances``."""
+    """Entry point of ``pushbot data affordances``.
+
+    Raises
+    ------
+    ValueError
+        If ``--n`` is below :data:`MIN_TRAINING_SAMPLES` for a training set, the
+        configuration is invalid, or ``--out`` holds another configuration.
+    """
+    if not args.test and args.n < MIN_TRAINING_SAMPLES:
+        raise ValueError(f"--n {args.n}: a training set needs at least {MIN_TRAINING_SAMPLES} "
+                         "samples (one is held out for validation)")
     cfg = DataConfig(n_samples=args.n, seed=args.seed, shard_size=args.shard_size,
                      test=args.test)
     generate(cfg, args.out)
+    print(f"wrote {cfg.n_samples} samples in {cfg.n_shards} shard(s) to {args.out}")
     return 0
 
 

@@ -4,7 +4,10 @@ Reads a data set of ``pushbot data affordances`` (:mod:`pushbot.experiments.affo
 trains :class:`push_core.learned.AffordanceNet` on the CPU (one intra-op thread, seeded),
 evaluates it against pybullet on a held-out test set (``pushbot data affordances --test``: tri1,
 butter, hex) next to the analytical model, and writes the weights plus a model card
-(``MODEL_CARD.md`` beside them).
+(``MODEL_CARD.md`` beside them) under ``out/train/affordances/`` (:data:`OUT_DIR`, or
+``--out``). ``--install`` writes them over the bundled ``push_planner/models/affordances.pt``
+and its ``MODEL_CARD.md`` instead, the only way the committed weights and card change; it needs
+``--test-data`` so that the card keeps its metrics table (refused before training otherwise).
 
 Training: every sample appears in ``rotations`` rotated copies of its object frame (random
 angles, seeded) and their mirror images (y -> -y: the outline order reverses, push angles and
@@ -18,7 +21,7 @@ world executed. AdamW, cosine learning-rate decay, stops at ``--epochs`` or ``--
 Usage::
 
     pushbot train affordances --data out/affordance_data/train \\
-        --test-data out/affordance_data/test [--minutes 45] [--out PATH]
+        --test-data out/affordance_data/test [--minutes 45] [--out PATH | --install]
 """
 
 from __future__ import annotations
@@ -37,6 +40,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ["add_arguments", "evaluate", "run"]
+
+#: Where a training run writes by default (relative to the working directory).
+OUT_DIR = Path("out/train/affordances")
 
 #: Representative push index after mirroring (angles 0, 30, -30, 60, -60 per length).
 MIRROR_PUSH = np.array([0, 2, 1, 4, 3, 5, 7, 6, 9, 8])
@@ -163,7 +169,8 @@ def metrics_table(metrics: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def default_out() -> Path:
+def installed_weights() -> Path:
+    """Path of the bundled weights the planner loads (``push_planner/models/affordances.pt``)."""
     from push_planner.models import default_weights
 
     return default_weights()
@@ -172,26 +179,61 @@ def default_out() -> Path:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``pushbot train affordances``."""
     parser.add_argument("--data", type=Path, required=True,
-                        help="training data (pushbot data affordances --out DIR)")
+                        help="training data (pushbot data affordances --out DIR), at least 2 "
+                             "samples")
     parser.add_argument("--test-data", type=Path, default=None,
-                        help="held-out data (pushbot data affordances --test --out DIR)")
-    parser.add_argument("--out", type=Path, default=None,
-                        help="weights file (default: the bundled push_planner/models/"
-                             "affordances.pt); MODEL_CARD.md is written beside it")
-    parser.add_argument("--minutes", type=float, default=45.0, help="training time budget")
-    parser.add_argument("--epochs", type=int, default=300)
+                        help="held-out data (pushbot data affordances --test --out DIR) for the "
+                             "model card's metrics table")
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument("--out", type=Path, default=OUT_DIR / "affordances.pt",
+                       help="weights file; MODEL_CARD.md is written beside it")
+    where.add_argument("--install", action="store_true",
+                       help="write the weights and MODEL_CARD.md over the bundled ones "
+                            "(push_planner/models), which the planner loads; needs --test-data")
+    parser.add_argument("--minutes", type=float, default=45.0,
+                        help="training time budget, minutes")
+    parser.add_argument("--epochs", type=int, default=300, help="most epochs")
     parser.add_argument("--batch", type=int, default=16, help="samples per batch")
-    parser.add_argument("--lr", type=float, default=2e-3)
+    parser.add_argument("--lr", type=float, default=2e-3, help="peak learning rate (AdamW)")
     parser.add_argument("--rotations", type=int, default=8,
                         help="rotated copies of every sample (each also mirrored)")
     parser.add_argument("--channels", type=int, nargs=3, default=[16, 32, 32],
                         help="channels of the three shape-feature convolutions")
     parser.add_argument("--hidden", type=int, default=128, help="units of the head's layers")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int, default=0, help="seed")
+
+
+def _check_arguments(args: argparse.Namespace) -> None:
+    """Refuse bad options before anything is loaded or trained (``ValueError``)."""
+    if args.install and args.test_data is None:
+        raise ValueError("--install needs --test-data: the bundled model card keeps its metrics "
+                         "table (pushbot data affordances --test --out DIR)")
+    for name in ("epochs", "batch", "rotations", "hidden"):
+        if getattr(args, name) < 1:
+            raise ValueError(f"--{name} {getattr(args, name)}: expected an integer >= 1")
+    if min(args.channels) < 1:
+        raise ValueError(f"--channels {args.channels}: expected integers >= 1")
+    if not (math.isfinite(args.minutes) and args.minutes > 0):
+        raise ValueError(f"--minutes {args.minutes}: expected a positive number")
+    if not (math.isfinite(args.lr) and args.lr > 0):
+        raise ValueError(f"--lr {args.lr}: expected a positive number")
+    for name in ("data", "test_data"):
+        path = getattr(args, name)
+        if path is not None and not (Path(path) / "meta.json").is_file():
+            raise ValueError(f"--{name.replace('_', '-')} {path}: not a data set of `pushbot "
+                             "data affordances` (no meta.json)")
 
 
 def run(args: argparse.Namespace) -> int:
-    """Entry point of ``pushbot train affordances``."""
+    """Entry point of ``pushbot train affordances``.
+
+    Raises
+    ------
+    ValueError
+        Before training: ``--install`` without ``--test-data``, an option out of range, a
+        folder that is not a data set, or fewer than 2 samples.
+    """
+    _check_arguments(args)
     import torch
 
     from push_core.learned import FORMAT_VERSION, AffordanceNet, LearnedAffordances
@@ -253,7 +295,7 @@ def run(args: argparse.Namespace) -> int:
     if args.test_data is not None:
         metrics = evaluate(LearnedAffordances(net), load(args.test_data))
         print(metrics_table(metrics))
-    out = args.out or default_out()
+    out = installed_weights() if args.install else args.out
     command = "pushbot train affordances " + " ".join(sys.argv[3:] if sys.argv[1:3] == [
         "train", "affordances"] else sys.argv[1:])
     meta = {

@@ -55,6 +55,7 @@ import argparse
 import dataclasses
 import json
 import math
+import sys
 import tempfile
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -88,6 +89,11 @@ __all__ = [
 DEPTH_UNIT = 1e-4
 #: Version of the shard layout written into meta.json.
 FORMAT_VERSION = 1
+#: Frames per shard of larger data sets (``--shard-size`` default from 200 frames on).
+SHARD_SIZE = 100
+#: Smallest data set ``pushbot data perception`` makes: two shards of one frame, one of them
+#: held out for validation by ``pushbot train segmentation``.
+MIN_FRAMES = 2
 #: Where out-of-view objects are put: behind the default camera (which stands near x = 0.5 m).
 _OUT_OF_VIEW = (1.4, 0.0)
 
@@ -126,7 +132,7 @@ class DataConfig:
 
     n: int
     seed: int = 0
-    shard_size: int = 100
+    shard_size: int = SHARD_SIZE
     width: int = 640
     height: int = 480
     poses_per_scene: int = 4
@@ -435,22 +441,50 @@ def iter_samples(directory: Path) -> Iterator[Sample]:
 # --------------------------------------------------------------------------------------------
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``pushbot data perception``."""
-    parser.add_argument("--n", type=int, required=True, help="number of frames to render")
+    parser.add_argument("--n", type=int, required=True,
+                        help=f"number of frames to render, >= {MIN_FRAMES} (about 0.6 MB per "
+                             "640 x 480 frame)")
     parser.add_argument("--out", type=Path, required=True,
                         help="output directory (e.g. out/perception_data; keep it out of git)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the data set (default 0)")
-    parser.add_argument("--shard-size", type=int, default=100, help="frames per .npz shard")
-    parser.add_argument("--width", type=int, default=640, help="image width, px (default 640)")
-    parser.add_argument("--height", type=int, default=480, help="image height, px (default 480)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the data set")
+    parser.add_argument("--shard-size", type=int, default=None,
+                        help=f"frames per .npz shard (default: {SHARD_SIZE}, or half of --n "
+                             f"rounded up below {2 * SHARD_SIZE} frames, so that training has "
+                             "a shard to hold out)")
+    parser.add_argument("--width", type=int, default=640, help="image width, px")
+    parser.add_argument("--height", type=int, default=480, help="image height, px")
     parser.add_argument("--overwrite", action="store_true",
                         help="regenerate existing shards instead of resuming")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
+def default_shard_size(n: int) -> int:
+    """Frames per shard when ``--shard-size`` is not given: :data:`SHARD_SIZE`, or
+    ``ceil(n / 2)`` for smaller sets, so that every set of at least :data:`MIN_FRAMES` frames
+    has the two shards ``pushbot train segmentation`` needs (the last is held out)."""
+    return max(1, min(SHARD_SIZE, math.ceil(n / 2)))
+
+
 def run(args: argparse.Namespace) -> int:
-    """Run ``pushbot data perception``; returns the exit code."""
-    cfg = DataConfig(n=args.n, seed=args.seed, shard_size=args.shard_size, width=args.width,
+    """Run ``pushbot data perception``; returns the exit code.
+
+    Raises
+    ------
+    ValueError
+        If ``--n`` is below :data:`MIN_FRAMES`, the configuration is invalid, or ``--out``
+        holds a data set of another configuration (checked before anything is rendered).
+    """
+    if args.n < MIN_FRAMES:
+        raise ValueError(f"--n {args.n}: need at least {MIN_FRAMES} frames (training holds "
+                         "the last shard out for validation)")
+    shard_size = default_shard_size(args.n) if args.shard_size is None else args.shard_size
+    cfg = DataConfig(n=args.n, seed=args.seed, shard_size=shard_size, width=args.width,
                      height=args.height)
+    if cfg.n_shards < 2:
+        print(f"note: {cfg.n} frames in 1 shard of {cfg.shard_size}: `pushbot train "
+              "segmentation` needs at least 2 shards (use a smaller --shard-size)",
+              file=sys.stderr)
     generate(cfg, args.out, progress=not args.no_progress, overwrite=args.overwrite)
-    print(f"wrote {cfg.n} frames in {cfg.n_shards} shard(s) to {args.out}")
+    print(f"wrote {cfg.n} frames in {cfg.n_shards} shard(s) of up to {cfg.shard_size} to "
+          f"{args.out}")
     return 0

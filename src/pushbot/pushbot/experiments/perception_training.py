@@ -1,7 +1,11 @@
 """Training of the segmentation CNN (:mod:`push_perception.model`) on generated data.
 
 ``pushbot train segmentation --data DIR`` trains both stages jointly on a data set written by
-``pushbot data perception`` and saves the weights and a model card. CPU only, one intra-op
+``pushbot data perception`` and saves the weights, the report (``.json``) and a model card
+(``.md``) under ``out/train/segmentation/`` (:data:`OUT_DIR`, or ``--out``); ``--install``
+writes them over the bundled ones in ``push_perception/models`` instead, the only way the
+committed weights and card change (the card always holds the validation metrics). The data set
+needs at least two shards (the last is held out). CPU only, one intra-op
 thread by default (the machine is shared); the default schedule takes about 25 minutes on the
 project's 2-core machine.
 
@@ -42,10 +46,12 @@ __all__ = ["TrainConfig", "add_arguments", "evaluate_iou", "prepare", "run", "tr
 WINDOW = 200
 #: Side of the random sub-window the fine stage is trained on, px.
 CROP = 160
+#: File name of the weights (as ``push_perception.model.DEFAULT_WEIGHTS``).
+DEFAULT_WEIGHTS = "segmentation.pt"
 #: Version of the prepared cache (bump when ``prepare`` changes).
 PREPARED_VERSION = 1
-#: Where the bundled weights live (relative to the package).
-MODELS_DIR = Path(__file__).resolve().parent / "models"
+#: Where a training run writes by default (relative to the working directory).
+OUT_DIR = Path("out/train/segmentation")
 
 
 @dataclass(frozen=True)
@@ -87,6 +93,25 @@ def _shards(data: Path) -> list[Path]:
     if not shards:
         raise ValueError(f"{data}: no shard_*.npz files (run pushbot data perception first)")
     return shards
+
+
+def _check_shards(data: Path, cfg: TrainConfig) -> list[Path]:
+    """The shards of ``data``, refused unless one is left to train on after the held-out ones."""
+    shards = _shards(data)
+    if len(shards) <= cfg.val_shards:
+        raise ValueError(f"{data}: {len(shards)} shard(s); training needs at least "
+                         f"{cfg.val_shards + 1} (the last {cfg.val_shards} held out for "
+                         "validation): regenerate it with `pushbot data perception` (2 frames "
+                         "or more, without a --shard-size as large as --n)")
+    return shards
+
+
+def installed_weights() -> Path:
+    """Path of the bundled weights the segmentation node loads
+    (``push_perception/models/segmentation.pt``)."""
+    from importlib import resources
+
+    return Path(str(resources.files("push_perception").joinpath("models", DEFAULT_WEIGHTS)))
 
 
 def prepare(data: Path, shards: list[Path], seed: int = 0) -> dict[str, NDArray[Any]]:
@@ -173,10 +198,7 @@ def train(data: Path, cfg: TrainConfig, progress: bool = True) -> tuple[Any, dic
 
     torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
-    shards = _shards(data)
-    if len(shards) <= cfg.val_shards:
-        raise ValueError(f"{data}: {len(shards)} shard(s), need more than val_shards = "
-                         f"{cfg.val_shards}")
+    shards = _check_shards(data, cfg)
     train_shards, val_shards = shards[:-cfg.val_shards], shards[-cfg.val_shards:]
     prepare_started = time.monotonic()
     arrays = prepare(data, train_shards, cfg.seed)
@@ -381,29 +403,48 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``pushbot train segmentation``."""
     d = TrainConfig()
     parser.add_argument("--data", type=Path, default=Path("out/perception_data"),
-                        help="data set of `pushbot data perception` (default out/perception_data)")
-    parser.add_argument("--out", type=Path, default=MODELS_DIR / "segmentation.pt",
-                        help="weights file (default: the bundled models/segmentation.pt)")
-    parser.add_argument("--steps", type=int, default=d.steps, help=f"steps (default {d.steps})")
-    parser.add_argument("--batch", type=int, default=d.batch, help=f"batch (default {d.batch})")
-    parser.add_argument("--lr", type=float, default=d.lr, help=f"learning rate (default {d.lr})")
-    parser.add_argument("--seed", type=int, default=d.seed, help=f"seed (default {d.seed})")
+                        help="data set of `pushbot data perception` (at least 2 shards)")
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument("--out", type=Path, default=OUT_DIR / DEFAULT_WEIGHTS,
+                       help="weights file; the report (.json) and model card (.md) are written "
+                            "beside it")
+    where.add_argument("--install", action="store_true",
+                       help="write the weights, report and card over the bundled ones "
+                            "(push_perception/models/segmentation.*), which the node loads")
+    parser.add_argument("--steps", type=int, default=d.steps, help="optimiser steps")
+    parser.add_argument("--batch", type=int, default=d.batch, help="frames per step")
+    parser.add_argument("--lr", type=float, default=d.lr, help="peak learning rate")
+    parser.add_argument("--seed", type=int, default=d.seed, help="seed")
     parser.add_argument("--threads", type=int, default=d.threads,
-                        help=f"torch threads (default {d.threads}: the machine is shared)")
+                        help="torch threads (1: the machine is shared)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run ``pushbot train segmentation``; returns the exit code."""
+    """Run ``pushbot train segmentation``; returns the exit code.
+
+    Raises
+    ------
+    ValueError
+        Before training, if the data set has no shards or fewer than ``val_shards + 1``, or
+        an option is out of range.
+    """
     import sys
 
     cfg = TrainConfig(steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed,
                       threads=args.threads)
+    for name in ("steps", "batch", "threads"):
+        if getattr(cfg, name) < 1:
+            raise ValueError(f"--{name} {getattr(cfg, name)}: expected an integer >= 1")
+    if not (math.isfinite(cfg.lr) and cfg.lr > 0):
+        raise ValueError(f"--lr {cfg.lr}: expected a positive number")
+    _check_shards(args.data, cfg)
+    out = installed_weights() if args.install else args.out
     net, report = train(args.data, cfg, progress=not args.no_progress)
     command = "pushbot " + " ".join(sys.argv[1:]) if sys.argv[1:] else "pushbot train segmentation"
-    save(net, report, args.out, command)
+    save(net, report, out, command)
     v = report["validation"]
     print(f"trained {report['train_minutes']} min on {report['train_frames']} frames; "
           f"validation IoU median {v['iou_median']:.4f} (mean {v['iou_mean']:.4f}, p10 "
-          f"{v['iou_p10']:.4f}) on {v['frames']} frames; weights: {args.out}")
+          f"{v['iou_p10']:.4f}) on {v['frames']} frames; weights: {out}")
     return 0

@@ -12,6 +12,7 @@ units: :mod:`pushbot.experiments.pusht_adapter`; pose from pixels:
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 
@@ -40,11 +41,8 @@ def run(args: argparse.Namespace) -> int:
         result = pusht_adapter.evaluate(args.episodes, args.seed0, args.max_steps, args.obs,
                                         args.out, args.video, args.workers, progress=True)
     except ImportError as exc:
-        print(f"pushbot eval pusht: {exc}")
+        print(f"pushbot eval pusht: {exc}", file=sys.stderr)
         return 1
-    except ValueError as exc:
-        print(f"pushbot eval pusht: {exc}")
-        return 2
     lo, hi = result["success_wilson_95"]
     print(f"Push-T ({args.obs}): success {result['success_rate']:.3f} (95 % Wilson "
           f"[{lo:.3f}, {hi:.3f}]) over {result['n_episodes']} episodes, avg max reward "

@@ -450,6 +450,12 @@ def write_video(path: Path, frames: Sequence[np.ndarray], fps: int = 10) -> None
         writer.release()
 
 
+def progress_interval(episodes: int) -> int:
+    """Episodes between two progress lines: about 20 lines per run, at least every 25
+    episodes, every episode for short runs."""
+    return max(1, min(25, episodes // 20))
+
+
 def evaluate(episodes: int, seed0: int = 0, max_steps: int = 300, obs: str = "state",
              out: Path | None = None, video: int = 0, workers: int = 1,
              progress: bool = False) -> dict:
@@ -461,6 +467,11 @@ def evaluate(episodes: int, seed0: int = 0, max_steps: int = 300, obs: str = "st
              str(out / "videos" / f"episode_{seed0 + i:04d}.mp4") if out and i < video else None)
             for i in range(episodes)]
     records: list[EpisodeRecord] = []
+    every = progress_interval(episodes)
+    started = time.monotonic()
+    if progress:
+        print(f"  {episodes} episodes ({obs}, {workers} worker(s)); progress every {every}",
+              flush=True)
     if workers == 1:
         it = map(_run_one, jobs)
         pool = None
@@ -470,9 +481,12 @@ def evaluate(episodes: int, seed0: int = 0, max_steps: int = 300, obs: str = "st
     try:
         for rec in it:
             records.append(rec)
-            if progress and len(records) % 25 == 0:
+            if progress and (len(records) % every == 0 or len(records) == episodes):
                 wins = sum(r.success for r in records)
-                print(f"  {len(records)}/{episodes} episodes, {wins} successes", flush=True)
+                elapsed = time.monotonic() - started
+                left = elapsed / len(records) * (episodes - len(records))
+                print(f"  {len(records)}/{episodes} episodes, {wins} successes, "
+                      f"{elapsed:.0f} s, about {left:.0f} s left", flush=True)
     finally:
         if pool is not None:
             pool.shutdown()
