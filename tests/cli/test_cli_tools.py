@@ -173,12 +173,16 @@ def test_up_passes_the_launch_files_parameters_and_remappings() -> None:
     assert list(sim) == [n.name for n in graph_nodes(True)]
     assert sim['sim_bridge_node'] == [
         '--params-file', str(Path(DEFAULT_CONFIG_DIR) / 'sim_bridge.yaml'),
-        '-p', 'use_sim_time:=false', '-p', "object:='rect1'"]
+        '-p', 'use_sim_time:=false', '-p', "object:='rect1'", '-p', "robot:='pusher'"]
     assert sim['planner_node'] == ['--params-file', str(Path(DEFAULT_CONFIG_DIR) /
                                                         'push_planner.yaml'),
                                    '-p', 'use_sim_time:=true']
     real = up.ros_arguments(False)
-    assert list(real) == ['segmentation_node', 'ekf_node', 'planner_node']
+    assert list(real) == ['segmentation_node', 'ekf_node', 'planner_node', 'push_executor_node']
+    assert real['push_executor_node'][-2:] == ['-p', 'start_enabled:=false']  # a dry run
+    arm = up.ros_arguments(True, robot='arm')
+    assert "robot:='arm'" in arm['sim_bridge_node']
+    assert arm['push_executor_node'][-2:] == ['-p', 'start_enabled:=true']
     assert '-p' in real['ekf_node'] and 'use_sim_time:=false' in real['ekf_node']
     remaps = [real['segmentation_node'][i + 1] for i, a in enumerate(real['segmentation_node'])
               if a == '-r']
