@@ -132,9 +132,9 @@ RVIZ = REPO / 'src' / 'pushbot_bringup' / 'rviz' / 'pushbot.rviz'
 
 
 def _readme_topics() -> dict[str, str]:
-    """Absolute topic name -> type of the README topic table."""
+    """Absolute topic name -> type of the topic table (docs/INTERFACES.md)."""
     topics = {}
-    for line in (REPO / 'README.md').read_text().splitlines():
+    for line in (REPO / 'docs' / 'INTERFACES.md').read_text().splitlines():
         row = re.match(r'\| `([^`]+)` \| ([\w/]+)', line)
         if row:
             name = row.group(1)
@@ -179,7 +179,7 @@ def test_rviz_config_shows_the_graph_topics() -> None:
     # Every topic the config names (displays and the goal tool) is in the graph's table, with
     # the QoS of the table: sensor = best effort, latched = transient local.
     for topic in _topic_values(config):
-        assert topic in table, f'{topic} is not in the README topic table'
+        assert topic in table, f'{topic} is not in the topic table (docs/INTERFACES.md)'
     for d in manager['Displays']:
         if isinstance(d.get('Topic'), dict):
             qos = d['Topic']

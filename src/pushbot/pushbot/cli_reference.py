@@ -1,12 +1,12 @@
-"""The README's command reference, generated from the ``pushbot`` argument parsers.
+"""The docs/CLI.md's command reference, generated from the ``pushbot`` argument parsers.
 
-Every option of every ``pushbot`` command is listed in ``README.md`` between the markers
+Every option of every ``pushbot`` command is listed in ``docs/CLI.md`` between the markers
 ``<!-- BEGIN cli-reference -->`` and ``<!-- END cli-reference -->``; the text is generated here
 from :func:`pushbot.cli.build_parser` (the same parsers and help strings ``--help`` prints), and
-``tests/test_cli.py`` checks that the README holds exactly this text, so the reference cannot
+``tests/test_cli.py`` checks that docs/CLI.md holds exactly this text, so the reference cannot
 drift from the code. After changing an option, regenerate it::
 
-    .venv/bin/python -m pushbot.cli_reference README.md
+    .venv/bin/python -m pushbot.cli_reference docs/CLI.md
 """
 
 from __future__ import annotations
@@ -84,10 +84,10 @@ def readme_section(text: str) -> str | None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Rewrite the reference section of the README given as the only argument."""
+    """Rewrite the reference section of docs/CLI.md given as the only argument."""
     args = list(sys.argv[1:] if argv is None else argv)
     if len(args) != 1:
-        print('usage: python -m pushbot.cli_reference README.md', file=sys.stderr)
+        print('usage: python -m pushbot.cli_reference docs/CLI.md', file=sys.stderr)
         return 2
     path = Path(args[0])
     text = path.read_text(encoding='utf-8')
