@@ -155,6 +155,14 @@ class MotionConfig:
                 raise ValueError(f"{name}: must be a non-empty list of finite values")
 
 
+    def check_chain(self, joint_names: tuple[str, ...]) -> None:
+        """``ValueError`` unless the postures have one value per chain joint."""
+        for name in ("park_positions", "reference_positions"):
+            if len(getattr(self, name)) != len(joint_names):
+                raise ValueError(f"{name}: {len(getattr(self, name))} values, the chain "
+                                 f"{list(joint_names)} has {len(joint_names)} joints")
+
+
 @dataclass(frozen=True)
 class StageSpan:
     """One stage of a plan: name and its time span from the trajectory's start, s."""
@@ -266,11 +274,7 @@ class _Planner:
 
     def __init__(self, arm: ArmKinematics, config: MotionConfig) -> None:
         self.arm, self.cfg = arm, config
-        n = arm.n_joints
-        for name in ("park_positions", "reference_positions"):
-            if len(getattr(config, name)) != n:
-                raise ValueError(f"{name}: {len(getattr(config, name))} values, the chain "
-                                 f"{arm.joint_names} has {n} joints")
+        config.check_chain(arm.joint_names)
         self.reference = np.array(config.reference_positions, dtype=float)
         self.vmax = arm.velocity_limits * config.speed_margin
         self.amax = arm.acceleration_limits * config.speed_margin
