@@ -8,9 +8,12 @@ stage and the reason -- before anything moves.
 
 Stages (:data:`STAGES`), each starting and ending at rest:
 
-1. ``transit``: joint space (quintic time scaling) from the measured posture to the tip above
-   the approach point at ``approach_height``; the tip never goes below the lower of its start
-   height and ``approach_height`` (minus 1 mm), so it passes above the object.
+0. ``clear`` (only when the measured tip is low over the workspace, e.g. after a stop in the
+   middle of a push): straight up to ``approach_height`` + :data:`CLEAR_EXTRA`.
+1. ``transit``: joint space (quintic time scaling) to the tip above the approach point at
+   ``approach_height``; wherever the tip is over the workspace (or within
+   :data:`CLEARANCE_MARGIN` of it) it stays at ``approach_height`` or higher (1 mm slack), so
+   it passes above the object.
 2. ``descend``: straight down to ``push_height``.
 3. ``push``: the straight Cartesian line approach -> contact -> end at ``push_speed``
    (trapezoidal speed profile, ``cartesian_acceleration``); the contact segment is the part
@@ -46,10 +49,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from push_executor.kinematics import ArmKinematics
 
-__all__ = ["PANDA_PARK", "PANDA_READY", "STAGES", "MotionConfig", "MotionPlan", "PushRefused",
-           "StageSpan", "plan_push", "quintic_segment"]
+__all__ = ["CLEAR", "PANDA_PARK", "PANDA_READY", "STAGES", "MotionConfig", "MotionPlan",
+           "PushRefused", "StageSpan", "plan_push", "quintic_segment"]
 
 STAGES = ("transit", "descend", "push", "retreat", "lift", "park")
+#: The optional first stage (a start low over the workspace).
+CLEAR = "clear"
 #: Franka Panda park posture: folded back over its base, out of a camera looking down on the
 #: workspace (every link origin and the tip at x <= -0.48 m, z >= 0.33 m, with the base at
 #: x = -0.55 m; the tool tilted 29 degrees), rad.
@@ -60,6 +65,11 @@ PANDA_READY = (0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785)
 MIN_JOINT_STAGE = 0.2
 #: The transit may dip this far below its clearance height, m.
 TRANSIT_SLACK = 1e-3
+#: The clear stage lifts this much above the approach height (the transit then comes down to
+#: it instead of crossing at it), m.
+CLEAR_EXTRA = 0.05
+#: Band around the workspace where the transit keeps the approach height, m.
+CLEARANCE_MARGIN = 0.05
 #: Largest distance of the contact point from the approach -> end segment, m.
 CONTACT_OFF_LINE = 1e-3
 
@@ -337,9 +347,16 @@ class _Planner:
                               f"{self.cfg.min_manipulability} at t = {stage.times[i]:.2f} s "
                               "(near a singular posture)")
 
+    def over_workspace(self, xy: NDArray[np.float64]) -> NDArray[np.bool_]:
+        """Which (N, 2) points lie within CLEARANCE_MARGIN of the workspace rectangle."""
+        x_min, x_max, y_min, y_max = self.cfg.workspace
+        m = CLEARANCE_MARGIN
+        return ((xy[:, 0] >= x_min - m) & (xy[:, 0] <= x_max + m)
+                & (xy[:, 1] >= y_min - m) & (xy[:, 1] <= y_max + m))
+
     def check_stage(self, stage: _Stage, q_start: NDArray[np.float64],
-                    min_height: float) -> None:
-        """Joint limits, tool height, speeds and accelerations of one stage."""
+                    min_height: float | NDArray[np.float64]) -> None:
+        """Joint limits, tool height (per sample or one value), speeds and accelerations."""
         arm, margin = self.arm, self.cfg.limit_margin
         lower, upper = arm.lower + margin, arm.upper - margin
         if stage.name == "transit":  # may start outside the margin, never go further out
@@ -351,10 +368,12 @@ class _Planner:
                               f"{stage.q[i, j]:.4f} outside [{lower[j]:.4f}, {upper[j]:.4f}] "
                               f"(URDF limits with margin {margin})")
         z = stage.tip[:, 2]
-        if np.min(z) < min_height - 1e-9:
-            i = int(np.argmin(z))
-            raise PushRefused("tool_height", stage.name, f"tip at z = {z[i] * 1e3:.1f} mm, "
-                              f"below {min_height * 1e3:.1f} mm at t = {stage.times[i]:.2f} s")
+        floor = np.broadcast_to(min_height, z.shape)
+        if np.any(z < floor - 1e-9):
+            i = int(np.argmax(z < floor - 1e-9))
+            raise PushRefused("tool_height", stage.name, f"tip at ({stage.tip[i, 0]:.3f}, "
+                              f"{stage.tip[i, 1]:.3f}, {z[i]:.4f}) m, below {floor[i]:.4f} m "
+                              f"at t = {stage.times[i]:.2f} s")
         ratio = np.abs(stage.qd) / self.vmax
         if np.max(ratio) > 1.0 + 1e-6:
             i, j = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
@@ -443,11 +462,21 @@ def plan_push(arm: ArmKinematics, config: MotionConfig, approach: ArrayLike,
     park = np.array(cfg.park_positions, dtype=float)
 
     stages: list[_Stage] = []
-    start_z = float(arm.tip_pose(q0)[0][2])
+    tip0 = arm.tip_pose(q0)[0]
+    if planner.over_workspace(tip0[None, :2])[0] and \
+            tip0[2] < cfg.approach_height - TRANSIT_SLACK:
+        clear = planner.line_stage("clear", q0, tip0, lifted(tip0, cfg.approach_height
+                                                              + CLEAR_EXTRA),
+                                   cfg.cartesian_speed)
+        planner.check_stage(clear, q0, cfg.min_tool_height)
+        stages.append(clear)
+    q_start = stages[-1].q[-1] if stages else q0
     q_above = planner.ik_point("transit", above)
-    transit = planner.joint_stage("transit", q0, q_above)
-    planner.check_stage(transit, q0, max(cfg.min_tool_height, min(start_z, cfg.approach_height)
-                                         - TRANSIT_SLACK))
+    transit = planner.joint_stage("transit", q_start, q_above)
+    # Over the workspace (and CLEARANCE_MARGIN around it) the tip stays at the approach height.
+    floor = np.where(planner.over_workspace(transit.tip[:, :2]),
+                     cfg.approach_height - TRANSIT_SLACK, cfg.min_tool_height)
+    planner.check_stage(transit, q_start, np.maximum(floor, cfg.min_tool_height))
     stages.append(transit)
     for name, p_b, speed in (("descend", low, cfg.cartesian_speed),
                              ("push", end3, cfg.push_speed),
