@@ -34,6 +34,7 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
 from rcl_interfaces.msg import ParameterType
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
@@ -221,8 +222,9 @@ class PushExecutorNode(Node):
                                      guard(self._on_description), LATCHED_QOS)
         self.create_service(Trigger, "~/cancel", guard(self._on_cancel))
         self.create_service(SetBool, "~/enable", guard(self._on_enable))
-        self.create_timer(WATCHDOG_PERIOD, guard(self._on_watchdog))
-        self.create_timer(DIAGNOSTICS_PERIOD, guard(self._publish_status))
+        steady = Clock(clock_type=ClockType.STEADY_TIME)  # sim time stops while idle
+        self.create_timer(WATCHDOG_PERIOD, guard(self._on_watchdog), clock=steady)
+        self.create_timer(DIAGNOSTICS_PERIOD, guard(self._publish_status), clock=steady)
         self._publish_status()
         self.get_logger().info("push executor ready")
 
