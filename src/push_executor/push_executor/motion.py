@@ -392,6 +392,12 @@ class _Planner:
     def check_input(self, approach: NDArray[np.float64], contact: NDArray[np.float64],
                     end: NDArray[np.float64]) -> float:
         """Finite points in the workspace, a straight push; returns approach -> contact."""
+        x_min, x_max, y_min, y_max = self.cfg.workspace
+        for label, p in (("approach", approach), ("contact", contact), ("end", end)):
+            if not (x_min <= p[0] <= x_max and y_min <= p[1] <= y_max):
+                raise PushRefused("workspace", "input", f"{label} point ({p[0]:.3f}, "
+                                  f"{p[1]:.3f}) m outside the workspace x [{x_min}, {x_max}], "
+                                  f"y [{y_min}, {y_max}] m")
         length = float(np.linalg.norm(end - approach))
         if not length <= self.cfg.max_push_length:
             raise PushRefused("invalid", "input", f"push {length:.3f} m long, more than "
@@ -404,12 +410,6 @@ class _Planner:
         if off > CONTACT_OFF_LINE or not -1e-9 <= along <= length + 1e-9:
             raise PushRefused("invalid", "input", "the contact point is not on the approach -> "
                               f"end segment ({off * 1e3:.1f} mm off)")
-        x_min, x_max, y_min, y_max = self.cfg.workspace
-        for label, p in (("approach", approach), ("contact", contact), ("end", end)):
-            if not (x_min <= p[0] <= x_max and y_min <= p[1] <= y_max):
-                raise PushRefused("workspace", "input", f"{label} point ({p[0]:.3f}, "
-                                  f"{p[1]:.3f}) m outside the workspace x [{x_min}, {x_max}], "
-                                  f"y [{y_min}, {y_max}] m")
         return along
 
 
