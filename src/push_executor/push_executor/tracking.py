@@ -41,6 +41,8 @@ __all__ = ["MAX_SAMPLES", "START_MOTION", "ContactSegment", "Event", "Execution"
 START_MOTION = 1e-3
 #: Samples kept around the contact segment (at 1 kHz a 100 s contact).
 MAX_SAMPLES = 100_000
+#: Largest gap between a planned contact time and the nearest joint state, s.
+MAX_SAMPLE_GAP = 0.2
 #: Samples this long (s) before and after the contact segment are kept too.
 SAMPLE_MARGIN = 0.5
 
@@ -120,7 +122,7 @@ class ContactSegment:
     ----------
     start, end : (3,) ndarray
         Measured tool tip (FK of the measured joints) in ``world`` at the samples nearest the
-        planned contact start and end, m.
+        planned contact start and end (plan times), m.
     stamp_start, stamp_end : float
         Those samples' stamps, s (the joint states' own clock).
     line_error : float
@@ -215,14 +217,18 @@ class Execution:
         Raises
         ------
         ValueError
-            No sample at or after the contact start or the contact end.
+            No sample within ``MAX_SAMPLE_GAP`` of the contact start or end.
         """
         times = np.array(self._times) - self.t0
         plan = self.plan
-        i0 = int(np.searchsorted(times, plan.contact_start)) if len(times) else 0
-        i1 = int(np.searchsorted(times, plan.contact_end)) if len(times) else 0
-        if i1 >= len(times):
-            raise ValueError("no joint state recorded at the contact segment's end")
+        index = []
+        for label, t in (("start", plan.contact_start), ("end", plan.contact_end)):
+            i = int(np.argmin(np.abs(times - t))) if len(times) else -1
+            if i < 0 or abs(times[i] - t) > MAX_SAMPLE_GAP:
+                raise ValueError(f"no joint state recorded within {MAX_SAMPLE_GAP} s of the "
+                                 f"contact segment's {label}")
+            index.append(i)
+        i0, i1 = index
         tips = arm.tip_positions(np.array(self._qs[i0:i1 + 1]))
         error = segment_distance(tips, plan.line[0], plan.line[1])
         return ContactSegment(start=tips[0], end=tips[-1], stamp_start=self._times[i0],
