@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.pushbot-installed
-PACKAGES := push_core push_ros sim_bridge push_perception push_estimator push_planner pushbot pushbot_bringup
+PACKAGES := push_core push_ros sim_bridge push_perception push_estimator push_planner push_executor pushbot pushbot_bringup
 SETUP_FILES := $(foreach p,$(PACKAGES),src/$(p)/setup.py src/$(p)/setup.cfg)
 
 .PHONY: demo test venv lint bench constraints clean

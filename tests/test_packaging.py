@@ -120,6 +120,8 @@ ROSDEP_KEYS = {
     'pybullet': {'python3-pybullet-pip'},
     'pybullet_utils': {'python3-pybullet-pip'},
     'filterpy': {'python3-filterpy-pip'},
+    # pip `pin`; rosdep: the ROS package `pinocchio` (released into Jazzy) ships the bindings.
+    'pinocchio': {'pinocchio'},
 }
 
 

@@ -1,0 +1,128 @@
+"""push_executor_node's parameters: the :class:`~push_ros.node.ParamSpec` table (every
+parameter's default, description, bounds) and the typed, validated :class:`ExecutorParams`.
+
+Kept beside the node module so that the node stays thin; the table is the one place the
+parameter documentation is generated from.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from rcl_interfaces.msg import ParameterType
+
+from push_executor.kinematics import ToolSpec
+from push_executor.motion import PANDA_PARK, PANDA_READY, MotionConfig
+from push_ros.node import ParamSpec
+
+__all__ = ["PARAMETERS", "ExecutorParams"]
+
+_STRINGS = ParameterType.PARAMETER_STRING_ARRAY
+
+PARAMETERS: tuple[ParamSpec, ...] = (
+    ParamSpec("world_frame", "world", "Frame of planner/push, pusher/executed and "
+              "executor/path.", read_only=True),
+    ParamSpec("controller_topic", "/joint_trajectory_controller/joint_trajectory",
+              "JointTrajectory command topic of the arm's controller.", read_only=True),
+    ParamSpec("robot_description_file", "", "URDF file of the arm; empty: subscribe "
+              "/robot_description (std_msgs/String, transient local).", read_only=True),
+    ParamSpec("base_frame", "panda_link0", "URDF link of the arm's base.", read_only=True),
+    ParamSpec("base_pose", [-0.55, 0.0, 0.0, 0.0], "Pose of base_frame in world: x, y, z (m), "
+              "yaw (rad).", read_only=True),
+    ParamSpec("tool.flange_link", "panda_link8", "URDF link carrying the pusher rod (along its "
+              "+z axis).", read_only=True),
+    ParamSpec("tool.flange_offset", 0.0, "Flange origin to the rod's upper end along the "
+              "flange z axis, m.", (-1.0, 1.0), read_only=True),
+    ParamSpec("tool.length", 0.20, "Rod length, m; the tool tip is its lower end on its axis.",
+              (1e-3, 2.0), read_only=True),
+    ParamSpec("tool.radius", 0.01, "Rod radius, m (should equal the planner's pusher_radius).",
+              (0.0, 0.2), read_only=True),
+    ParamSpec("joints", None, "Joints commanded, in this order; unset: the chain's joints "
+              "base_frame -> tool.flange_link (the set must equal the chain's).",
+              read_only=True, type=_STRINGS),
+    ParamSpec("approach_height", 0.10, "Tip height of the transit and the lift, m above the "
+              "table.", (0.0, 2.0), read_only=True),
+    ParamSpec("push_height", 0.01, "Tip height while pushing, m above the table.", (0.0, 1.0),
+              read_only=True),
+    ParamSpec("push_speed", 0.02, "Tip speed along the push line, m/s.", (1e-4, 1.0),
+              read_only=True),
+    ParamSpec("cartesian_speed", 0.05, "Tip speed of descend, retreat and lift, m/s.",
+              (1e-4, 1.0), read_only=True),
+    ParamSpec("cartesian_acceleration", 0.2, "Tip acceleration of the Cartesian speed ramps, "
+              "m/s^2.", (1e-3, 10.0), read_only=True),
+    ParamSpec("retreat", 0.02, "Distance moved back along the push line after the push, m.",
+              (0.0, 0.5), read_only=True),
+    ParamSpec("park_positions", list(PANDA_PARK), "Park posture (chain order), rad; the "
+              "default folds a Panda back over its base, out of the camera's view.",
+              read_only=True),
+    ParamSpec("reference_positions", list(PANDA_READY), "Posture the inverse kinematics' "
+              "redundancy is pulled toward (chain order), rad.", read_only=True),
+    ParamSpec("workspace.x_min", -0.25, "Workspace rectangle in world: every push point and "
+              "every tip position of the low stages inside, m.", (-10.0, 10.0), read_only=True),
+    ParamSpec("workspace.x_max", 0.25, "See workspace.x_min, m.", (-10.0, 10.0), read_only=True),
+    ParamSpec("workspace.y_min", -0.3, "See workspace.x_min, m.", (-10.0, 10.0), read_only=True),
+    ParamSpec("workspace.y_max", 0.3, "See workspace.x_min, m.", (-10.0, 10.0), read_only=True),
+    ParamSpec("min_tool_height", 0.003, "Lowest tip height anywhere, m above the table.",
+              (0.0, 1.0), read_only=True),
+    ParamSpec("limit_margin", 0.05, "Margin inside the URDF joint position limits, rad.",
+              (0.0, 1.0), read_only=True),
+    ParamSpec("speed_margin", 0.5, "Fraction of the joint velocity and acceleration limits a "
+              "trajectory may use.", (0.01, 1.0), read_only=True),
+    ParamSpec("acceleration_limits", [5.0], "Joint acceleration limits, rad/s^2: one value for "
+              "every joint or one per chain joint.", read_only=True),
+    ParamSpec("min_manipulability", 0.005, "Smallest manipulability of the tip task Jacobian "
+              "on the Cartesian stages (singularity distance).", (0.0, 10.0), read_only=True),
+    ParamSpec("ik_tolerance", 1e-5, "Largest inverse kinematics residual, m and rad.",
+              (1e-9, 0.01), read_only=True),
+    ParamSpec("waypoint_period", 0.01, "Time between two trajectory points, s.", (1e-3, 1.0),
+              read_only=True),
+    ParamSpec("max_push_length", 0.3, "Longest approach -> end distance, m.", (1e-3, 2.0),
+              read_only=True),
+    ParamSpec("tracking_tolerance", 0.05, "Largest joint deviation from the plan while moving "
+              "before the arm is stopped, rad.", (1e-4, 3.0), read_only=True),
+    ParamSpec("state_timeout", 1.0, "Stop when no joint state arrives, or (once moving) their "
+              "stamps stop advancing, for this long, s of the steady clock.", (0.05, 60.0),
+              read_only=True),
+    ParamSpec("start_timeout", 5.0, "Stop when the motion has not started this long after the "
+              "trajectory was sent, s of the steady clock.", (0.1, 600.0), read_only=True),
+    ParamSpec("max_future_stamp", 1.0, "Joint states stamped more than this ahead of the "
+              "node's clock are refused, s.", (0.0, 3600.0), read_only=True),
+    ParamSpec("start_enabled", False, "Start enabled (moving the arm); false: dry run until "
+              "~/enable.", read_only=True),
+)
+
+
+@dataclass(frozen=True)
+class ExecutorParams:
+    """The node's parameters, typed and validated (:data:`PARAMETERS`)."""
+
+    values: dict[str, Any]
+    tool: ToolSpec
+    motion: MotionConfig
+
+    @classmethod
+    def from_values(cls, v: dict[str, Any]) -> ExecutorParams:
+        """Build from ``{name: value}``; ``ValueError`` naming the parameter."""
+        try:
+            tool = ToolSpec(str(v["tool.flange_link"]), float(v["tool.flange_offset"]),
+                            float(v["tool.length"]), float(v["tool.radius"]))
+            names = ("approach_height", "push_height", "push_speed", "cartesian_speed",
+                     "cartesian_acceleration", "retreat", "min_tool_height", "limit_margin",
+                     "speed_margin", "min_manipulability", "waypoint_period",
+                     "max_push_length", "ik_tolerance")
+            motion = MotionConfig(
+                **{n: float(v[n]) for n in names},
+                park_positions=tuple(float(x) for x in v["park_positions"]),
+                reference_positions=tuple(float(x) for x in v["reference_positions"]),
+                workspace=tuple(float(v[f"workspace.{k}"]) for k in ("x_min", "x_max", "y_min",
+                                                                     "y_max")))
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"parameter {exc}") from None
+        if len(v["base_pose"]) != 4 or not all(math.isfinite(x) for x in v["base_pose"]):
+            raise ValueError("parameter base_pose: expected 4 finite values x, y, z, yaw")
+        for name in ("tracking_tolerance", "state_timeout", "start_timeout"):
+            if not v[name] > 0:
+                raise ValueError(f"parameter {name}: must be > 0")
+        return cls(values=dict(v), tool=tool, motion=motion)

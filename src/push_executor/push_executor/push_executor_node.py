@@ -1,0 +1,316 @@
+"""``push_executor_node``: executes planned pushes on a ros2_control arm (issue 20).
+
+Role: turns each ``planner/push`` into one checked joint trajectory for the arm's
+joint_trajectory_controller (transit, descend, push, retreat, lift, park), watches its
+execution on ``/joint_states`` and reports the executed contact segment on ``pusher/executed``
+from forward kinematics of the *measured* joints, or refuses the push on ``pusher/refused``.
+The maths is the ROS-free core: :mod:`push_executor.kinematics` (pinocchio),
+:mod:`push_executor.motion` (stages and checks), :mod:`push_executor.tracking` (watchdogs,
+contact segment). Never imports pybullet or sim_bridge.
+
+The contract (topics, QoS, refusal kinds, frames) is docs/ARCHITECTURE.md, "Pushing with an
+arm"; parameters are the :data:`push_executor.parameters.PARAMETERS` table. States on
+``executor/status``: ``disabled`` (dry run: plans, publishes ``executor/path``, refuses with
+``disabled``), ``idle``, ``moving``, ``stopped`` (a watchdog, ``~/cancel`` or a disable stopped
+the arm with a one-point hold trajectory; the next push is accepted). A push ended by a stop is
+answered on ``pusher/refused`` (kind ``fault`` or ``cancelled``) so the planner re-plans at
+once.
+
+Time: the trajectory starts at ``t0`` = the node's clock when it is published (sim time on the
+simulated graph); the measured joint state stamped ``t`` is compared with the plan at
+``t - t0``; the watchdogs run on the steady clock.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path as FilePath
+from typing import Any
+
+import numpy as np
+from builtin_interfaces.msg import Duration
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import Path
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+from std_msgs.msg import String
+from std_srvs.srv import SetBool, Trigger
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+from push_executor.kinematics import ArmKinematics
+from push_executor.motion import MotionPlan, PushRefused, plan_push
+from push_executor.parameters import PARAMETERS, ExecutorParams
+from push_executor.tracking import Event, Execution, chain_positions
+from push_ros.health import NodeHealth
+from push_ros.node import declare_config, run_node
+from push_ros.paths import path_from_points, push_points_from_path
+from push_ros.poses import pose_msg
+from push_ros.qos import LATCHED_QOS, RELIABLE_QOS
+from push_ros.refusal import refusal_msg
+from push_ros.stamps import check_not_ahead, clock_seconds, seconds_from_stamp, stamp_from_seconds
+
+__all__ = ["PARAMETERS", "ExecutorParams", "PushExecutorNode", "main"]
+
+#: Joint states: reliable, depth 50 (docs/ARCHITECTURE.md).
+JOINT_STATE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50,
+                             reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.VOLATILE)
+#: ``time_from_start`` of the one-point hold trajectory, s.
+HOLD_TIME = 0.05
+#: Most joints a joint state may name (a bigger message is refused before any work).
+MAX_JOINTS = 1000
+#: Watchdog timer and /diagnostics periods, s.
+WATCHDOG_PERIOD, DIAGNOSTICS_PERIOD = 0.05, 1.0
+COUNTERS = ("pushes", "executed", "stopped", "models", "joint_states")
+class PushExecutorNode(Node):
+    """The node (module docstring)."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("push_executor_node", **kwargs)
+        self.params = declare_config(self, PARAMETERS, ExecutorParams.from_values)
+        p = self.params.values
+        self.health = NodeHealth(self, "push executor", "arm", COUNTERS)
+        guard = self.health.guard
+        self._arm: ArmKinematics | None = None
+        self._urdf = ""
+        self._joints: tuple[str, ...] = ()
+        self._q: np.ndarray | None = None
+        self._q_stamp = -math.inf
+        self._q_steady = -math.inf
+        self._enabled = bool(p["start_enabled"])
+        self._run: Execution | None = None
+        self._push_stamp: Any = None
+        self._stopped = False
+        self._line_error_mm = math.nan
+        self._pub_traj = self.create_publisher(JointTrajectory, p["controller_topic"],
+                                               RELIABLE_QOS)
+        self._pub_executed = self.create_publisher(Path, "pusher/executed", RELIABLE_QOS)
+        self._pub_refused = self.create_publisher(DiagnosticStatus, "pusher/refused",
+                                                  RELIABLE_QOS)
+        self._pub_path = self.create_publisher(Path, "executor/path", LATCHED_QOS)
+        self._pub_status = self.create_publisher(DiagnosticStatus, "executor/status",
+                                                 LATCHED_QOS)
+        self.create_subscription(Path, "planner/push", guard(self._on_push), RELIABLE_QOS)
+        self.create_subscription(JointState, "/joint_states", guard(self._on_joint_state),
+                                 JOINT_STATE_QOS)
+        if p["robot_description_file"]:
+            self._load_model(FilePath(p["robot_description_file"]).read_text())
+            if self._arm is None:
+                raise ValueError(f"parameter robot_description_file: {self.health.last_refusal}")
+        else:
+            self.create_subscription(String, "/robot_description",
+                                     guard(self._on_description), LATCHED_QOS)
+        self.create_service(Trigger, "~/cancel", guard(self._on_cancel))
+        self.create_service(SetBool, "~/enable", guard(self._on_enable))
+        steady = Clock(clock_type=ClockType.STEADY_TIME)  # sim time stops while idle
+        self.create_timer(WATCHDOG_PERIOD, guard(self._on_watchdog), clock=steady)
+        self.create_timer(DIAGNOSTICS_PERIOD, guard(self._publish_status), clock=steady)
+        self._publish_status()
+        self.get_logger().info("push executor ready")
+
+    # ---- inputs ------------------------------------------------------------------------------
+    def _load_model(self, urdf: str) -> None:
+        p = self.params.values
+        try:
+            arm = ArmKinematics(urdf, p["base_frame"], self.params.tool, p["base_pose"],
+                                p["acceleration_limits"])
+            joints = tuple(p["joints"]) if p["joints"] else arm.joint_names
+            if sorted(joints) != sorted(arm.joint_names):
+                raise ValueError(f"parameter joints {list(joints)[:16]} is not the chain "
+                                 f"{list(arm.joint_names)}")
+            self.params.motion.check_chain(arm.joint_names)
+        except ValueError as exc:
+            self.health.refuse("robot_description", str(exc), "model")
+            return
+        self._arm, self._urdf, self._joints = arm, urdf, joints
+        self._q = None
+        self.health.count("models")
+        self._publish_status()
+
+    def _on_description(self, msg: String) -> None:
+        if msg.data == self._urdf:
+            return
+        if self._run is not None:
+            self.health.refuse("robot_description", "arm is moving; model kept", "busy")
+            return
+        self._load_model(msg.data)
+
+    def _on_joint_state(self, msg: JointState) -> None:
+        if self._arm is None:
+            return
+        if len(msg.name) > MAX_JOINTS:
+            self.health.refuse("/joint_states", f"{len(msg.name)} joints", "invalid")
+            return
+        try:
+            stamp = seconds_from_stamp(msg.header.stamp)
+            check_not_ahead(stamp, clock_seconds(self.get_clock()),
+                            self.params.values["max_future_stamp"], "joint state stamp")
+            q = chain_positions(self._arm.joint_names, list(msg.name), msg.position)
+        except ValueError as exc:
+            self.health.refuse("/joint_states", str(exc), "invalid")
+            return
+        steady = time.monotonic()
+        if stamp >= self._q_stamp or self._run is None:
+            self._q, self._q_stamp, self._q_steady = q, stamp, steady
+        self.health.count("joint_states")
+        if self._run is not None:
+            self._finish(self._run.on_state(stamp, q, steady))
+
+    def _on_push(self, msg: Path) -> None:
+        self.health.count("pushes")
+        stamp = msg.header.stamp
+        if self._run is not None:
+            return self._refuse(stamp, "busy", "", "the arm is executing a push")
+        try:
+            seconds_from_stamp(stamp)
+            if msg.header.frame_id != self.params.values["world_frame"]:
+                raise ValueError(f"frame {msg.header.frame_id[:64]!r} is not "
+                                 f"{self.params.values['world_frame']!r}")
+            approach, contact, end = push_points_from_path(msg)
+        except ValueError as exc:
+            return self._refuse(stamp, "invalid", "input", str(exc))
+        if self._arm is None:
+            return self._refuse(stamp, "no_model", "", "no robot description yet")
+        if self._q is None or time.monotonic() - self._q_steady > \
+                self.params.values["state_timeout"]:
+            return self._refuse(stamp, "no_state", "", "no recent joint state")
+        try:
+            plan = plan_push(self._arm, self.params.motion, approach, contact, end, self._q)
+        except PushRefused as refusal:
+            return self._refuse(stamp, refusal.kind, refusal.stage, refusal.reason)
+        self._pub_path.publish(self._path_msg(plan))
+        t0 = clock_seconds(self.get_clock())
+        if not self._enabled:
+            return self._refuse(stamp, "disabled", "", "executor disabled (dry run): planned, "
+                                "not moved")
+        if self._pub_traj.get_subscription_count() == 0:
+            return self._refuse(stamp, "no_controller", "", "no controller subscribes "
+                                f"{self._pub_traj.topic_name}")
+        if t0 is None:
+            return self._refuse(stamp, "no_state", "", "the node's clock has not started")
+        self._pub_traj.publish(self._trajectory_msg(plan))
+        self._run = Execution(plan, t0, time.monotonic(), self._q_stamp,
+                              self.params.values["tracking_tolerance"],
+                              self.params.values["state_timeout"],
+                              self.params.values["start_timeout"])
+        self._push_stamp, self._stopped = stamp, False
+        self._publish_status()
+        return None
+
+    # ---- execution ---------------------------------------------------------------------------
+    def _on_watchdog(self) -> None:
+        if self._run is not None:
+            self._finish(self._run.on_timer(time.monotonic()))
+
+    def _finish(self, event: Event | None) -> None:
+        if event is None or self._run is None:
+            return
+        run, self._run = self._run, None
+        if event.kind == "done":
+            try:
+                seg = run.contact_segment(self._arm)
+            except ValueError as exc:
+                self._refuse(self._push_stamp, "fault", "push", str(exc))
+            else:
+                self._line_error_mm = seg.line_error * 1e3
+                stamps = [stamp_from_seconds(s, clamp=True) for s in (seg.stamp_start,
+                                                                       seg.stamp_end)]
+                self._pub_executed.publish(path_from_points(
+                    np.array([seg.start[:2], seg.end[:2]]), stamps,
+                    self.params.values["world_frame"]))
+                self.health.count("executed")
+        else:
+            self._stop(f"{event.kind}: {event.reason}")
+            self._refuse(self._push_stamp, "fault", run.plan.stage_at(
+                run.elapsed(self._q_stamp)), f"stopped ({event.kind}): {event.reason}")
+        self._publish_status()
+
+    def _stop(self, reason: str) -> bool:
+        """Send the one-point hold trajectory at the measured posture; False without one."""
+        if self._q is None or self._arm is None:
+            return False
+        msg = JointTrajectory(joint_names=list(self._joints))
+        q = dict(zip(self._arm.joint_names, self._q, strict=True))
+        msg.points = [JointTrajectoryPoint(positions=[float(q[j]) for j in self._joints],
+                                           velocities=[0.0] * len(self._joints),
+                                           time_from_start=_duration(HOLD_TIME))]
+        self._pub_traj.publish(msg)
+        self._stopped = True
+        self.health.count("stopped")
+        self.health.log.warning("stop", f"arm stopped: {reason}")
+        return True
+
+    def _on_cancel(self, request: Trigger.Request, response: Trigger.Response
+                   ) -> Trigger.Response:
+        run, self._run = self._run, None
+        response.success = self._stop("~/cancel")
+        if run is not None:
+            self._refuse(self._push_stamp, "cancelled", run.plan.stage_at(
+                run.elapsed(self._q_stamp)), "cancelled by ~/cancel")
+        response.message = "holding" if response.success else "no joint state: nothing to hold"
+        self._publish_status()
+        return response
+
+    def _on_enable(self, request: SetBool.Request, response: SetBool.Response
+                   ) -> SetBool.Response:
+        self._enabled = bool(request.data)
+        if not self._enabled and self._run is not None:
+            self._on_cancel(Trigger.Request(), Trigger.Response())
+        response.success, response.message = True, "enabled" if self._enabled else "disabled"
+        self._publish_status()
+        return response
+
+    # ---- outputs -----------------------------------------------------------------------------
+    def _refuse(self, stamp: Any, kind: str, stage: str, reason: str) -> None:
+        self.health.refuse("push", f"{kind} ({stage}): {reason}" if stage else reason, kind)
+        self._pub_refused.publish(refusal_msg(self.get_fully_qualified_name(), stamp, kind,
+                                              reason, stage, "arm"))
+        self._publish_status()
+
+    def _trajectory_msg(self, plan: MotionPlan) -> JointTrajectory:
+        order = [plan.joint_names.index(j) for j in self._joints]
+        msg = JointTrajectory(joint_names=list(self._joints))  # stamp 0: start now
+        msg.points = [JointTrajectoryPoint(positions=q[order].tolist(),
+                                           velocities=v[order].tolist(),
+                                           time_from_start=_duration(t))
+                      for t, q, v in zip(plan.times, plan.positions, plan.velocities,
+                                         strict=True)]
+        return msg
+
+    def _path_msg(self, plan: MotionPlan) -> Path:
+        msg = Path()
+        msg.header.frame_id = self.params.values["world_frame"]
+        msg.header.stamp = self.get_clock().now().to_msg()
+        for x, y, z in plan.tip:
+            pose = PoseStamped(header=msg.header, pose=pose_msg(x, y, 0.0, z))
+            msg.poses.append(pose)
+        return msg
+
+    def _publish_status(self) -> None:
+        state = ("moving" if self._run is not None else "disabled" if not self._enabled
+                 else "stopped" if self._stopped else "idle")
+        level = DiagnosticStatus.WARN if self._arm is None or self._stopped \
+            else DiagnosticStatus.OK
+        model = "no robot description" if self._arm is None else f"{len(self._joints)} joints"
+        extra = {"state": state, "model": model,
+                 "contact_line_error_mm": f"{self._line_error_mm:.4f}"}
+        self._pub_status.publish(self.health.status(level, f"{state}, {model}", extra))
+        self.health.publish(level, f"{state}, {model}", extra)
+
+
+def _duration(seconds: float) -> Duration:
+    sec = math.floor(seconds)
+    return Duration(sec=int(sec), nanosec=min(int(round((seconds - sec) * 1e9)), 999_999_999))
+
+
+def main(args: list[str] | None = None) -> None:
+    """``ros2 run push_executor push_executor_node``."""
+    run_node(lambda: PushExecutorNode(), "push_executor_node", args)
+
+
+if __name__ == "__main__":
+    main()

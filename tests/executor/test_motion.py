@@ -1,0 +1,259 @@
+"""push_executor.motion: the staged push trajectory, its properties and every refusal class.
+
+No rclpy. The arm is pybullet_data's Panda at the default base pose.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from push_executor.kinematics import ArmKinematics, ToolSpec
+from push_executor.motion import (
+    PANDA_PARK,
+    PANDA_READY,
+    STAGES,
+    MotionConfig,
+    MotionPlan,
+    PushRefused,
+    plan_push,
+    quintic_segment,
+)
+from push_executor.tracking import segment_distance
+
+from .test_kinematics import BASE_POSE, panda_urdf
+
+CONFIG = MotionConfig()
+PARK = np.array(PANDA_PARK)
+#: A 5 cm push in +x through the middle of the workspace, 5 mm approach clearance.
+PUSH = ((-0.055, 0.02), (-0.05, 0.02), (0.0, 0.02))
+
+
+@pytest.fixture(scope="module")
+def arm() -> ArmKinematics:
+    return ArmKinematics(panda_urdf(), "panda_link0", ToolSpec(), BASE_POSE)
+
+
+@pytest.fixture(scope="module")
+def plan(arm: ArmKinematics) -> MotionPlan:
+    return plan_push(arm, CONFIG, *PUSH, PARK)
+
+
+def test_trajectory_properties(arm: ArmKinematics, plan: MotionPlan) -> None:
+    assert plan.joint_names == arm.joint_names
+    # First point: the measured state, after a delay (the controller interpolates to it).
+    assert plan.times[0] == pytest.approx(CONFIG.start_delay) and plan.times[0] > 0
+    np.testing.assert_array_equal(plan.positions[0], PARK)
+    np.testing.assert_array_equal(plan.velocities[0], 0.0)
+    assert np.all(np.diff(plan.times) > 0)
+    np.testing.assert_array_equal(plan.velocities[-1], 0.0)
+    np.testing.assert_allclose(plan.positions[-1], PARK, atol=1e-12)
+    # Limits: positions with margin, velocities and accelerations within speed_margin.
+    assert np.all(plan.positions >= arm.lower + CONFIG.limit_margin - 1e-9)
+    assert np.all(plan.positions <= arm.upper - CONFIG.limit_margin + 1e-9)
+    assert np.all(np.abs(plan.velocities) <= arm.velocity_limits * CONFIG.speed_margin + 1e-9)
+    qdd = np.diff(plan.velocities, axis=0) / np.diff(plan.times)[:, None]
+    assert np.all(np.abs(qdd) <= arm.acceleration_limits * CONFIG.speed_margin + 1e-6)
+    # The planned tip is the FK of the planned joints; never below the minimum height.
+    np.testing.assert_allclose(plan.tip[::50], arm.tip_positions(plan.positions[::50]),
+                               atol=1e-12)
+    assert np.min(plan.tip[:, 2]) >= CONFIG.min_tool_height
+    # Stages in order, contiguous, covering the trajectory.
+    assert tuple(s.name for s in plan.stages) == STAGES
+    for a, b in zip(plan.stages, plan.stages[1:], strict=False):
+        assert a.t_end == pytest.approx(b.t_start)
+    assert plan.stages[-1].t_end == pytest.approx(plan.duration)
+
+
+def test_the_push_follows_the_commanded_line(arm: ArmKinematics, plan: MotionPlan) -> None:
+    span = next(s for s in plan.stages if s.name == "push")
+    during = (plan.times >= span.t_start - 1e-9) & (plan.times <= span.t_end + 1e-9)
+    a = np.array([*PUSH[0], CONFIG.push_height])
+    b = np.array([*PUSH[2], CONFIG.push_height])
+    off = segment_distance(plan.tip[during], a, b)
+    assert np.max(off) < 1e-5 * 1e-3 * 1e3  # < 0.01 mm
+    # The axis is vertical at every waypoint of the push.
+    for q in plan.positions[during][::10]:
+        assert arm.tip_pose(q)[1][2] < -1 + 1e-9
+    # Contact segment: from the contact point to the end point, at the push speed.
+    np.testing.assert_allclose(plan.line, [[*PUSH[1], 0.01], [*PUSH[2], 0.01]])
+    assert plan.contact_end == pytest.approx(span.t_end)
+    cruise = 0.05 / CONFIG.push_speed
+    ramp = CONFIG.push_speed / CONFIG.cartesian_acceleration
+    assert plan.contact_end - plan.contact_start == pytest.approx(cruise + ramp / 2, abs=0.02)
+    i = int(np.searchsorted(plan.times, plan.contact_start))
+    assert np.linalg.norm(plan.tip[i, :2] - PUSH[1]) < 0.5e-3
+    speed = np.linalg.norm(np.diff(plan.tip[during], axis=0), axis=1) / np.diff(
+        plan.times[during])
+    assert np.max(speed) == pytest.approx(CONFIG.push_speed, rel=1e-3)
+
+
+def test_heights_of_the_stages(plan: MotionPlan) -> None:
+    def tip_at(t: float) -> np.ndarray:
+        return plan.tip[int(np.argmin(np.abs(plan.times - t)))]
+
+    spans = {s.name: s for s in plan.stages}
+    np.testing.assert_allclose(tip_at(spans["descend"].t_start), [*PUSH[0], 0.10], atol=1e-6)
+    np.testing.assert_allclose(tip_at(spans["push"].t_start), [*PUSH[0], 0.01], atol=1e-6)
+    np.testing.assert_allclose(tip_at(spans["retreat"].t_start), [*PUSH[2], 0.01], atol=1e-6)
+    np.testing.assert_allclose(tip_at(spans["lift"].t_start), [-0.02, 0.02, 0.01], atol=1e-6)
+    np.testing.assert_allclose(tip_at(spans["park"].t_start), [-0.02, 0.02, 0.10], atol=1e-6)
+    transit = (plan.times <= spans["transit"].t_end)
+    assert np.min(plan.tip[transit, 2]) >= 0.10 - 1e-3  # clear of the object
+
+
+def test_quintic_segment_respects_its_limits() -> None:
+    q_a, q_b = np.zeros(3), np.array([1.0, -0.2, 0.0])
+    v, a = np.full(3, 1.0), np.full(3, 2.0)
+    times, q, qd = quintic_segment(q_a, q_b, v, a, 0.01)
+    np.testing.assert_allclose(q[[0, -1]], [q_a, q_b], atol=1e-12)
+    np.testing.assert_allclose(qd[[0, -1]], 0.0, atol=1e-12)
+    assert np.max(np.abs(qd)) <= 1.0 + 1e-9
+    assert np.max(np.abs(np.diff(qd, axis=0) / 0.01)) <= 2.0 + 1e-9
+    assert times[-1] == pytest.approx(1.875, abs=0.011)  # velocity-bound: 1.875 * 1 rad / 1
+
+
+def test_plans_over_the_workspace(arm: ArmKinematics) -> None:
+    """Random 1-5 cm pushes in the workspace from the park posture: how many plan, and every
+    refusal is one of the known classes (seeded)."""
+    rng = np.random.default_rng(3)
+    kinds: dict[str, int] = {}
+    ok = 0
+    for _ in range(40):
+        contact = rng.uniform([-0.2, -0.25], [0.2, 0.25])
+        d = rng.normal(size=2)
+        d /= np.linalg.norm(d)
+        end = np.clip(contact + rng.uniform(0.01, 0.05) * d, [-0.25, -0.3], [0.25, 0.3])
+        try:
+            plan_push(arm, CONFIG, contact - 0.005 * d, contact, end, PARK)
+            ok += 1
+        except PushRefused as refusal:
+            kinds[refusal.kind] = kinds.get(refusal.kind, 0) + 1
+    print(f"planned {ok}/40 random pushes; refused {kinds}")
+    assert ok >= 32 and set(kinds) <= {"ik", "speed", "singular", "joint_limits", "workspace"}
+
+
+# ---- refusals ---------------------------------------------------------------------------------
+def refusal(arm: ArmKinematics, config: MotionConfig = CONFIG, push: tuple = PUSH,
+            q: np.ndarray = PARK) -> PushRefused:
+    with pytest.raises(PushRefused) as info:
+        plan_push(arm, config, *push, q)
+    return info.value
+
+
+@pytest.mark.parametrize("push, match", [
+    (((math.nan, 0.0), (0.0, 0.0), (0.05, 0.0)), "approach point must be 2 finite"),
+    (((0.0, 0.0), (0.0, math.inf), (0.05, 0.0)), "contact point must be 2 finite"),
+    (((0.0, 0.0, 0.0), (0.0, 0.0), (0.05, 0.0)), "approach point must be 2 finite"),
+    (((-0.2, 0.0), (-0.19, 0.0), (0.2, 0.0)), "max_push_length"),
+    (((0.0, 0.0), (0.0, 0.0), (0.0, 0.0)), "coincide"),
+    (((0.0, 0.0), (0.01, 0.01), (0.05, 0.0)), "not on the approach"),
+])
+def test_invalid_input(arm: ArmKinematics, push: tuple, match: str) -> None:
+    r = refusal(arm, push=push)
+    assert (r.kind, r.stage) == ("invalid", "input") and match in r.reason
+
+
+def test_invalid_measured_state(arm: ArmKinematics) -> None:
+    r = refusal(arm, q=np.array([0.0, math.nan, 0, -2, 0, 2, 0]))
+    assert r.kind == "invalid" and "measured state" in r.reason
+    assert refusal(arm, q=np.zeros(6)).kind == "invalid"
+
+
+def test_workspace(arm: ArmKinematics) -> None:
+    r = refusal(arm, push=((0.20, 0.0), (0.21, 0.0), (0.26, 0.0)))
+    assert (r.kind, r.stage) == ("workspace", "input") and "end point" in r.reason
+    # The retreat goes back past the workspace edge: found on the Cartesian stage.
+    config = dataclasses.replace(CONFIG, retreat=0.08)
+    r = refusal(arm, config, push=((0.0, 0.27), (0.0, 0.265), (0.0, 0.24)))
+    assert (r.kind, r.stage) == ("workspace", "retreat")
+
+
+def test_ik(arm: ArmKinematics) -> None:
+    config = dataclasses.replace(CONFIG, workspace=(-2.0, 2.0, -2.0, 2.0))
+    r = refusal(arm, config, push=((0.6, 0.0), (0.605, 0.0), (0.65, 0.0)))
+    assert (r.kind, r.stage) == ("ik", "transit") and "out of reach" in r.reason
+    # The approach is reachable, the end is not.
+    r = refusal(arm, config, push=((0.20, 0.0), (0.205, 0.0), (0.29, 0.0)))
+    assert (r.kind, r.stage) == ("ik", "push")
+
+
+def test_joint_limits(arm: ArmKinematics) -> None:
+    config = dataclasses.replace(CONFIG, park_positions=(0.0, -1.29, 0.0, -1.81, 0.0, 1.02,
+                                                         2.95))
+    r = refusal(arm, config)
+    assert (r.kind, r.stage) == ("joint_limits", "park") and "panda_joint7" in r.reason
+    # A measured state outside the margin is fine if the transit only moves inward...
+    q = PARK.copy()
+    q[3] = arm.lower[3] + 0.01
+    plan_push(arm, CONFIG, *PUSH, q)
+
+
+def test_tool_height(arm: ArmKinematics) -> None:
+    config = dataclasses.replace(CONFIG, min_tool_height=0.01, push_height=0.01)
+    plan_push(arm, config, *PUSH, PARK)  # at the minimum: fine
+    # A park posture with the tip at the table is refused at the park stage.
+    low = arm.solve_ik([-0.2, 0.0, 0.001], np.array(PANDA_READY), np.array(PANDA_READY)).q
+    config = dataclasses.replace(CONFIG, park_positions=tuple(low))
+    r = refusal(arm, config)
+    assert (r.kind, r.stage) == ("tool_height", "park")
+
+
+def test_a_low_start_is_cleared_first(arm: ArmKinematics) -> None:
+    """From a posture low in the workspace (a push stopped half-way) the arm first goes
+    straight up to the approach height, then crosses above the object."""
+    ready = np.array(PANDA_READY)
+    low_left = arm.solve_ik([0.0, -0.2, 0.01], ready, ready).q
+    plan = plan_push(arm, CONFIG, (0.0, 0.25), (0.0, 0.245), (0.0, 0.20), low_left)
+    assert tuple(s.name for s in plan.stages) == ("clear", *STAGES)
+    clear, transit = plan.stages[:2]
+    during = plan.times <= clear.t_end + 1e-9
+    np.testing.assert_allclose(plan.tip[during, :2], [[0.0, -0.2]] * int(np.sum(during)),
+                               atol=1e-6)
+    after = (plan.times >= transit.t_start) & (plan.times <= transit.t_end)
+    assert np.min(plan.tip[after, 2]) >= CONFIG.approach_height - 1e-3
+
+
+def test_transit_clearance(arm: ArmKinematics) -> None:
+    """Low beside the workspace (no clear stage: the tip is not over it), the joint-space
+    transit would enter the workspace below the approach height: refused."""
+    ready = np.array(PANDA_READY)
+    beside = arm.solve_ik([-0.1, 0.38, 0.02], ready, ready).q
+    r = refusal(arm, push=((0.0, 0.1), (0.0, 0.095), (0.0, 0.05)), q=beside)
+    assert (r.kind, r.stage) == ("tool_height", "transit") and "below 0.0990 m" in r.reason
+
+
+def test_singular(arm: ArmKinematics) -> None:
+    config = dataclasses.replace(CONFIG, min_manipulability=0.2)
+    r = refusal(arm, config)
+    assert (r.kind, r.stage) == ("singular", "descend") and "manipulability" in r.reason
+
+
+def test_speed(arm: ArmKinematics) -> None:
+    fast = dataclasses.replace(CONFIG, cartesian_speed=1.0, cartesian_acceleration=10.0)
+    r = refusal(arm, fast)
+    assert (r.kind, r.stage) == ("speed", "descend")
+    # Tight acceleration limits: the Cartesian ramps are too steep.
+    slow_arm = ArmKinematics(panda_urdf(), "panda_link0", ToolSpec(), BASE_POSE,
+                             acceleration_limits=0.02)
+    r = refusal(slow_arm)
+    assert r.kind == "speed" and "accelerates" in r.reason
+
+
+def test_bad_config() -> None:
+    with pytest.raises(ValueError, match="heights"):
+        MotionConfig(push_height=0.2)
+    with pytest.raises(ValueError, match="speed_margin"):
+        MotionConfig(speed_margin=1.5)
+    with pytest.raises(ValueError, match="push_speed"):
+        MotionConfig(push_speed=math.nan)
+    with pytest.raises(ValueError, match="workspace"):
+        MotionConfig(workspace=(0.1, -0.1, -0.1, 0.1))
+
+
+def test_postures_must_fit_the_chain(arm: ArmKinematics) -> None:
+    with pytest.raises(ValueError, match="park_positions: 6 values"):
+        plan_push(arm, MotionConfig(park_positions=(0.0,) * 6), *PUSH, PARK)

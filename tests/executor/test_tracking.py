@@ -1,0 +1,132 @@
+"""push_executor.tracking: joint-state mapping, the tracking monitor, watchdogs, contact segment.
+
+No rclpy. A small hand-made plan (two joints of the planar arm of test_kinematics) so that the
+expected values can be derived by hand.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from push_executor.kinematics import ArmKinematics, ToolSpec
+from push_executor.motion import MotionPlan, StageSpan
+from push_executor.tracking import (
+    START_MOTION,
+    Execution,
+    chain_positions,
+    expected_positions,
+    segment_distance,
+    tracking_error,
+)
+
+from .test_kinematics import PLANAR
+
+
+def straight_plan() -> MotionPlan:
+    """Joint 1 from 0 to 1 rad at 1 rad/s over t = 1 ... 2 s, joint 2 fixed; contact 1.2-1.8 s."""
+    times = np.array([1.0, 1.5, 2.0])
+    q = np.array([[0.0, 0.5], [0.5, 0.5], [1.0, 0.5]])
+    qd = np.array([[1.0, 0.0], [1.0, 0.0], [1.0, 0.0]])
+    return MotionPlan(joint_names=("j1", "j2"), times=times, positions=q, velocities=qd,
+                      tip=np.zeros((3, 3)), stages=(StageSpan("push", 1.0, 2.0),),
+                      contact_start=1.2, contact_end=1.8,
+                      line=np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]))
+
+
+def test_chain_positions_maps_by_name() -> None:
+    q = chain_positions(("a", "b"), ["x", "b", "a"], [9.0, 2.0, 1.0])
+    np.testing.assert_array_equal(q, [1.0, 2.0])
+    for names, positions, match in [(["a"], [1.0, 2.0], "1 names but 2"),
+                                    (["a", "a"], [1.0, 2.0], "twice"),
+                                    (["a", "x"], [1.0, 2.0], "missing"),
+                                    (["a", "b"], [1.0, math.nan], "non-finite")]:
+        with pytest.raises(ValueError, match=match):
+            chain_positions(("a", "b"), names, positions)
+
+
+def test_expected_positions_hermite() -> None:
+    plan = straight_plan()
+    # Linear motion with matching velocities: the cubic Hermite is exact.
+    for t in (1.0, 1.25, 1.5, 1.9, 2.0):
+        np.testing.assert_allclose(expected_positions(plan, t), [t - 1.0, 0.5], atol=1e-12)
+    np.testing.assert_allclose(expected_positions(plan, 0.0), [0.0, 0.5])  # before: start
+    np.testing.assert_allclose(expected_positions(plan, 9.0), [1.0, 0.5])  # after: the end
+
+
+def test_tracking_error_names_the_joint() -> None:
+    j, dev = tracking_error(straight_plan(), [0.5, 0.56], 1.5)
+    assert j == 1 and dev == pytest.approx(0.06)
+
+
+def execution(**kw: float) -> Execution:
+    args = {"tracking_tolerance": 0.05, "state_timeout": 1.0, "start_timeout": 3.0, **kw}
+    return Execution(straight_plan(), t0=100.0, steady=0.0, last_stamp=100.0, **args)
+
+
+def test_execution_done_and_deviation() -> None:
+    run = execution()
+    assert run.on_state(100.0, np.array([0.0, 0.5]), 0.1) is None and not run.started
+    assert run.on_state(101.5, np.array([0.5, 0.5]), 0.2) is None and run.started
+    event = run.on_state(101.6, np.array([0.6, 0.58]), 0.3)
+    assert event.kind == "deviation" and "j2 0.0800" in event.reason
+    run = execution()
+    assert run.on_state(102.0, np.array([0.99, 0.5]), 0.5).kind == "done"
+    # Past the end but not there yet: a deviation, not done.
+    assert execution().on_state(102.5, np.array([0.9, 0.5]), 0.5).kind == "deviation"
+
+
+def test_watchdogs() -> None:
+    run = execution()
+    assert run.on_timer(0.9) is None
+    assert run.on_timer(1.1).kind == "stale"  # no joint state at all
+    run = execution()
+    for k in range(30):  # frozen stamps, not started: only the start timeout applies
+        assert run.on_state(100.0, np.array([0.0, 0.5]), 0.1 * k) is None
+        assert run.on_timer(0.1 * k) is None
+    assert run.on_timer(3.05).kind == "no_start"
+    run = execution()
+    run.on_state(100.0, np.array([0.0, 0.5]), 2.9)
+    assert run.on_timer(3.1).kind == "no_start"
+    # Started, then the stamps stop advancing while samples keep coming.
+    run = execution()
+    run.on_state(101.0, np.array([0.0, 0.5]), 0.1)
+    for k in range(1, 12):
+        run.on_state(101.0, np.array([0.0, 0.5]), 0.1 + 0.1 * k)
+    assert run.on_timer(1.2).kind == "stale" and "stopped advancing" in run.on_timer(1.2).reason
+    # Motion alone (a robot whose stamps do not pass t0) also counts as started.
+    run = execution()
+    run.on_state(99.0, np.array([2 * START_MOTION, 0.5]), 0.1)
+    assert run.started
+
+
+def test_contact_segment() -> None:
+    arm = ArmKinematics(PLANAR, "base", ToolSpec("flange", 0.0, 0.1))
+    plan = straight_plan()
+    tips = arm.tip_positions(plan.positions)
+    plan = MotionPlan(**{**plan.__dict__, "line": np.array([tips[0], tips[-1]])})
+    run = Execution(plan, 100.0, 0.0, 100.0, 0.05, 1.0, 3.0)
+    for k in range(0, 21):
+        t = 1.0 + 0.05 * k
+        run.on_state(100.0 + t, expected_positions(plan, t), 0.01 * k)
+    seg = run.contact_segment(arm)
+    assert seg.stamp_start == pytest.approx(101.2) and seg.stamp_end == pytest.approx(101.8)
+    np.testing.assert_allclose(seg.start, arm.tip_pose(expected_positions(plan, 1.2))[0])
+    np.testing.assert_allclose(seg.end, arm.tip_pose(expected_positions(plan, 1.8))[0])
+    # The tip moves on an arc, the line is its chord: the largest gap is the arc's sagitta
+    # between the sampled points.
+    between = arm.tip_positions([expected_positions(plan, t) for t in
+                                 np.arange(1.2, 1.8001, 0.05)])
+    expected = np.max(segment_distance(between, tips[0], tips[-1]))
+    assert seg.line_error == pytest.approx(expected) and seg.line_error > 0.01
+    empty = Execution(plan, 100.0, 0.0, 100.0, 0.05, 1.0, 3.0)
+    with pytest.raises(ValueError, match="contact segment's start"):
+        empty.contact_segment(arm)
+
+
+def test_segment_distance() -> None:
+    d = segment_distance([[0.5, 1.0, 0.0], [-1.0, 0.0, 0.0], [3.0, 0.0, 4.0]], [0, 0, 0],
+                         [1, 0, 0])
+    np.testing.assert_allclose(d, [1.0, 1.0, math.hypot(2.0, 4.0)])
