@@ -118,6 +118,7 @@ ROSDEP_KEYS = {
     'PIL': {'python3-pil'},
     'tqdm': {'python3-tqdm'},
     'pybullet': {'python3-pybullet-pip'},
+    'pybullet_data': {'python3-pybullet-pip'},  # ships inside the pybullet wheel
     'pybullet_utils': {'python3-pybullet-pip'},
     'filterpy': {'python3-filterpy-pip'},
     # pip `pin`; rosdep: the ROS package `pinocchio` (released into Jazzy) ships the bindings.

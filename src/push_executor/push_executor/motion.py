@@ -49,8 +49,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from push_executor.kinematics import ArmKinematics
 
-__all__ = ["CLEAR", "PANDA_PARK", "PANDA_READY", "STAGES", "MotionConfig", "MotionPlan",
-           "PushRefused", "StageSpan", "plan_push", "quintic_segment"]
+__all__ = ["CLEAR", "PANDA_PARK", "PANDA_READY", "PANDA_SIM_BASE_POSE", "STAGES", "MotionConfig",
+           "MotionPlan", "PushRefused", "StageSpan", "plan_push", "quintic_segment"]
 
 STAGES = ("transit", "descend", "push", "retreat", "lift", "park")
 #: The optional first stage (a start low over the workspace).
@@ -58,7 +58,10 @@ CLEAR = "clear"
 #: Franka Panda park posture: folded back over its base, out of a camera looking down on the
 #: workspace (every link origin and the tip at x <= -0.48 m, z >= 0.33 m, with the base at
 #: x = -0.55 m; the tool tilted 29 degrees), rad.
-PANDA_PARK = (0.0, -1.29, 0.0, -1.81, 0.0, 1.02, 0.785)
+PANDA_PARK = (0.0, -1.2, 0.0, -2.9, 0.0, 1.75, 0.785)
+#: Base pose (x, y, z m, yaw rad) of the simulated Panda in ``world`` (sim_bridge's
+#: ``arm.base_pose``; tests/executor/test_sim_defaults.py keeps the two equal).
+PANDA_SIM_BASE_POSE = (-0.47, 0.0, 0.15, 0.0)
 #: Franka Panda "ready" posture, the default redundancy reference of the inverse kinematics.
 PANDA_READY = (0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785)
 #: Shortest joint-space stage, s.

@@ -13,8 +13,9 @@ from typing import Any
 
 from rcl_interfaces.msg import ParameterType
 
+from push_core.rollout import PUSHER_RADIUS
 from push_executor.kinematics import ToolSpec
-from push_executor.motion import PANDA_PARK, PANDA_READY, MotionConfig
+from push_executor.motion import PANDA_PARK, PANDA_READY, PANDA_SIM_BASE_POSE, MotionConfig
 from push_ros.node import ParamSpec
 
 __all__ = ["PARAMETERS", "ExecutorParams"]
@@ -29,16 +30,17 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec("robot_description_file", "", "URDF file of the arm; empty: subscribe "
               "/robot_description (std_msgs/String, transient local).", read_only=True),
     ParamSpec("base_frame", "panda_link0", "URDF link of the arm's base.", read_only=True),
-    ParamSpec("base_pose", [-0.55, 0.0, 0.0, 0.0], "Pose of base_frame in world: x, y, z (m), "
-              "yaw (rad).", read_only=True),
+    ParamSpec("base_pose", list(PANDA_SIM_BASE_POSE), "Pose of base_frame in world: x, y, z "
+              "(m), yaw (rad); the default is the simulated Panda's (on a 0.15 m pedestal).",
+              read_only=True),
     ParamSpec("tool.flange_link", "panda_link8", "URDF link carrying the pusher rod (along its "
               "+z axis).", read_only=True),
     ParamSpec("tool.flange_offset", 0.0, "Flange origin to the rod's upper end along the "
               "flange z axis, m.", (-1.0, 1.0), read_only=True),
     ParamSpec("tool.length", 0.20, "Rod length, m; the tool tip is its lower end on its axis.",
               (1e-3, 2.0), read_only=True),
-    ParamSpec("tool.radius", 0.01, "Rod radius, m (should equal the planner's pusher_radius).",
-              (0.0, 0.2), read_only=True),
+    ParamSpec("tool.radius", PUSHER_RADIUS, "Rod radius, m (should equal the planner's "
+              "pusher_radius).", (0.0, 0.2), read_only=True),
     ParamSpec("joints", None, "Joints commanded, in this order; unset: the chain's joints "
               "base_frame -> tool.flange_link (the set must equal the chain's).",
               read_only=True, type=_STRINGS),
@@ -126,3 +128,21 @@ class ExecutorParams:
             if not v[name] > 0:
                 raise ValueError(f"parameter {name}: must be > 0")
         return cls(values=dict(v), tool=tool, motion=motion)
+
+
+#: Comment at the top of the bundled parameter file (pushbot_bringup/config/push_executor.yaml).
+YAML_HEADER = """
+Parameters of push_executor_node (package push_executor): planner/push -> a joint trajectory of
+a ros2_control arm (docs/ROBOT.md, docs/ARCHITECTURE.md "Pushing with an arm"). Generated
+from the node's parameter table (push_executor.parameters.PARAMETERS) by
+  .venv/bin/python -m push_executor.parameters > src/pushbot_bringup/config/push_executor.yaml
+The defaults describe the simulated Panda; on your arm set at least controller_topic,
+base_frame, base_pose, tool.*, park_positions and the workspace (docs/ROBOT.md). The launch
+file sets use_sim_time and start_enabled (true in simulation, false on a robot: a dry run until
+~/enable)."""
+
+
+if __name__ == "__main__":
+    from push_ros.node import parameter_yaml
+
+    print(parameter_yaml("push_executor_node", PARAMETERS, YAML_HEADER), end="")

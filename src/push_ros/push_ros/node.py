@@ -48,7 +48,7 @@ from rcl_interfaces.msg import (
 )
 
 __all__ = ["ParamSpec", "ThrottledLog", "declare_config", "descriptor", "guarded",
-           "parameter_values", "run_node"]
+           "parameter_values", "parameter_yaml", "run_node"]
 
 T = TypeVar("T")
 
@@ -295,3 +295,74 @@ def run_node(factory: Callable[[], Any], name: str, args: list[str] | None = Non
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
+
+
+def _yaml_value(value: Any) -> str:
+    """A default as a ROS parameter YAML value (doubles keep their decimal point)."""
+    import json
+
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_yaml_value(v) for v in value) + "]"
+    if isinstance(value, str):
+        return json.dumps(value)
+    return str(value)
+
+
+def parameter_yaml(node_name: str, specs: Sequence[ParamSpec], header: str = "") -> str:
+    """A node's parameter file generated from its table: every parameter at its default, its
+    description (and bounds, read-only) as the comment above it; dotted names nested.
+
+    Parameters
+    ----------
+    node_name : str
+        The file's top-level key (``--params-file`` reaches the node of that name).
+    specs : sequence of ParamSpec
+    header : str
+        Comment lines for the top of the file (without ``#``).
+
+    Returns
+    -------
+    str
+        YAML text; a parameter without a default is written as a comment only.
+
+    Raises
+    ------
+    ValueError
+        A name nested deeper than ``group.name``, or a group whose parameters are not listed
+        together (YAML would get the group twice).
+    """
+    import textwrap
+
+    seen: set[str] = set()
+
+    out = [f"# {line}".rstrip() for line in header.strip().splitlines()] if header else []
+    out += [f"{node_name}:", "  ros__parameters:"]
+    group = ""
+    for spec in specs:
+        prefix, _, leaf = spec.name.rpartition(".")
+        if "." in prefix:
+            raise ValueError(f"parameter {spec.name!r}: only one level of nesting is written")
+        if prefix != group:
+            if prefix in seen:
+                raise ValueError(f"parameter {spec.name!r}: group {prefix!r} is split")
+            if prefix:
+                out.append(f"    {prefix}:")
+                seen.add(prefix)
+            group = prefix
+        indent = "      " if prefix else "    "
+        note = spec.description
+        if spec.bounds is not None:
+            note += f" Range [{spec.bounds[0]:g}, {spec.bounds[1]:g}]."
+        if spec.read_only:
+            note += " Read-only."
+        out += textwrap.wrap(note, 96 - len(indent), initial_indent=f"{indent}# ",
+                             subsequent_indent=f"{indent}# ")
+        if spec.default is None:
+            out.append(f"{indent}# {leaf}: (no default)")
+        else:
+            out.append(f"{indent}{leaf}: {_yaml_value(spec.default)}")
+    return "\n".join(out) + "\n"
