@@ -61,6 +61,17 @@ def test_tracking_error_names_the_joint() -> None:
     assert j == 1 and dev == pytest.approx(0.06)
 
 
+def test_tracking_window_tolerates_a_time_shift_only() -> None:
+    plan = straight_plan()  # joint a: t - 1 on [1, 2] s, joint b: 0.5
+    late = [0.3, 0.5]  # where the plan is at 1.3 s, measured at 1.5 s: 0.2 s behind
+    assert tracking_error(plan, late, 1.5) == (0, pytest.approx(0.2))
+    assert tracking_error(plan, late, 1.5, window=0.3)[1] < 1e-9
+    assert tracking_error(plan, late, 1.5, window=0.1)[1] == pytest.approx(0.1, abs=0.02)
+    # off the path at every time of the window: the deviation stays
+    off = [0.5, 0.6]
+    assert tracking_error(plan, off, 1.5, window=0.3) == (1, pytest.approx(0.1))
+
+
 def execution(**kw: float) -> Execution:
     args = {"tracking_tolerance": 0.05, "state_timeout": 1.0, "start_timeout": 3.0, **kw}
     return Execution(straight_plan(), t0=100.0, steady=0.0, last_stamp=100.0, **args)

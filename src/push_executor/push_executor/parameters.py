@@ -84,12 +84,15 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               read_only=True),
     ParamSpec("tracking_tolerance", 0.05, "Largest joint deviation from the plan while moving "
               "before the arm is stopped, rad.", (1e-4, 3.0), read_only=True),
+    ParamSpec("tracking_window", 0.3, "Plan time either side of a joint state's time the "
+              "tracking check may match (controller start delay and joint-state latency), s.",
+              (0.0, 10.0), read_only=True),
     ParamSpec("state_timeout", 1.0, "Stop when no joint state arrives, or (once moving) their "
               "stamps stop advancing, for this long, s of the steady clock.", (0.05, 60.0),
               read_only=True),
     ParamSpec("start_timeout", 5.0, "Stop when the motion has not started this long after the "
               "trajectory was sent, s of the steady clock.", (0.1, 600.0), read_only=True),
-    ParamSpec("max_future_stamp", 1.0, "Joint states stamped more than this ahead of the "
+    ParamSpec("max_future_stamp", 10.0, "Joint states stamped more than this ahead of the "
               "node's clock are refused, s.", (0.0, 3600.0), read_only=True),
     ParamSpec("start_enabled", False, "Start enabled (moving the arm); false: dry run until "
               "~/enable.", read_only=True),

@@ -184,6 +184,8 @@ class PushExecutorNode(Node):
             return self._refuse(stamp, refusal.kind, refusal.stage, refusal.reason)
         self._pub_path.publish(self._path_msg(plan))
         t0 = clock_seconds(self.get_clock())
+        if t0 is not None:  # the measured state's stamp is the controller's time now, at least
+            t0 = max(t0, self._q_stamp)
         if not self._enabled:
             return self._refuse(stamp, "disabled", "", "executor disabled (dry run): planned, "
                                 "not moved")
@@ -196,7 +198,8 @@ class PushExecutorNode(Node):
         self._run = Execution(plan, t0, time.monotonic(), self._q_stamp,
                               self.params.values["tracking_tolerance"],
                               self.params.values["state_timeout"],
-                              self.params.values["start_timeout"])
+                              self.params.values["start_timeout"],
+                              self.params.values["tracking_window"])
         self._push_stamp, self._stopped = stamp, False
         self._publish_status()
         return None

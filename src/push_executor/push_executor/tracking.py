@@ -12,7 +12,11 @@ monotonic clock of the node's machine, s.
 - ``done``: the measured stamp passed ``t0 + duration`` and every joint is within
   ``tracking_tolerance`` of the last point;
 - ``deviation``: a joint off the plan (cubic Hermite interpolation of the points, as the
-  controller interpolates them) by more than ``tracking_tolerance`` (joint and amount reported);
+  controller interpolates them) by more than ``tracking_tolerance`` at every plan time within
+  ``time_window`` s of ``elapsed`` (joint and amount reported). The window absorbs the unknown
+  delay between publishing the trajectory and the controller starting it and the joint
+  states' latency (both scale with the simulator's speed-up over real time); a stalled or
+  blocked arm still leaves the plan, by more than the window, within a fraction of a second;
 - ``stale``: no joint state for ``state_timeout`` s (steady), or, once the motion started, no
   *advancing* stamp for ``state_timeout`` s;
 - ``no_start``: the motion did not start (no stamp past ``t0`` and no joint moved by
@@ -39,6 +43,9 @@ __all__ = ["MAX_SAMPLES", "START_MOTION", "ContactSegment", "Event", "Execution"
 
 #: Joint motion (rad) that shows a trajectory started.
 START_MOTION = 1e-3
+#: Spacing of the plan times the tracking window tries, s, and their largest number.
+WINDOW_STEP = 0.01
+MAX_WINDOW_SAMPLES = 101
 #: Samples kept around the contact segment (at 1 kHz a 100 s contact).
 MAX_SAMPLES = 100_000
 #: Largest gap between a planned contact time and the nearest joint state, s.
@@ -90,12 +97,24 @@ def expected_positions(plan: MotionPlan, elapsed: float) -> NDArray[np.float64]:
     return h00 * q[i] + h10 * h * qd[i] + h01 * q[i + 1] + h11 * h * qd[i + 1]
 
 
-def tracking_error(plan: MotionPlan, q_measured: ArrayLike, elapsed: float
-                   ) -> tuple[int, float]:
-    """(joint index, |measured - planned|) of the joint furthest off the plan at ``elapsed``."""
-    dev = np.abs(np.asarray(q_measured, dtype=float) - expected_positions(plan, elapsed))
-    j = int(np.argmax(dev))
-    return j, float(dev[j])
+def tracking_error(plan: MotionPlan, q_measured: ArrayLike, elapsed: float,
+                   window: float = 0.0) -> tuple[int, float]:
+    """(joint index, |measured - planned|) of the joint furthest off the plan.
+
+    With ``window`` > 0 the plan is taken at the time within ``[elapsed - window, elapsed +
+    window]`` (sampled every :data:`WINDOW_STEP` s at most, ``elapsed`` included) where it is
+    closest to the measurement (smallest largest-joint error): a time-shift-tolerant tube
+    around the plan.
+    """
+    q = np.asarray(q_measured, dtype=float)
+    times = [elapsed]
+    if window > 0.0:
+        n = min(MAX_WINDOW_SAMPLES, 2 * int(np.ceil(window / WINDOW_STEP)) + 1)
+        times += list(elapsed + np.linspace(-window, window, n))
+    dev = np.abs(np.array([expected_positions(plan, t) for t in times]) - q)
+    best = int(np.argmin(dev.max(axis=1)))
+    j = int(np.argmax(dev[best]))
+    return j, float(dev[best, j])
 
 
 def segment_distance(points: ArrayLike, a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
@@ -150,11 +169,16 @@ class Execution:
         Stamp of the newest joint state before publishing, s (-inf: none).
     tracking_tolerance, state_timeout, start_timeout : float
         rad, s, s.
+    time_window : float
+        s of plan time either side of ``elapsed`` the deviation check may match (module
+        docstring; 0: the plan exactly at ``elapsed``).
     """
 
     def __init__(self, plan: MotionPlan, t0: float, steady: float, last_stamp: float,
-                 tracking_tolerance: float, state_timeout: float, start_timeout: float) -> None:
+                 tracking_tolerance: float, state_timeout: float, start_timeout: float,
+                 time_window: float = 0.0) -> None:
         self.plan, self.t0 = plan, float(t0)
+        self.time_window = float(time_window)
         self.tolerance = float(tracking_tolerance)
         self.state_timeout, self.start_timeout = float(state_timeout), float(start_timeout)
         self._start_steady = steady
@@ -185,7 +209,7 @@ class Execution:
         if self._keep[0] <= elapsed <= self._keep[1] and len(self._times) < MAX_SAMPLES:
             self._times.append(float(stamp))
             self._qs.append(np.array(q, dtype=float))
-        j, dev = tracking_error(self.plan, q, elapsed)
+        j, dev = tracking_error(self.plan, q, elapsed, self.time_window)
         if dev > self.tolerance:
             return Event("deviation", f"{self.plan.joint_names[j]} {dev:.4f} off the plan at "
                          f"t = {elapsed:.2f} s ({self.plan.stage_at(elapsed)}), tolerance "
@@ -225,8 +249,10 @@ class Execution:
         for label, t in (("start", plan.contact_start), ("end", plan.contact_end)):
             i = int(np.argmin(np.abs(times - t))) if len(times) else -1
             if i < 0 or abs(times[i] - t) > MAX_SAMPLE_GAP:
+                held = (f"{len(times)} samples at {times.min():.3f}-{times.max():.3f} s"
+                        if len(times) else "no samples")
                 raise ValueError(f"no joint state recorded within {MAX_SAMPLE_GAP} s of the "
-                                 f"contact segment's {label}")
+                                 f"contact segment's {label} ({t:.3f} s of the plan; {held})")
             index.append(i)
         i0, i1 = index
         tips = arm.tip_positions(np.array(self._qs[i0:i1 + 1]))
