@@ -16,7 +16,7 @@ from push_perception.core import (
     EpisodeTracker,
     PerceptionConfig,
     PerceptionError,
-    check_frame,
+    check_frame_arrays,
     object_points,
     pose_covariance,
     rotation_search,
@@ -72,9 +72,9 @@ def test_object_points_deprojects_by_hand() -> None:
      "rigid"),
     (np.zeros((2, 2), bool), np.zeros((2, 2)), np.eye(3), np.full((4, 4), np.nan), "rigid"),
 ])
-def test_check_frame_names_the_bad_array(mask, depth, k, t, match) -> None:
+def test_check_frame_arrays_names_the_bad_array(mask, depth, k, t, match) -> None:
     with pytest.raises(PerceptionError, match=match) as info:
-        check_frame(mask, depth, k, t)
+        check_frame_arrays(mask, depth, k, t)
     assert info.value.kind == "bad_input"
 
 

@@ -298,14 +298,16 @@ def _camera_info_of_other_size(h: Harness, f: Rendered) -> tuple[Any, ...]:
     return rgb, depth, info
 
 
+#: case -> (the input, the /diagnostics counter it increments: refusals of an input are
+#: ``refused_<kind>``, a blind camera is the measurement outcome ``no_depth``).
 BAD_INPUTS = {
-    "bad_color": _bad_color_encoding,
-    "bad_color_step": _short_color,
-    "bad_depth": _bad_depth_encoding,
-    "size_mismatch": _depth_of_other_size,
-    "no_depth_nan": _depth_filled_with(np.nan),
-    "no_depth_zero": _depth_filled_with(0.0),
-    "bad_camera_info": _camera_info_of_other_size,
+    "bad_color": (_bad_color_encoding, "refused_color"),
+    "bad_color_step": (_short_color, "refused_color"),
+    "bad_depth": (_bad_depth_encoding, "refused_depth"),
+    "size_mismatch": (_depth_of_other_size, "refused_size_mismatch"),
+    "no_depth_nan": (_depth_filled_with(np.nan), "no_depth"),
+    "no_depth_zero": (_depth_filled_with(0.0), "no_depth"),
+    "bad_camera_info": (_camera_info_of_other_size, "refused_camera_info"),
 }
 
 
@@ -313,25 +315,28 @@ BAD_INPUTS = {
 def test_bad_frames_are_reported_and_the_node_keeps_working(
         case: str, harness: Harness, frames: dict[str, Rendered],
         capfd: pytest.CaptureFixture[str]) -> None:
-    kind = case.removesuffix("_step").removesuffix("_nan").removesuffix("_zero")
-    kind = "no_depth" if kind.startswith("no_depth") else kind
+    make, key = BAD_INPUTS[case]
     h = harness
     h.send_extrinsics(frames["a"].t)
-    msgs = BAD_INPUTS[case](h, frames["a"])
-    h.wait(lambda: h.counter(kind) >= 1, f"a {kind} count on /diagnostics",
+    msgs = make(h, frames["a"])
+    h.wait(lambda: h.counter(key) >= 1, f"a {key} count on /diagnostics",
            resend=lambda: h.publish(msgs))
     last = h.diagnostics[-1]
-    assert last["_level"] == "1" and kind in last["_message"]  # WARN, naming the problem
+    assert last["_level"] == "1" and key in last["_message"]  # WARN, naming the problem
+    assert key in last["last_problem"]
+    if key.startswith("refused_"):  # a refusal: counted in refused too, and kept
+        assert int(last["refused"]) >= 1 and last["last_refusal"]
     assert h.counter("poses") == 0 and not h.poses
     h.pose_for(frames["a"])  # still working
-    assert f"no pose ({kind})" in capfd.readouterr().err
+    err = capfd.readouterr().err
+    assert ("refused " if key.startswith("refused_") else f"no pose ({key})") in err
 
 
 def test_missing_extrinsics_then_recovery(harness: Harness,
                                           frames: dict[str, Rendered]) -> None:
     h, a = harness, frames["a"]
     msgs = h.frame_messages(a)
-    h.wait(lambda: h.counter("no_extrinsics") >= 1, "no_extrinsics",
+    h.wait(lambda: h.counter("refused_no_extrinsics") >= 1, "refused_no_extrinsics",
            resend=lambda: h.publish(msgs))
     assert not h.poses
     h.send_extrinsics(a.t)
@@ -346,7 +351,8 @@ def test_missing_camera_info_is_reported(harness: Harness, frames: dict[str, Ren
         rgb, depth, _ = h.frame_messages(a)
         h.publish((rgb, depth, None))
 
-    h.wait(lambda: h.counter("missing_camera_info") >= 1, "missing_camera_info",
+    h.wait(lambda: h.counter("refused_missing_camera_info") >= 1,
+           "refused_missing_camera_info",
            resend=send_without_info)
     assert not h.poses
     h.pose_for(a)

@@ -18,13 +18,13 @@ by hypothesis strategies, no DDS. At least 2,000 messages per topic:
 - parameter sets: every declared parameter, in and out of range and of the wrong type.
 
 Afterwards: no exception reached the guard (``callback_errors`` stays 0: every rejection was a
-checked one, counted under its kind); a rejected message changed nothing (filter state,
-history, counters other than its own); the work was bounded (a push longer than
-``max_push_length`` never reaches the process model: the model calls are counted; every push
-took at most ``max_substeps`` substeps; an outline above ``MAX_OUTLINE_POINTS`` is refused and
-one above ``OUTLINE_WORKING_POINTS`` decimated); and the node still estimates correctly
-(outline + observation + push + observation moves the estimate as
-``tests/estimator/test_ekf_node.py`` expects). No timing assertion anywhere.
+checked one, counted under its kind); a rejected message changed nothing (filter state, history,
+counters other than its own); the work was bounded (a push longer than ``max_push_length`` never
+reaches the process model: the model calls are counted; every push took at most ``max_substeps``
+substeps; an outline above ``MAX_OUTLINE_CLOUD_POINTS`` is refused and one above
+``OUTLINE_WORKING_POINTS`` decimated); and the node still estimates correctly (outline +
+observation + push + observation moves the estimate as ``tests/estimator/test_ekf_node.py``
+expects). No timing assertion anywhere.
 
 A smaller over-DDS run publishes 100 hostile messages per topic on the real topics and checks
 that the node is alive and answers ``~/reset``.
@@ -61,6 +61,7 @@ import push_core.ekf as ekf_module  # noqa: E402
 from push_core.estimator import EKFConfig, PushEKF, predict_push  # noqa: E402
 from push_estimator import ekf_node as node_module  # noqa: E402
 from push_estimator.ekf_node import PARAMETERS, EkfNode  # noqa: E402
+from push_estimator.inputs import MAX_OUTLINE_CLOUD_POINTS  # noqa: E402
 from push_ros.outline import outline_cloud_msg  # noqa: E402
 from push_ros.poses import pose_with_covariance_msg  # noqa: E402
 from push_ros.qos import LATCHED_QOS, RELIABLE_QOS  # noqa: E402
@@ -461,7 +462,7 @@ def test_fuzz_outlines(harness: Harness) -> None:
         else:
             assert len(h.node._outline) <= node_module.OUTLINE_WORKING_POINTS
             assert len(h.node.filter.outline.vertices) <= node_module.OUTLINE_WORKING_POINTS
-        if msg.width * msg.height > node_module.MAX_OUTLINE_POINTS:
+        if msg.width * msg.height > MAX_OUTLINE_CLOUD_POINTS:
             assert after["outlines"] == before["outlines"]
 
     run()

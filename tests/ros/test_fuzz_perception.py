@@ -225,13 +225,12 @@ def node(module_ros_context: Any, rendered: dict[str, Any]) -> Iterator[Segmenta
 
 def _state(n: SegmentationNode) -> tuple[Any, ...]:
     matrix, child = n._extrinsics._matrix, n._extrinsics._child_frame
-    return (tuple(n._pending), {k: sorted(v) for k, v in n._pending.items()},
-            None if matrix is None else matrix.tobytes(), child)
+    return (n._sync.snapshot(), None if matrix is None else matrix.tobytes(), child)
 
 
 def _rejects(n: SegmentationNode) -> int:
-    return sum(n._counts[k] for k in ("bad_color", "bad_depth", "bad_camera_info",
-                                      "bad_extrinsics", "bad_stamp"))
+    return sum(n.health.get(f"refused_{k}")
+               for k in ("color", "depth", "camera_info", "extrinsics", "stamp"))
 
 
 def _feed(n: SegmentationNode, callback: Callable[[Any], Any], msg: Any) -> None:
@@ -240,7 +239,7 @@ def _feed(n: SegmentationNode, callback: Callable[[Any], Any], msg: Any) -> None
     assert callback(msg) is None
     if _rejects(n) > rejected:
         assert _state(n) == before, "a rejected message changed the node's state"
-    assert n._counts["callback_errors"] == 0, n._last_error
+    assert n.health.get("callback_errors") == 0, n.health.last_error
 
 
 # ---- in-process fuzzing: >= 2,000 messages per topic -------------------------------------------
@@ -279,10 +278,13 @@ STAMPS = st.one_of(st.floats(0.0, 2.0**31 - 2.0).map(stamp_from_seconds),
 
 def _feed_anchor(n: SegmentationNode, callback: Callable[[Any], Any], msg: Any) -> None:
     """An estimator topic's callback: a rejected message keeps the anchor data as it was."""
-    before, rejected = (n._anchor_outline, n._anchor_estimate), n._counts["bad_input"]
+    def rejected() -> int:
+        return n.health.get("refused_estimator_outline") + n.health.get("refused_estimator_pose")
+
+    before, n_rejected = (n._anchor.outline, n._anchor.estimate), rejected()
     _feed(n, callback, msg)
-    if n._counts["bad_input"] > rejected:
-        assert (n._anchor_outline, n._anchor_estimate) == before
+    if rejected() > n_rejected:
+        assert (n._anchor.outline, n._anchor.estimate) == before
 
 
 def hostile_clouds() -> st.SearchStrategy[PointCloud2]:
@@ -351,21 +353,21 @@ def hostile_estimates() -> st.SearchStrategy[PoseWithCovarianceStamped]:
 @given(msg=hostile_clouds())
 def test_fuzz_estimator_outline(node: SegmentationNode, msg: PointCloud2) -> None:
     _feed_anchor(node, node.on_estimator_outline, msg)
-    if node._anchor_outline is not None:  # only a checked outline is kept
-        assert np.all(np.isfinite(node._anchor_outline[1]))
+    if node._anchor.outline is not None:  # only a checked outline is kept
+        assert np.all(np.isfinite(node._anchor.outline.points))
 
 
 @FUZZ
 @given(msg=hostile_estimates())
 def test_fuzz_estimator_pose(node: SegmentationNode, msg: PoseWithCovarianceStamped) -> None:
     _feed_anchor(node, node.on_estimate, msg)
-    if node._anchor_estimate is not None:
-        assert all(math.isfinite(v) for v in node._anchor_estimate)
+    if node._anchor.estimate is not None:
+        assert all(math.isfinite(v) for v in node._anchor.estimate)
 
 
 def test_fuzz_complete_frames(node: SegmentationNode) -> None:
     """Complete triples through the whole pipeline (hypothesis inside)."""
-    frames = node._counts["frames"]
+    frames = node.health.get("frames")
 
     @settings(FUZZ, max_examples=N_TRIPLES)
     @given(triple=hostile_triples())
@@ -376,13 +378,13 @@ def test_fuzz_complete_frames(node: SegmentationNode) -> None:
             _feed(node, callback, msg)
 
     one()
-    assert node._counts["frames"] - frames >= N_TRIPLES // 2  # they reached the pipeline
+    assert node.health.get("frames") - frames >= N_TRIPLES // 2  # they reached the pipeline
 
 
 def test_after_the_fuzz_the_node_measures_a_rendered_frame(node: SegmentationNode,
                                                            rendered: dict[str, Any]) -> None:
     """Runs after the fuzz tests above (file order): no escaped exception, correct poses."""
-    assert node._counts["callback_errors"] == 0
+    assert node.health.get("callback_errors") == 0
     response = node.on_reset(Trigger.Request(), Trigger.Response())
     assert response.success, response.message
     poses = []
@@ -394,14 +396,14 @@ def test_after_the_fuzz_the_node_measures_a_rendered_frame(node: SegmentationNod
         node.on_color(rgb_image_msg(f.rgb, stamp))
         node.on_depth(depth_image_msg(f.depth, stamp))
         node.on_camera_info(camera_info_msg(f.camera_matrix, w, h, stamp))
-        assert len(node.poses.messages) == before + 1, node._last_error
+        assert len(node.poses.messages) == before + 1, node.health.values()
         poses.append(xytheta_from_pose(node.poses.messages[-1].pose.pose))
     for pose, name in zip(poses, ("a", "b"), strict=True):
         truth = rendered[name].object_pose
         assert np.hypot(*(pose[:2] - truth[:2])) < 0.003
     turn = rendered["b"].object_pose[2] - rendered["a"].object_pose[2]
     assert abs(math.remainder(poses[1][2] - turn, math.pi)) < math.radians(2.0)
-    assert node._counts["callback_errors"] == 0
+    assert node.health.get("callback_errors") == 0
 
 
 # ---- over DDS: 100 hostile messages per topic on the real topics -------------------------------
@@ -435,7 +437,7 @@ def test_fuzz_over_dds_node_stays_alive_and_answers_reset(module_ros_context: An
         future = reset.call_async(Trigger.Request())
         assert spin_until(executor, future.done, time.monotonic() + 30.0)
         assert future.result().success, future.result().message
-        assert node._counts["callback_errors"] == 0, node._last_error
+        assert node.health.get("callback_errors") == 0, node.health.last_error
         assert _rejects(node) > 0
     finally:
         executor.shutdown()

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Quaternion
+from nav_msgs.msg import Path
 
 from push_core.objects import load_object
 from push_core.planner import Planner, PlannerConfig, prepare_outline
-from push_planner.conversions import affordance_markers
-from push_planner.planner_node import _goal_from_msg as goal_from_msg
+from push_planner.conversions import affordance_markers, executed_end, goal_from_msg
 from push_ros.diagnostics import status_msg
 from push_ros.outline import outline_cloud_msg as outline_cloud
 from push_ros.outline import outline_from_cloud
@@ -47,6 +47,25 @@ def test_yaw_from_planar_quaternions():
         yaw_from_quaternion(Quaternion(x=0.6, y=0.0, z=0.0, w=0.8))
     with pytest.raises(ValueError, match="finite"):
         yaw_from_quaternion(Quaternion(x=0.0, y=0.0, z=math.nan, w=1.0))
+
+
+def test_executed_end_is_the_latest_stamp_of_any_executor() -> None:
+    msg = Path()
+    msg.header.frame_id = "world"
+    msg.header.stamp = stamp_from_seconds(10.0)
+    for t in (10.5, 12.25, 11.0):  # not in order: the latest counts
+        pose = PoseStamped()
+        pose.header.stamp = stamp_from_seconds(t)
+        msg.poses.append(pose)
+    assert executed_end(msg) == pytest.approx(12.25)
+    msg.header.stamp = stamp_from_seconds(20.0)  # a header later than every pose
+    assert executed_end(msg) == pytest.approx(20.0)
+    msg.header.frame_id = "object"
+    with pytest.raises(ValueError, match="expected poses in 'world', got 3 poses in 'object'"):
+        executed_end(msg)
+    msg.header.frame_id, msg.poses = "world", []
+    with pytest.raises(ValueError, match="got 0 poses"):
+        executed_end(msg)
 
 
 def test_goal_checks_frame_values_and_workspace():

@@ -3,19 +3,25 @@
 :data:`PARAMETERS` is the one declaration of every parameter (name, default, description with
 unit, bounds, read-only), node-only parameters first; :data:`_FIELDS` maps the others to the
 :class:`~push_core.estimator.EKFConfig` field they set. :meth:`EkfNodeParams.from_values` builds
-the frozen configuration and raises ``ValueError`` naming the parameter.
+the frozen configuration and raises ``ValueError`` naming the parameter;
+:func:`check_parameter_set` is the rule for a set at run time (also: the current outline must
+still build a filter) and :func:`changed_values` names what an episode start applies.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from typing import Any
 
-from push_core.estimator import EKFConfig
+import numpy as np
+
+from push_core.estimator import EKFConfig, PushEKF
+from push_core.replay import FILTER_ERRORS
 from push_ros.frames import OBJECT_FRAME, WORLD_FRAME
 from push_ros.node import ParamSpec
 
-__all__ = ["PARAMETERS", "EkfNodeParams"]
+__all__ = ["PARAMETERS", "EkfNodeParams", "changed_values", "check_parameter_set"]
 
 _DEFAULTS = EKFConfig()
 #: The parameter table (node-only parameters first); :data:`_FIELDS` maps the others to the
@@ -179,3 +185,42 @@ class EkfNodeParams:
                    **limits)
 
 
+
+
+def changed_values(values: Mapping[str, Any], applied: Mapping[str, Any]) -> str:
+    """``"name=value, ..."`` of the parameters whose value differs from ``applied`` (the values
+    of the last episode start); "" if none."""
+    return ", ".join(f"{name}={value!r}" for name, value in values.items()
+                     if value != applied.get(name, value))
+
+
+def check_parameter_set(current: Mapping[str, Any], changed: Mapping[str, Any],
+                        outline: np.ndarray | None, normals: np.ndarray | None) -> str:
+    """Why a parameter set is refused ("" if it is accepted); never raises.
+
+    Parameters
+    ----------
+    current : mapping
+        Every parameter's current value.
+    changed : mapping
+        The values being set (names of other nodes' parameters, e.g. ``use_sim_time``, are
+        ignored).
+    outline, normals : (N, 2) arrays or None
+        The current outline (``object`` frame, m) and its unit normals: a set that the outline
+        cannot build a filter with is refused too.
+    """
+    changed = {name: value for name, value in changed.items() if name in _PARAMETER_NAMES}
+    if not changed:
+        return ""
+    try:
+        params = EkfNodeParams.from_values({**current, **changed})
+        if outline is not None:
+            try:
+                PushEKF(outline, normals, params.config)
+            except FILTER_ERRORS as exc:
+                return f"the current outline does not build a filter with these values: {exc}"
+    except (ValueError, TypeError) as exc:
+        return str(exc)
+    except Exception as exc:  # noqa: BLE001 - a parameter callback must not raise
+        return f"{type(exc).__name__}: {exc}"[:500]
+    return ""

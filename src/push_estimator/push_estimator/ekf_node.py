@@ -9,19 +9,19 @@ re-published latched on ``estimator/outline``), and publishes the estimate latch
 (``estimator/object_pose``, ``estimator/center_of_mass``, ``estimator/state``; ``/tf`` world ->
 object where :mod:`push_ros.tf` can) stamped with the observation's stamp.
 
-Invariants: a refused input never changes the filter (a failed or non-finite update restores
-its snapshot); no exception leaves a callback; every message goes through a :mod:`push_ros`
-codec; it never imports the simulator. Health (:class:`push_ros.health.NodeHealth`, on
-``/diagnostics`` as ``<node>: estimator``): ``callback_errors``, ``last_error``, ``refused``
-with its classes ``refused_outline``, ``refused_nan``, ``refused_invalid``,
-``refused_out_of_range`` (``MAX_POSITION``, ``max_push_length``), ``refused_future``
-(:func:`push_ros.stamps.check_not_ahead`), ``refused_duplicate`` (not logged: the perception
-re-publishes while the scene is idle), ``refused_out_of_order`` (older than the last input,
-before the episode, a push that cannot be placed), ``refused_before_init``,
-``refused_before_outline``, ``refused_filter_error``; ``last_refusal``, ``last_problem`` (the
-newest refusal, gate failure or error, "" after a good input) and the node's own counters.
-``~/reset`` starts an episode (outline kept; every "last applied" time cleared; parameters set
-since the last episode applied).
+Invariants (input rules: :mod:`push_estimator.inputs`): a refused input never changes the filter
+(a failed or non-finite update restores its snapshot); no exception leaves a callback; every
+message goes through a :mod:`push_ros` codec; it never imports the simulator. Health
+(:class:`push_ros.health.NodeHealth`, on ``/diagnostics`` as ``<node>: estimator``):
+``callback_errors``, ``last_error``, ``refused`` with its classes ``refused_outline``,
+``refused_nan``, ``refused_invalid``, ``refused_out_of_range`` (``MAX_POSITION``,
+``max_push_length``), ``refused_future`` (:func:`push_ros.stamps.check_not_ahead`),
+``refused_duplicate`` (not logged: the perception re-publishes while the scene is idle),
+``refused_out_of_order`` (older than the last input, before the episode, a push that cannot be
+placed), ``refused_before_init``, ``refused_before_outline``, ``refused_filter_error``;
+``last_refusal``, ``last_problem`` (the newest refusal, gate failure or error, "" after a good
+input) and the node's own counters. ``~/reset`` starts an episode (outline kept; every "last
+applied" time cleared; parameters set since the last episode applied).
 
 The contract (topics, QoS, frames, the rules per field) is in docs/ARCHITECTURE.md
 ("Estimator", "Node runtime") and the README topic table; the parameters are the
@@ -32,7 +32,7 @@ The contract (topics, QoS, frames, the rules per field) is in docs/ARCHITECTURE.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -49,7 +49,8 @@ from std_srvs.srv import Trigger
 from push_core.estimator import STATE_LABELS, PushEKF
 from push_core.geometry import NonFiniteError
 from push_core.replay import FILTER_ERRORS, Rejected, ReplayHistory
-from push_estimator.config import _PARAMETER_NAMES, PARAMETERS, EkfNodeParams
+from push_estimator import inputs
+from push_estimator.config import PARAMETERS, EkfNodeParams, changed_values, check_parameter_set
 from push_ros.health import NodeHealth
 from push_ros.node import declare_config, parameter_values, run_node
 from push_ros.outline import decimate_outline, outline_from_cloud
@@ -71,34 +72,16 @@ __all__ = ["EkfNode", "EkfNodeParams", "main"]
 NODE_NAME = "ekf_node"
 #: Seconds between repeated log lines of one kind (the counters count every event).
 LOG_THROTTLE_S = 2.0
-#: Tolerance (m) under which a re-published outline counts as the same outline.
-SAME_OUTLINE_TOL = 1e-6
-#: Largest |x|, |y| (m) of an observation, a pusher position or an outline point: the table
-#: scene spans a few metres (the perception's transforms have the same 100 m bound).
-MAX_POSITION = 100.0
-#: An outline cloud of more points is refused before it is decoded.
-MAX_OUTLINE_POINTS = 4000
 #: An outline of more points is decimated to at most this many (every k-th point): the
 #: filter's polygon checks grow quadratically (1000 points: about 1 s and 0.2 GB to build).
 #: A perceived outline (2 mm spacing) has a few hundred points.
 OUTLINE_WORKING_POINTS = 1000
-#: Eigenvalues (m^2, rad^2) of a message covariance the filter uses; outside, the configured
-#: sigmas (1e-12: 1 um / 1 urad; 1e8 keeps the perception's "orientation not observed" 1e6).
-COVARIANCE_RANGE = (1e-12, 1e8)
-
 #: The node's own counters; refusals are ``refused_<kind>`` (NodeHealth).
 _COUNTERS = ("observations", "pushes", "replayed", "gated", "resets", "outlines",
              "decimated_outlines", "replaced_covariance",
              *(f"refused_{k}" for k in ("outline", "nan", "invalid", "out_of_range", "future",
                                         "duplicate", "out_of_order", "before_init",
                                         "before_outline", "filter_error")))
-
-
-def _usable_covariance(cov: np.ndarray | None) -> bool:
-    if cov is None:
-        return False
-    eig = np.linalg.eigvalsh(cov)
-    return bool(COVARIANCE_RANGE[0] <= eig[0] and eig[-1] <= COVARIANCE_RANGE[1])
 
 
 class EkfNode(Node):
@@ -177,6 +160,11 @@ class EkfNode(Node):
         self._problem = self.health.refuse(what, reason, kind, error)
         self._publish_diagnostics()
 
+    def _duplicate(self) -> None:
+        """A refused duplicate: counted, not logged (the perception re-publishes while idle)."""
+        self.health.count("refused")
+        self.health.count("refused_duplicate")
+
     def _parse(self, parse: Callable[[Any, str], Any], msg: Any, topic: str) -> Any:
         """``parse(msg, world_frame)``, or None after refusing a bad message."""
         try:
@@ -194,16 +182,7 @@ class EkfNode(Node):
                             self.params.max_future_stamp, what)
         except ValueError as exc:
             raise Rejected("future", str(exc)) from None
-        if stamp < self._episode_start:
-            raise Rejected("out_of_order", f"{what} {stamp:.6f} s: before the episode (its "
-                           f"first observation at {self._episode_start:.6f} s)")
-
-    @staticmethod
-    def _check_position(values: Iterable[float]) -> None:
-        worst = max(abs(v) for v in values)
-        if worst > MAX_POSITION:
-            raise Rejected("out_of_range", f"a coordinate of {worst:.6g} m, more than "
-                           f"MAX_POSITION = {MAX_POSITION:g} m from the origin")
+        inputs.check_stamp_order(stamp, self._episode_start, what)
 
     def _new_episode(self) -> None:
         self._replay.clear(self._ekf)
@@ -211,13 +190,9 @@ class EkfNode(Node):
         self._episode_start = -math.inf
 
     def _read_parameters(self) -> tuple[EkfNodeParams, str]:
-        """The current parameter values, built, and ``"name=value, ..."`` of those that differ
-        from the values applied last (raises ``ValueError``; they were checked on set)."""
+        """The current parameter values, built, and those changed since the last episode."""
         values = parameter_values(self, PARAMETERS)
-        params = EkfNodeParams.from_values(values)
-        changed = ", ".join(f"{name}={value!r}" for name, value in values.items()
-                            if value != self._applied_values.get(name, value))
-        return params, changed
+        return EkfNodeParams.from_values(values), changed_values(values, self._applied_values)
 
     def _apply_parameters(self) -> str:
         """Episode start (``~/reset``): re-read every parameter and rebuild the filter on the
@@ -231,45 +206,25 @@ class EkfNode(Node):
         return changed
 
     def _check_parameters(self, parameters: list[Any]) -> SetParametersResult:
-        """On-set: refuse a value that makes the configuration invalid or that the current
-        outline cannot build a filter with; never raises."""
-        try:
-            changed = {p.name: p.value for p in parameters if p.name in _PARAMETER_NAMES}
-            if not changed:
-                return SetParametersResult(successful=True)
-            params = EkfNodeParams.from_values({**parameter_values(self, PARAMETERS),
-                                                **changed})
-            if self._outline is not None:
-                try:
-                    PushEKF(self._outline, self._normals, params.config)
-                except FILTER_ERRORS as exc:
-                    return SetParametersResult(successful=False, reason=(
-                        f"the current outline does not build a filter with these values: "
-                        f"{exc}"))
-        except (ValueError, TypeError) as exc:
-            return SetParametersResult(successful=False, reason=str(exc))
-        except Exception as exc:  # noqa: BLE001 - a parameter callback must not raise
-            return SetParametersResult(successful=False,
-                                       reason=f"{type(exc).__name__}: {exc}"[:500])
-        return SetParametersResult(successful=True)
+        """On-set (:func:`push_estimator.config.check_parameter_set`); never raises."""
+        reason = check_parameter_set(parameter_values(self, PARAMETERS),
+                                     {p.name: p.value for p in parameters}, self._outline,
+                                     self._normals)
+        return SetParametersResult(successful=not reason, reason=reason)
 
     # ---- callbacks -----------------------------------------------------------------------
     def _on_outline(self, msg: PointCloud2) -> None:
         topic = "perception/outline"
         try:
             points, normals = outline_from_cloud(msg, self.params.object_frame,
-                                                 MAX_OUTLINE_POINTS)
-            worst = float(np.max(np.abs(points)))
-            if worst > MAX_POSITION:
-                raise ValueError(f"a point {worst:.6g} m from the object origin, more than "
-                                 f"MAX_POSITION = {MAX_POSITION:g} m")
+                                                 inputs.MAX_OUTLINE_CLOUD_POINTS)
+            inputs.check_outline_extent(points)
         except ValueError as exc:  # NonFiniteError included
             self._refuse(topic, "outline", str(exc), error=True)
             return
         n_received = len(points)
         points, normals = decimate_outline(points, normals, OUTLINE_WORKING_POINTS)
-        if (self._outline is not None and self._outline.shape == points.shape
-                and np.allclose(self._outline, points, rtol=0.0, atol=SAME_OUTLINE_TOL)):
+        if inputs.same_outline(self._outline, points):
             return  # the same latched outline again
         try:
             params, changed = self._read_parameters()
@@ -307,15 +262,13 @@ class EkfNode(Node):
         if obs is None:
             return
         try:
-            self._check_position(obs.pose[:2])
+            inputs.check_position(obs.pose[:2])
             if obs.stamp in (self._last_observation, self._previous_episode):
-                self.health.count("refused")  # normal while the scene is idle: no log
-                self.health.count("refused_duplicate")
-                return
+                return self._duplicate()  # normal while the scene is idle: no log
             self._check_time(obs.stamp)
             self._replay.check_order(obs.stamp)
             cov = obs.covariance if self.params.use_message_covariance else None
-            if cov is not None and not _usable_covariance(cov):
+            if cov is not None and not inputs.usable_covariance(cov):
                 self.health.count("replaced_covariance")
                 cov = None
             result = self._replay.observe(obs.stamp, obs.pose, cov)
@@ -350,15 +303,10 @@ class EkfNode(Node):
         if push is None:
             return
         try:
-            self._check_position((*push.start, *push.end))
-            length = math.hypot(*(push.end - push.start))
-            if length > self.params.max_push_length:
-                raise Rejected("out_of_range", f"the pusher travels {length:.6g} m, more than "
-                               f"max_push_length = {self.params.max_push_length:g} m")
+            inputs.check_position((*push.start, *push.end))
+            inputs.check_push_length(push.start, push.end, self.params.max_push_length)
             if self._replay.has_push(push.t_start, push.t_end):
-                self.health.count("refused")
-                self.health.count("refused_duplicate")
-                return
+                return self._duplicate()
             self._check_time(push.t_end, "ending")
             self._check_time(push.t_start, "starting")
             done = self._replay.insert_push(push.t_start, push.t_end, push.start, push.end)

@@ -99,7 +99,7 @@ __all__ = [
     "PerceptionConfig",
     "PerceptionError",
     "TopDownView",
-    "check_frame",
+    "check_frame_arrays",
     "object_points",
     "outline_view",
     "pose_covariance",
@@ -246,7 +246,7 @@ class PerceptionConfig:
 # --------------------------------------------------------------------------------------------
 # Validation
 # --------------------------------------------------------------------------------------------
-def check_frame(mask: ArrayLike, depth: ArrayLike, camera_matrix: ArrayLike,
+def check_frame_arrays(mask: ArrayLike, depth: ArrayLike, camera_matrix: ArrayLike,
                 t_world_camera: ArrayLike) -> tuple[NDArray[np.bool_], NDArray[np.float32],
                                                     NDArray[np.float64], NDArray[np.float64]]:
     """Validate one frame's arrays; returns them as (bool, float32, float64, float64).
@@ -864,7 +864,7 @@ class EpisodeTracker:
             unchanged.
         """
         cfg = self.cfg
-        m, d, k, t = check_frame(mask, depth, camera_matrix, t_world_camera)
+        m, d, k, t = check_frame_arrays(mask, depth, camera_matrix, t_world_camera)
         n_mask = int(np.count_nonzero(m))
         if n_mask == 0:
             raise PerceptionError("empty_mask", "the object mask is empty (object not found)")

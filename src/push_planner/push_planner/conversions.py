@@ -1,4 +1,6 @@
-"""The planner's own message: the ``planner/affordances`` MarkerArray (RViz view of a plan).
+"""The planner's own messages and reading rules: the ``planner/affordances`` MarkerArray (RViz
+view of a plan), the goal of ``goal_pose`` on the workspace (:func:`goal_from_msg`) and the end
+time of any ``pusher/executed`` (:func:`executed_end`).
 
 Every other message the planner reads or writes has its one codec in :mod:`push_ros`
 (``estimator/state``: :mod:`push_ros.state`; poses and goals: :mod:`push_ros.poses`;
@@ -10,7 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import Point
+from geometry_msgs.msg import Point, PoseStamped
+from nav_msgs.msg import Path
 from numpy.typing import ArrayLike, NDArray
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
@@ -18,8 +21,10 @@ from visualization_msgs.msg import Marker, MarkerArray
 from push_core.geometry import object_to_world
 from push_core.planner import Outline, PushPlan
 from push_ros.frames import WORLD_FRAME
+from push_ros.poses import check_frame, xytheta_from_pose
+from push_ros.stamps import seconds_from_stamp
 
-__all__ = ["affordance_markers"]
+__all__ = ["affordance_markers", "executed_end", "goal_from_msg"]
 
 
 def _color(r: float, g: float, b: float, a: float = 1.0) -> ColorRGBA:
@@ -88,3 +93,39 @@ def affordance_markers(outline: Outline, pose: ArrayLike, plan: PushPlan, stamp:
     approach.scale.x = approach.scale.y = approach.scale.z = 0.006
     approach.color = _color(0.5, 0.5, 0.5)
     return MarkerArray(markers=[outline_m, cand, arrow, approach])
+
+
+def goal_from_msg(msg: PoseStamped,
+                   workspace: tuple[tuple[float, float], tuple[float, float]]
+                   ) -> np.ndarray:
+    """Goal ``(x, y, theta)`` in ``world`` of ``goal_pose``; its position on the workspace.
+
+    Raises
+    ------
+    ValueError
+        Wrong frame, non-finite values, a quaternion that breaks the planarity rule, or a
+        position outside ``workspace`` ((xmin, xmax), (ymin, ymax)), m.
+    """
+    check_frame(msg.header.frame_id, WORLD_FRAME)
+    goal = xytheta_from_pose(msg)
+    (x0, x1), (y0, y1) = workspace
+    if not (x0 <= goal[0] <= x1 and y0 <= goal[1] <= y1):
+        raise ValueError(f"position ({goal[0]:.4f}, {goal[1]:.4f}) m is off the workspace "
+                         f"x in [{x0}, {x1}], y in [{y0}, {y1}] m")
+    return goal
+
+
+def executed_end(msg: Path) -> float:
+    """The end (s) of a ``pusher/executed`` from any executor: the latest of its header stamp
+    and its poses' stamps.
+
+    Raises
+    ------
+    ValueError
+        Not in ``world``, no poses, or a stamp outside the time rule of :mod:`push_ros.stamps`.
+    """
+    if msg.header.frame_id != WORLD_FRAME or not msg.poses:
+        raise ValueError(f"expected poses in 'world', got {len(msg.poses)} poses in "
+                         f"{msg.header.frame_id!r}")
+    return max([seconds_from_stamp(msg.header.stamp)]
+               + [seconds_from_stamp(p.header.stamp) for p in msg.poses])

@@ -44,14 +44,13 @@ from push_core.episode import EpisodeEngine
 from push_core.pairing import Estimate, EstimatePairing
 from push_core.planner import Planner, PushPlan, check_state, prepare_outline
 from push_planner.config import PARAMETERS, PlannerNodeParams, load_learned_model
-from push_planner.conversions import affordance_markers
-from push_ros.frames import WORLD_FRAME
+from push_planner.conversions import affordance_markers, executed_end, goal_from_msg
 from push_ros.health import NodeHealth
 from push_ros.message_info import GoalSources, publishers_text
 from push_ros.node import declare_config, parameter_values, run_node
 from push_ros.outline import outline_from_cloud
 from push_ros.paths import push_path
-from push_ros.poses import check_frame, pose_with_covariance_from_msg, xytheta_from_pose
+from push_ros.poses import pose_with_covariance_from_msg
 from push_ros.qos import LATCHED_QOS, RELIABLE_QOS, latched_reader_qos
 from push_ros.refusal import read_refusal, stamp_key
 from push_ros.stamps import check_not_ahead, clock_seconds, seconds_from_stamp
@@ -74,26 +73,6 @@ KINDS = {"goal_pose": "goal", "perception/outline": "outline", "estimator/object
 #: The node's own counters besides the engine's.
 COUNTERS = ("goal_switches", "pushes_refused", "refusals_ignored",
             *(f"refused_{k}" for k in KINDS.values()))
-
-
-def _goal_from_msg(msg: PoseStamped,
-                   workspace: tuple[tuple[float, float], tuple[float, float]]
-                   ) -> np.ndarray:
-    """Goal ``(x, y, theta)`` in ``world`` of ``goal_pose``; its position on the workspace.
-
-    Raises
-    ------
-    ValueError
-        Wrong frame, non-finite values, a quaternion that breaks the planarity rule, or a
-        position outside ``workspace`` ((xmin, xmax), (ymin, ymax)), m.
-    """
-    check_frame(msg.header.frame_id, WORLD_FRAME)
-    goal = xytheta_from_pose(msg)
-    (x0, x1), (y0, y1) = workspace
-    if not (x0 <= goal[0] <= x1 and y0 <= goal[1] <= y1):
-        raise ValueError(f"position ({goal[0]:.4f}, {goal[1]:.4f}) m is off the workspace "
-                         f"x in [{x0}, {x1}], y in [{y0}, {y1}] m")
-    return goal
 
 
 class PlannerNode(Node):
@@ -224,7 +203,7 @@ class PlannerNode(Node):
             return
         source = self._goals.arrived(info)
         try:
-            goal = _goal_from_msg(msg, self.params.planner.workspace)
+            goal = goal_from_msg(msg, self.params.planner.workspace)
         except ValueError as exc:
             self._refuse("goal_pose", str(exc))
             return
@@ -293,11 +272,7 @@ class PlannerNode(Node):
 
     def _on_executed(self, msg: Path) -> None:
         try:
-            if msg.header.frame_id != WORLD_FRAME or not msg.poses:
-                raise ValueError(f"expected poses in 'world', got {len(msg.poses)} poses in "
-                                 f"{msg.header.frame_id!r}")
-            end = max([seconds_from_stamp(msg.header.stamp)]
-                      + [seconds_from_stamp(p.header.stamp) for p in msg.poses])
+            end = executed_end(msg)
             self._check_stamp(end)
         except ValueError as exc:
             self._refuse("pusher/executed", str(exc))

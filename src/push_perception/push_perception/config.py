@@ -1,0 +1,109 @@
+"""``segmentation_node``'s parameters: the declared table and the typed, validated configuration.
+
+:data:`PARAMETERS` is the one declaration of every parameter (name, default, description with
+unit, bounds, read-only); the geometry ones set the :class:`~push_perception.core.PerceptionConfig`
+field of the same name. :meth:`SegmentationParams.from_values` builds the frozen configuration
+and raises ``ValueError`` naming the parameter. Defaults and units are also commented in
+``pushbot_bringup/config/push_perception.yaml`` (a test keeps the two equal).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from push_perception.core import PerceptionConfig
+from push_ros.node import ParamSpec
+
+__all__ = ["PARAMETERS", "SegmentationParams"]
+
+_GEOMETRY = {f.name: f.default for f in dataclasses.fields(PerceptionConfig)}
+PARAMETERS: tuple[ParamSpec, ...] = (
+    ParamSpec("weights", "", "Segmentation network weights (.pt); empty = the bundled "
+              "push_perception/models/segmentation.pt.", read_only=True),
+    ParamSpec("torch_threads", 1, "torch intra-op threads for the CNN.", (1, 16),
+              read_only=True),
+    ParamSpec("sync_queue", 5, "Stamps kept per stream while matching colour, depth and "
+              "camera_info.", (1, 100), read_only=True),
+    ParamSpec("threshold", 0.5, "Probability above which a pixel is the object.",
+              (0.01, 0.99), read_only=True),
+    ParamSpec("min_coarse_cells", 3, "Smallest coarse CNN component accepted as the object, "
+              "cells of 8 x 8 px at 640 x 480.", (1, 10000), read_only=True),
+    ParamSpec("publish_mask", True, "Publish perception/mask."),
+    ParamSpec("anchor_timeout", 5.0, "Seconds (steady) after start-up to wait for the "
+              "estimator's latched outline and estimate to continue a running episode after a "
+              "restart; 0 = never re-anchor.", (0.0, 60.0), read_only=True),
+    ParamSpec("resolution", _GEOMETRY["resolution"], "Cell size of the top-down view, m.",
+              (5e-4, 3e-3)),
+    ParamSpec("min_height", _GEOMETRY["min_height"], "Mask points lower than this above the "
+              "table are dropped (table pixels), m.", (0.0, 0.01)),
+    ParamSpec("closing_radius", _GEOMETRY["closing_radius"], "Morphological closing of the "
+              "top-down view, cells; closing_radius * resolution in [1, 10] mm.", (2, 10)),
+    ParamSpec("outline_spacing", _GEOMETRY["outline_spacing"], "Distance between outline "
+              "points, m (at most 1000 points: a longer outline is spaced wider).",
+              (5e-4, 0.01)),
+    ParamSpec("outline_smoothing", _GEOMETRY["outline_smoothing"], "Gaussian smoothing "
+              "along the outline (standard deviation), m.", (0.0, 0.01)),
+    ParamSpec("outline_offset", _GEOMETRY["outline_offset"], "Extra outward offset of the "
+              "outline (calibration), m.", (-0.005, 0.005)),
+    ParamSpec("symmetry_tolerance", _GEOMETRY["symmetry_tolerance"], "Orientation minima "
+              "within this chamfer cost of the best are symmetric equivalents, m.",
+              (0.0, 0.01)),
+    ParamSpec("min_pixels", _GEOMETRY["min_pixels"], "Fewer mask pixels (with depth) than "
+              "this: no pose.", (3, 10**7)),
+    ParamSpec("min_valid_fraction", _GEOMETRY["min_valid_fraction"], "Smaller fraction of "
+              "mask pixels with depth than this: no pose.", (0.0, 1.0)),
+    ParamSpec("max_border_pixels", _GEOMETRY["max_border_pixels"], "More mask pixels than "
+              "this on the image border: object out of view, no pose.", (0, 10**7)),
+    ParamSpec("sigma_position", _GEOMETRY["sigma_position"], "Base standard deviation of x "
+              "and y (5000 pixels, full depth), m.", (1e-6, 1.0)),
+    ParamSpec("sigma_theta", _GEOMETRY["sigma_theta"], "Base standard deviation of the "
+              "relative yaw, rad.", (1e-6, math.pi)),
+    ParamSpec("match_cost_floor", _GEOMETRY["match_cost_floor"], "Chamfer residual of a "
+              "correct rotation match; only the excess widens the yaw's deviation, m.",
+              (0.0, 0.01)),
+)
+_GEOMETRY_NAMES = tuple(n for n in _GEOMETRY if any(p.name == n for p in PARAMETERS))
+
+
+@dataclass(frozen=True)
+class SegmentationParams:
+    """The node's parameters, typed and validated (see ``PARAMETERS`` for units).
+
+    Attributes
+    ----------
+    weights : str
+        Weights file; "" = bundled.
+    torch_threads, sync_queue, min_coarse_cells : int
+    threshold : float
+    publish_mask : bool
+    geometry : PerceptionConfig
+        The mask-to-state parameters.
+    anchor_timeout : float
+        Seconds to wait for a re-anchoring after start-up (module docstring).
+    """
+
+    weights: str
+    torch_threads: int
+    sync_queue: int
+    threshold: float
+    min_coarse_cells: int
+    publish_mask: bool
+    geometry: PerceptionConfig
+    anchor_timeout: float = 5.0
+
+    @classmethod
+    def from_values(cls, values: dict[str, Any]) -> SegmentationParams:
+        """Build from ``{name: value}``; raises ``ValueError`` naming a bad parameter."""
+        geometry = {n: values[n] for n in _GEOMETRY_NAMES}
+        try:
+            config = PerceptionConfig(**geometry)
+        except ValueError as exc:
+            raise ValueError(f"invalid geometry parameter: {exc}") from None
+        return cls(weights=str(values["weights"]), torch_threads=int(values["torch_threads"]),
+                   sync_queue=int(values["sync_queue"]), threshold=float(values["threshold"]),
+                   min_coarse_cells=int(values["min_coarse_cells"]),
+                   publish_mask=bool(values["publish_mask"]), geometry=config,
+                   anchor_timeout=float(values["anchor_timeout"]))
