@@ -20,6 +20,7 @@ Endpoints (only with ``robot: arm``; docs/ARCHITECTURE.md, "Arm mode of the simu
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -32,6 +33,7 @@ from std_msgs.msg import String
 from trajectory_msgs.msg import JointTrajectory
 
 from push_ros.frames import WORLD_FRAME
+from push_ros.node import ThrottledLog
 from push_ros.qos import LATCHED_QOS, RELIABLE_QOS
 from push_ros.stamps import seconds_from_stamp, stamp_from_seconds
 from sim_bridge.arm import (
@@ -43,6 +45,7 @@ from sim_bridge.arm import (
 )
 from sim_bridge.arm_motion import ArmRun
 from sim_bridge.arm_robot import ARM_JOINTS, JointState
+from sim_bridge.worker import Timeline
 
 __all__ = ["IDLE_JOINT_STATE_RATE", "ArmEndpoints", "command_from_msg"]
 
@@ -91,24 +94,33 @@ class ArmEndpoints:
     controller_topic : str
     max_duration : float
         Longest accepted trajectory, s (:func:`check_trajectory`).
-    now : callable
-        The current published sim time, s.
+    timeline : sim_bridge.worker.Timeline
+        Published time = ``epoch + sim_time``.
+    sim_time : callable
+        The world's current sim time, s (no epoch).
+    log : push_ros.node.ThrottledLog
+        Where a joint state that could not be published is reported.
     guard : callable
         Wraps a callback so that nothing escapes it (the node's guard).
     on_rejected : callable
-        ``on_rejected(reason)``: count and report a rejected trajectory.
+        ``on_rejected(kind, reason)``: count and report a rejected trajectory (``kind``: the
+        :class:`TrajectoryRejected` kind, or ``busy``).
     on_accepted : callable
-        ``on_accepted(trajectory)``: hand an accepted trajectory to the physics; returns a
-        reason if the simulator cannot take it (then it counts as rejected).
+        ``on_accepted(trajectory)``: hand an accepted trajectory (its stamp in the world's
+        sim time, without the epoch) to the physics; returns a reason if the simulator cannot
+        take it (then it counts as rejected).
+    closing : callable
+        True once the node is being destroyed (nothing is published then).
     """
 
     def __init__(self, node: Any, controller_topic: str, max_duration: float,
-                 now: Callable[[], float], guard: Callable[..., Any],
-                 on_rejected: Callable[[str], None],
-                 on_accepted: Callable[[Trajectory], str | None]) -> None:
+                 timeline: Timeline, sim_time: Callable[[], float], log: ThrottledLog,
+                 guard: Callable[..., Any], on_rejected: Callable[[str, str], None],
+                 on_accepted: Callable[[Trajectory], str | None],
+                 closing: Callable[[], bool]) -> None:
         self.follower = TrajectoryFollower(ARM_JOINTS)
         self._node = node
-        self._now = now
+        self._timeline, self._sim_time, self._log, self._closing = timeline, sim_time, log, closing
         self._max_duration = max_duration
         self._on_rejected = on_rejected
         self._on_accepted = on_accepted
@@ -125,14 +137,28 @@ class ArmEndpoints:
 
     def _on_trajectory(self, msg: JointTrajectory) -> None:
         try:
-            trajectory = check_trajectory(command_from_msg(msg), ARM_JOINTS, self._now(),
+            trajectory = check_trajectory(command_from_msg(msg), ARM_JOINTS,
+                                          self._timeline.at(self._sim_time()),
                                           self._max_duration)
         except TrajectoryRejected as exc:
-            self._on_rejected(f"rejected trajectory ({exc.kind}): {exc}")
+            self._on_rejected(exc.kind, f"({exc.kind}) {exc}")
             return
+        if trajectory.stamp != 0.0:  # the world's sim_time has no epoch
+            trajectory = replace(trajectory,
+                                 stamp=max(trajectory.stamp - self._timeline.epoch, 1e-9))
         reason = self._on_accepted(trajectory)
         if reason is not None:
-            self._on_rejected(f"rejected trajectory: {reason}")
+            self._on_rejected("busy", reason)
+
+    def joint_state(self, sim_time: float, state: JointState) -> None:
+        """``/joint_states`` at the published time of the world's ``sim_time`` (s); any thread,
+        never raises (the physics loop calls it)."""
+        if self._closing():
+            return
+        try:
+            self.publish_state(self._timeline.at(sim_time), state)
+        except Exception as exc:  # e.g. the context shut down meanwhile
+            self._log.warning("joint_states", f"joint state not published: {exc}")
 
     def publish_state(self, time: float, state: JointState) -> None:
         """Publish ``/joint_states`` at sim time ``time`` (s) and keep it for the idle timer."""
@@ -151,8 +177,9 @@ class ArmEndpoints:
         """Latch the URDF on ``/robot_description``."""
         self.pub_description.publish(String(data=urdf))
 
-    def publish_tool_tip(self, run: ArmRun, epoch: float) -> None:
+    def publish_tool_tip(self, run: ArmRun) -> None:
         """``sim/tool_tip`` of one run (module docstring); times are ``epoch + sim_time``."""
+        epoch = self._timeline.epoch
         path = Path()
         path.header.frame_id = WORLD_FRAME
         path.header.stamp = stamp_from_seconds(epoch + run.t_done)
