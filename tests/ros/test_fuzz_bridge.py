@@ -49,7 +49,8 @@ from std_srvs.srv import Trigger  # noqa: E402
 from push_ros.frames import WORLD_FRAME  # noqa: E402
 from push_ros.paths import push_path, push_points_from_path  # noqa: E402
 from pushbot.graph import spin_until  # noqa: E402
-from sim_bridge.sim_bridge_node import PARAMETERS, SimBridgeNode, SimBridgeParams  # noqa: E402
+from sim_bridge.params import PARAMETERS, SimBridgeParams  # noqa: E402
+from sim_bridge.sim_bridge_node import SimBridgeNode  # noqa: E402
 
 N_FUZZ = 2000
 FUZZ = settings(max_examples=N_FUZZ, deadline=None, derandomize=True, database=None,
@@ -277,7 +278,7 @@ def hostile_knocks(draw: Callable[..., Any]) -> PoseStamped:
 def test_fuzz_knocks(node: SimBridgeNode) -> None:
     """2,000 hostile sim/knock messages through the subscribed callback (hypothesis inside)."""
     from push_ros.poses import check_frame, xytheta_from_pose
-    from sim_bridge.sim_bridge_node import MAX_KNOCK_SHIFT
+    from sim_bridge.commands import MAX_KNOCK_SHIFT
 
     @FUZZ
     @given(msg=hostile_knocks())

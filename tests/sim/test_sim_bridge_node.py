@@ -269,7 +269,7 @@ def counter(values: dict[str, str], name: str) -> int:
 def test_parameter_yaml_documents_every_parameter_with_its_default() -> None:
     import yaml
 
-    from sim_bridge.sim_bridge_node import PARAMETERS
+    from sim_bridge.params import PARAMETERS
 
     path = FilePath(__file__).resolve().parents[2] / "src/pushbot_bringup/config/sim_bridge.yaml"
     text = path.read_text()

@@ -39,24 +39,15 @@ from push_ros.paths import push_points_from_path
 from push_ros.poses import check_frame, xytheta_from_pose
 from push_ros.qos import RELIABLE_QOS
 from push_ros.stamps import stamp_from_seconds
-from sim_bridge.arm import Trajectory
+from sim_bridge import commands
 from sim_bridge.arm_ros import ArmEndpoints
-from sim_bridge.commands import (
-    MAX_KNOCK_SHIFT,
-    check_knock,
-    knocked_pose,
-    push_report,
-    scene_summary,
-    unused_com_warning,
-)
 from sim_bridge.faults import FaultInjector
-from sim_bridge.params import PARAMETERS, FaultConfig, SimBridgeParams, check_object_parameter
+from sim_bridge.params import PARAMETERS, SimBridgeParams
 from sim_bridge.scene_ros import Capture, SceneEndpoints
 from sim_bridge.worker import Timeline, Worker
 from sim_bridge.world import PushWorld, WorldConfig
 
-__all__ = ["MAX_KNOCK_SHIFT", "PARAMETERS", "FaultConfig", "SimBridgeNode", "SimBridgeParams",
-           "check_object_parameter", "main"]
+__all__ = ["SimBridgeNode", "main"]
 
 #: Seconds between repeated log lines of the same kind (the diagnostics count every event).
 LOG_THROTTLE_S = 1.0
@@ -86,10 +77,8 @@ class SimBridgeNode(Node):
         self.health = NodeHealth(self, "simulation", "pybullet", COUNTERS, LOG_THROTTLE_S,
                                  on_error=self._on_callback_error)
         self._params = declare_config(self, PARAMETERS, SimBridgeParams.from_values)
-        if self.get_parameter("use_sim_time").value:
-            self.get_logger().warning(
-                "use_sim_time is true, but the sim bridge is the /clock source; its timers run "
-                "on the steady clock regardless")
+        self._warn("use_sim_time is true, but the sim bridge is the /clock source; its timers "
+                   "run on the steady clock" if self.get_parameter("use_sim_time").value else "")
         self._problem = ""  # the last command's refusal or failure; "" after a success
         self._pushing = False  # the physics runs a push or an arm run: /clock follows it
         self._closing = False
@@ -101,8 +90,7 @@ class SimBridgeNode(Node):
         self._capture: Capture | None = None
         self.worker = Worker()  # every pybullet call happens in its one thread
         try:
-            self._world: PushWorld = self.worker.call(
-                PushWorld, self._params.world_config()).result()
+            self._world = self.worker.call(PushWorld, self._params.world_config()).result()
         except BaseException:
             self.worker.shutdown()
             raise
@@ -118,16 +106,16 @@ class SimBridgeNode(Node):
         if self._params.robot == "arm":
             self._arm = ArmEndpoints(
                 self, self._params.arm_controller_topic, self._params.arm_max_duration,
-                self.timeline, lambda: self._world.sim_time, self.health.log, guard,
+                self.timeline, lambda: self._world.sim_time, self.health, guard,
                 lambda kind, why: self._refuse("trajectory", why, kind, "trajectories_rejected"),
-                self._on_trajectory, lambda: self._closing)
+                self.worker, self._run_arm, lambda: self._closing)
 
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         for period, callback in ((1.0 / self._params.clock_rate, self._on_clock_timer),
                                  (1.0 / self._params.idle_frame_rate, self._on_idle_timer),
                                  (DIAGNOSTICS_PERIOD_S, self._publish_diagnostics)):
             self.create_timer(period, guard(callback), clock=steady)
-        self._warn_unused_com()
+        self._warn(commands.unused_com_warning(parameter_values(self, PARAMETERS)))
         self.worker.call(self._after_build).result()
         self.get_logger().info(f"sim bridge ready: {self._params.summary()}")
 
@@ -177,12 +165,11 @@ class SimBridgeNode(Node):
             self._publish_diagnostics()
 
     def _publish_diagnostics(self) -> None:
-        busy, problem = self.worker.busy, self._problem
-        message = (f"busy: {busy}" if busy else "idle") + (f"; {problem}" if problem else "")
-        time = max(self.timeline.last, 0.0)
+        busy, problem, time = self.worker.busy, self._problem, max(self.timeline.last, 0.0)
         if not self._closing:
             self.health.publish(
-                DiagnosticStatus.WARN if problem else DiagnosticStatus.OK, message,
+                DiagnosticStatus.WARN if problem else DiagnosticStatus.OK,
+                (f"busy: {busy}" if busy else "idle") + (f"; {problem}" if problem else ""),
                 {"state": "busy" if busy else "idle", "object": self._params.object,
                  "sim_time": f"{time:.6f}"}, stamp_from_seconds(time))
 
@@ -196,10 +183,9 @@ class SimBridgeNode(Node):
     def _on_idle_timer(self) -> None:
         """Re-publish the last frame, pose and time so late subscribers get data."""
         capture = self._capture
-        if self.worker.busy or capture is None or self._closing:
-            return
-        self.scene.repeat_clock()
-        self.scene.frame(capture)
+        if not (self.worker.busy or capture is None or self._closing):
+            self.scene.repeat_clock()
+            self.scene.frame(capture)
 
     def _on_push(self, msg: Path) -> None:
         if self._arm is not None:  # the arm is driven by push_executor_node's trajectories
@@ -226,7 +212,7 @@ class SimBridgeNode(Node):
         """``sim/knock``: displace the object at rest by (dx, dy, dyaw)."""
         try:
             check_frame(msg.header.frame_id, WORLD_FRAME)
-            delta = check_knock(xytheta_from_pose(msg))
+            delta = commands.check_knock(xytheta_from_pose(msg))
         except ValueError as exc:
             self._refuse("sim/knock", str(exc), "invalid", "knocks_rejected")
             return
@@ -245,7 +231,7 @@ class SimBridgeNode(Node):
             response.message = self._refuse("~/reset", f"invalid parameters: {exc}",
                                             "parameters", "resets_refused")
             return response
-        self._warn_unused_com()
+        self._warn(commands.unused_com_warning(parameter_values(self, PARAMETERS)))
         busy, job = self.worker.start(f"resetting to {params.object!r}", self._run_reset,
                                       config, params)
         if job is None:
@@ -269,7 +255,7 @@ class SimBridgeNode(Node):
             self._arm.joint_state(float(self._world.sim_time), self._world.arm_state())
         self.scene.frame(capture)
         self.scene.camera_pose(self._world.T_world_camera, capture.time)
-        return scene_summary(self._world.object_spec, self._world.object_pose(),
+        return commands.scene_summary(self._world.object_spec, self._world.object_pose(),
                              capture.info.width, capture.info.height)
 
     def _run_push(self, seq: int, points: tuple[np.ndarray, np.ndarray, np.ndarray],
@@ -300,7 +286,7 @@ class SimBridgeNode(Node):
             self._fail(f"render after push {seq}", exc, "pushes_failed")
             return
         self._done(capture, "pushes_executed", executed)
-        self.get_logger().info(push_report(seq, result, t_start, t_end))
+        self.get_logger().info(commands.push_report(seq, result, t_start, t_end))
         if not getattr(result, "settled", True):
             self.get_logger().warning(f"push {seq}: the object had not come to rest when the "
                                       "settle timeout ended; the frame shows it moving")
@@ -308,7 +294,7 @@ class SimBridgeNode(Node):
     def _run_knock(self, delta: np.ndarray) -> None:
         """Teleport the object by ``delta``, settle, publish a fresh frame."""
         try:
-            after = knocked_pose(self._world.object_pose(), delta, self._world.workspace)
+            after = commands.knocked_pose(self._world.object_pose(), delta, self._world.workspace)
         except ValueError as exc:
             self.worker.finish()
             self._refuse("sim/knock", str(exc), "workspace", "knocks_rejected")
@@ -332,16 +318,14 @@ class SimBridgeNode(Node):
             return False, self._refuse("~/reset", f"{exc}; kept the previous scene", "scene",
                                        "resets_refused")
         except Exception as exc:
-            message = f"reset failed: {type(exc).__name__}: {exc}"
             self.timeline.new_episode(time_before)  # a rebuilt world restarts its sim_time
             try:  # never leave the node without a usable scene
                 self._world.reset(self._params.world_config())
                 self._after_build()
-                message += "; rebuilt the previous configuration"
+                note = "rebuilt the previous configuration"
             except Exception as exc2:
-                message += f"; rebuilding the previous configuration failed too: {exc2}"
-            self._fail("reset", exc, None)
-            return False, message
+                note = f"rebuilding the previous configuration failed too: {exc2}"
+            return False, f"{self._fail('reset', exc, None)}; {note}"
         # The new episode continues /clock where the old one stopped: its stamps (after its
         # initial settling) are strictly later.
         self.timeline.new_episode(time_before)
@@ -355,28 +339,14 @@ class SimBridgeNode(Node):
         return True, summary
 
     # ---- arm mode (endpoints in sim_bridge.arm_ros, physics in sim_bridge.arm_motion) -----
-    def _on_trajectory(self, trajectory: Trajectory) -> str | None:
-        """An accepted trajectory: to the running physics loop, or start one; a reason if the
-        worker is busy with something else (a reset, a knock)."""
-        follower = self._arm.follower
-        busy = self.worker.start_arm(lambda: follower.offer(trajectory), follower.open,
-                                     self._run_arm)
-        if busy:
-            return busy
-        self.health.count("trajectories_accepted")
-        return None
-
     def _run_arm(self) -> None:
         """Step the physics while the arm follows trajectories, then publish the tool tip path,
         a fresh frame and the ground truth (ARCHITECTURE.md, arm mode)."""
         self._pushing = True
-        monitor, dt = self._params.monitor, self._world.config.time_step
+        params = self._params
         try:
-            run = self._world.run_arm(
-                self._arm.follower, max(1, round(1.0 / (self._params.arm_joint_state_rate * dt))),
-                self._arm.joint_state, monitor,
-                None if monitor is None else self.scene.monitor,
-                self._params.arm_real_time_factor)
+            run = self._arm.run(self._world, params.arm_joint_state_rate, params.monitor,
+                                self.scene.monitor, params.arm_real_time_factor)
             capture = self.scene.capture(self._world)
         except Exception as exc:  # keep the node alive; the arm holds where it is
             self._arm.follower.hold(self._world.arm_state().positions)
@@ -404,8 +374,7 @@ class SimBridgeNode(Node):
             self.scene.publish(self.scene.pub_executed, executed)
         self._publish_diagnostics()
 
-    def _warn_unused_com(self) -> None:
-        warning = unused_com_warning(parameter_values(self, PARAMETERS))
+    def _warn(self, warning: str) -> None:
         if warning:
             self.get_logger().warning(warning)
 
