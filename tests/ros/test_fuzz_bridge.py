@@ -49,7 +49,8 @@ from std_srvs.srv import Trigger  # noqa: E402
 from push_ros.frames import WORLD_FRAME  # noqa: E402
 from push_ros.paths import push_path, push_points_from_path  # noqa: E402
 from pushbot.graph import spin_until  # noqa: E402
-from sim_bridge.sim_bridge_node import PARAMETERS, SimBridgeNode, SimBridgeParams  # noqa: E402
+from sim_bridge.params import PARAMETERS, SimBridgeParams  # noqa: E402
+from sim_bridge.sim_bridge_node import SimBridgeNode  # noqa: E402
 
 N_FUZZ = 2000
 FUZZ = settings(max_examples=N_FUZZ, deadline=None, derandomize=True, database=None,
@@ -151,19 +152,18 @@ def node(module_ros_context: Any) -> Iterator[SimBridgeNode]:
 
 
 def _counts(n: SimBridgeNode) -> dict[str, int]:
-    with n._lock:
-        return dict(n._counts)
+    return n.health.counts
 
 
 def _wait_idle(n: SimBridgeNode, timeout: float = 30.0) -> None:
     deadline = time.monotonic() + timeout
-    while n._busy:
-        assert time.monotonic() < deadline, f"still busy: {n._busy}"
+    while n.worker.busy:
+        assert time.monotonic() < deadline, f"still busy: {n.worker.busy}"
         time.sleep(0.005)
 
 
 def _object_pose(n: SimBridgeNode) -> np.ndarray:
-    return np.asarray(n._worker.submit(n._world.object_pose).result())
+    return np.asarray(n.worker.call(n._world.object_pose).result())
 
 
 # ---- the object parameter never echoes a file --------------------------------------------------
@@ -211,13 +211,13 @@ def test_fuzz_push_paths(node: SimBridgeNode) -> None:
         except ValueError:
             decodable = False
         before = _counts(node)
-        seq = node._push_seq
+        seq = node.worker.pushes
         assert node.on_push(msg) is None
         after = _counts(node)
         if not decodable:
-            assert node._push_seq == seq, "a refused push was handed to the world"
+            assert node.worker.pushes == seq, "a refused push was handed to the world"
             assert after["pushes_rejected_invalid"] > before["pushes_rejected_invalid"]
-        assert after["callback_errors"] == 0, node._last_error
+        assert after["callback_errors"] == 0, node.health.values()
 
     one()
     _wait_idle(node)
@@ -278,7 +278,7 @@ def hostile_knocks(draw: Callable[..., Any]) -> PoseStamped:
 def test_fuzz_knocks(node: SimBridgeNode) -> None:
     """2,000 hostile sim/knock messages through the subscribed callback (hypothesis inside)."""
     from push_ros.poses import check_frame, xytheta_from_pose
-    from sim_bridge.sim_bridge_node import MAX_KNOCK_SHIFT
+    from sim_bridge.commands import MAX_KNOCK_SHIFT
 
     @FUZZ
     @given(msg=hostile_knocks())
@@ -293,7 +293,7 @@ def test_fuzz_knocks(node: SimBridgeNode) -> None:
         after = _counts(node)
         if not acceptable:
             assert after["knocks_rejected"] > before["knocks_rejected"]
-        assert after["callback_errors"] == 0, node._last_error
+        assert after["callback_errors"] == 0, node.health.values()
 
     one()
     _wait_idle(node)
@@ -306,9 +306,7 @@ def test_after_the_fuzz_the_bridge_executes_a_valid_push(node: SimBridgeNode) ->
     _wait_idle(node)
     defaults = {spec.name: spec.default for spec in PARAMETERS if not spec.read_only}
     defaults.update({"object": "rect1", "image_width": 160, "image_height": 120})
-    params = [Parameter(name, value=value) for name, value in defaults.items()
-              if value is not None]
-    params.append(Parameter("com_offset", Parameter.Type.DOUBLE_ARRAY, []))
+    params = [Parameter(name, value=value) for name, value in defaults.items()]
     result = node.set_parameters_atomically(params)
     assert result.successful, result.reason
     response = node.on_reset(Trigger.Request(), Trigger.Response())
@@ -319,7 +317,7 @@ def test_after_the_fuzz_the_bridge_executes_a_valid_push(node: SimBridgeNode) ->
     node.on_push(push_path(*THROUGH_CENTRE, stamp_seconds=1.0, speed=0.02))
     deadline = time.monotonic() + 30.0
     while _counts(node)["pushes_executed"] == executed:
-        assert time.monotonic() < deadline, node._last_error
+        assert time.monotonic() < deadline, node.health.values()
         time.sleep(0.01)
     _wait_idle(node)
     moved = _object_pose(node) - before

@@ -84,18 +84,18 @@ def test_arm_mode_follows_trajectories_and_rejects_invalid_ones(ros_context: Any
         for pt in bad.points:
             pt.positions.pop()
         pub.publish(bad)
-        assert spin_until(executor, lambda: node._counts["trajectories_rejected"] == 1,
+        assert spin_until(executor, lambda: node.health.get("trajectories_rejected") == 1,
                           time.monotonic() + 10.0)
-        assert "joints" in node._last_error
-        assert node._counts["trajectory_runs"] == 0
+        assert "joints" in node.health.last_refusal
+        assert node.health.get("trajectory_runs") == 0
         np.testing.assert_allclose(node._world.arm_state().positions, q0, atol=1e-6)
 
         # Valid: sim time advances, the arm moves, a frame follows after the end.
-        t0 = node._epoch + node._world.sim_time
+        t0 = node.timeline.epoch + node._world.sim_time
         q1 = q0 + np.array([0.3, 0.2, 0.0, 0.2, 0.0, -0.2, 0.0])
         n_rgb = len(got["rgb"])
         pub.publish(_trajectory(q0, q1, 1.0))
-        assert spin_until(executor, lambda: node._counts["trajectory_runs"] == 1 and got["tip"],
+        assert spin_until(executor, lambda: node.health.get("trajectory_runs") == 1 and got["tip"],
                           time.monotonic() + 60.0), "the trajectory did not run"
         assert spin_until(executor, lambda: len(got["rgb"]) > n_rgb
                           and seconds_from_stamp(got["rgb"][-1].header.stamp) > t0 + 1.0,
@@ -113,8 +113,8 @@ def test_arm_mode_follows_trajectories_and_rejects_invalid_ones(ros_context: Any
         # planner/push is not executed in arm mode.
         node.on_push(push_path((-0.07, 0.0), (-0.05, 0.0), (0.0, 0.0), stamp_seconds=1.0,
                                speed=0.02))
-        assert node._counts["pushes_ignored_arm_mode"] == 1
-        assert node._counts["callback_errors"] == 0
+        assert node.health.get("pushes_ignored_arm_mode") == 1
+        assert node.health.get("callback_errors") == 0
     finally:
         executor.shutdown()
         client.destroy_node()
@@ -128,7 +128,7 @@ def test_pusher_mode_answers_refused_pushes_on_pusher_refused(ros_context: Any) 
     try:
         client.create_subscription(DiagnosticStatus, "pusher/refused", refused.append,
                                    RELIABLE_QOS)
-        assert spin_until(executor, lambda: node._pub_refused.get_subscription_count() > 0,
+        assert spin_until(executor, lambda: node.scene.pub_refused.get_subscription_count() > 0,
                           time.monotonic() + 30.0)
         slow = push_path((-0.065, 0.0), (-0.045, 0.0), (0.0, 0.0), stamp_seconds=5.0,
                          speed=0.002)  # 25 s of sim time: still running for the next one
@@ -147,7 +147,7 @@ def test_pusher_mode_answers_refused_pushes_on_pusher_refused(ros_context: Any) 
                                                     stamp_key(stamp_from_seconds(9.5)))
         assert first.who.endswith("refuse_sim_bridge_node")
         # The running push is not refused: it finishes and is executed.
-        assert spin_until(executor, lambda: node._counts["pushes_executed"] == 1,
+        assert spin_until(executor, lambda: node.health.get("pushes_executed") == 1,
                           time.monotonic() + 120.0)
         assert len(refused) == 2
         # The world's refusal (outside the workspace) carries its kind.

@@ -62,25 +62,25 @@ def test_the_bridge_publishes_monitor_frames_during_a_push(ros_context: Any) -> 
     order: list[Any] = []  # what the node published on the monitor and pusher/executed
     received: list[tuple[str, Any]] = []  # (topic, message) in arrival order
     try:
-        _spy(node._pub_monitor, sent)
-        _spy(node._pub_monitor_info, sent_info)
-        _spy(node._pub_executed, order)
-        _spy(node._pub_monitor, order)
+        _spy(node.scene.pub_monitor, sent)
+        _spy(node.scene.pub_monitor_info, sent_info)
+        _spy(node.scene.pub_executed, order)
+        _spy(node.scene.pub_monitor, order)
         client.create_subscription(Image, "sim/monitor/image_raw",
                                    lambda m: received.append(("monitor", m)), SENSOR_QOS)
         client.create_subscription(Path, "pusher/executed",
                                    lambda m: received.append(("executed", m)),
                                    QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
-        assert spin_until(executor, lambda: node._pub_monitor.get_subscription_count() > 0
-                          and node._pub_executed.get_subscription_count() > 0,
+        assert spin_until(executor, lambda: node.scene.pub_monitor.get_subscription_count() > 0
+                          and node.scene.pub_executed.get_subscription_count() > 0,
                           time.monotonic() + 30.0), "the client was not discovered"
-        t_before = node._epoch + node._world.sim_time
+        t_before = node.timeline.epoch + node._world.sim_time
         node.on_push(push_path((-HALF - 0.02, 0.0), (-HALF, 0.0), (-HALF + 0.03, 0.0),
                                stamp_seconds=0.0, speed=0.02))
         assert spin_until(executor, lambda: any(k == "executed" for k, _ in received),
                           time.monotonic() + 60.0), "no pusher/executed"
-        t_done = node._epoch + node._world.sim_time
-        assert node._counts["callback_errors"] == 0
+        t_done = node.timeline.epoch + node._world.sim_time
+        assert node.health.get("callback_errors") == 0
     finally:
         executor.shutdown()
         client.destroy_node()
@@ -121,14 +121,14 @@ def test_a_failing_monitor_publish_does_not_stop_the_push(ros_context: Any) -> N
         raise RuntimeError("publisher gone")
 
     try:
-        node._pub_monitor.publish = broken
-        _spy(node._pub_executed, executed)
+        node.scene.pub_monitor.publish = broken
+        _spy(node.scene.pub_executed, executed)
         before = node._world.object_pose()
         node.on_push(push_path((-HALF - 0.02, 0.0), (-HALF, 0.0), (-HALF + 0.03, 0.0),
                                stamp_seconds=0.0, speed=0.02))
         assert spin_until(executor, lambda: bool(executed), time.monotonic() + 60.0)
         after = node._world.object_pose()
-        counts = dict(node._counts)
+        counts = node.health.counts
     finally:
         executor.shutdown()
         node.destroy_node()

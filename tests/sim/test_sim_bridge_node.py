@@ -269,7 +269,7 @@ def counter(values: dict[str, str], name: str) -> int:
 def test_parameter_yaml_documents_every_parameter_with_its_default() -> None:
     import yaml
 
-    from sim_bridge.sim_bridge_node import PARAMETERS
+    from sim_bridge.params import PARAMETERS
 
     path = FilePath(__file__).resolve().parents[2] / "src/pushbot_bringup/config/sim_bridge.yaml"
     text = path.read_text()
@@ -279,9 +279,7 @@ def test_parameter_yaml_documents_every_parameter_with_its_default() -> None:
             for kk, vv in v.items()}
     flat.update({k: v for k, v in params.items() if not isinstance(v, dict)})
     for spec in PARAMETERS:
-        if spec.default is None:  # typed without a default: documented as a comment
-            assert f"# {spec.name}:" in text, spec.name
-            continue
+        assert spec.default is not None, f"{spec.name} has no value (breaks parameter dumps)"
         assert spec.name in flat, f"{spec.name} is not in {path.name}"
         value = flat[spec.name]
         assert value == spec.default and type(value) is type(spec.default), spec.name
@@ -490,7 +488,7 @@ def test_push_while_busy_is_rejected_not_queued(fresh: BridgeClient) -> None:
     fresh.send_push(THROUGH_CENTRE)
     fresh.send_push([(0.1, 0.1), (0.08, 0.1), (0.0, 0.1)])  # arrives while the first runs
     rejected = fresh.spin_until(
-        lambda: [d for d in fresh.diagnostics_since(n_diag) if "busy" in d["last_error"]],
+        lambda: [d for d in fresh.diagnostics_since(n_diag) if "busy" in d["last_refusal"]],
         PUSH_TIMEOUT, "a diagnostic rejecting the push sent while busy")
     assert rejected[0]["_level"] == "1"  # WARN
     fresh.spin_until(lambda: len(fresh.got.executed) > n_executed, PUSH_TIMEOUT,
@@ -534,7 +532,7 @@ def test_malformed_push_is_rejected_and_the_node_keeps_running(
     points, frame_id = _bad_path(kind)
     fresh.send_push(points, frame_id=frame_id)
     fresh.spin_until(
-        lambda: [d for d in fresh.diagnostics_since(n_diag) if reason in d["last_error"]],
+        lambda: [d for d in fresh.diagnostics_since(n_diag) if reason in d["last_refusal"]],
         10.0, f"a diagnostic naming the problem ({reason!r})")
     assert len(fresh.got.executed) == n_executed
     np.testing.assert_allclose(fresh.object_pose(), before, atol=1e-6)
@@ -576,7 +574,7 @@ def test_a_knock_displaces_the_object_at_rest(fresh: BridgeClient) -> None:
                                     ((math.nan, 0.0, 0.0), "world", "finite")):
         _knock(fresh, delta, frame_id)
         fresh.spin_until(lambda r=reason: [d for d in fresh.diagnostics_since(n_diag)
-                                           if r in d["last_error"]], 10.0, reason)
+                                           if r in d["last_refusal"]], 10.0, reason)
     np.testing.assert_allclose(fresh.object_pose(), after, atol=1e-6)
     idle = fresh.spin_until(lambda: [d for d in fresh.diagnostics_since(n_diag)
                                      if counter(d, "knocks_rejected") >= 3], 10.0, "counts")
@@ -631,10 +629,10 @@ def test_reset_with_a_bad_parameter_is_refused_and_keeps_the_scene(
 ) -> None:
     executed_push(fresh, THROUGH_CENTRE)  # a scene that differs from the initial one
     before = fresh.object_pose()
-    response = fresh.reset(com_offset=[0.5, 0.0])  # refused by the world: COM outside
+    response = fresh.reset(use_com_offset=True, com_offset=[0.5, 0.0])  # COM outside: refused
     assert not response.success
     assert "com" in response.message, response.message
-    fresh.set_parameters(object="rect1", com_offset=[])
+    fresh.set_parameters(object="rect1", use_com_offset=False, com_offset=[0.0, 0.0])
     n_poses = len(fresh.got.pose)
     fresh.spin_until(lambda: len(fresh.got.pose) > n_poses, 10.0, "an idle ground-truth pose")
     np.testing.assert_allclose(fresh.object_pose(), before, atol=1e-6)

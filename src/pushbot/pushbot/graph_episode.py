@@ -327,7 +327,8 @@ class GraphRunner:
         self.set_parameters("sim_bridge_node", {
             "object": str(world["object"]), "initial_pose.x": float(x),
             "initial_pose.y": float(y), "initial_pose.theta": math.remainder(theta, 2 * math.pi),
-            "com_offset": [] if com is None else [float(v) for v in com],
+            "use_com_offset": com is not None,
+            "com_offset": [0.0, 0.0] if com is None else [float(v) for v in com],
             "seed": int(world["seed"]), "randomize": bool(world["randomize"]),
             **NO_BRIDGE_FAULTS, **fault.bridge_params(trial)})
         message = self.reset("sim_bridge_node")

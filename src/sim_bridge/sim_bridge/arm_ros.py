@@ -20,6 +20,7 @@ Endpoints (only with ``robot: arm``; docs/ARCHITECTURE.md, "Arm mode of the simu
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -35,7 +36,6 @@ from push_ros.frames import WORLD_FRAME
 from push_ros.qos import LATCHED_QOS, RELIABLE_QOS
 from push_ros.stamps import seconds_from_stamp, stamp_from_seconds
 from sim_bridge.arm import (
-    Trajectory,
     TrajectoryCommand,
     TrajectoryFollower,
     TrajectoryRejected,
@@ -43,6 +43,7 @@ from sim_bridge.arm import (
 )
 from sim_bridge.arm_motion import ArmRun
 from sim_bridge.arm_robot import ARM_JOINTS, JointState
+from sim_bridge.worker import Timeline, Worker
 
 __all__ = ["IDLE_JOINT_STATE_RATE", "ArmEndpoints", "command_from_msg"]
 
@@ -91,27 +92,38 @@ class ArmEndpoints:
     controller_topic : str
     max_duration : float
         Longest accepted trajectory, s (:func:`check_trajectory`).
-    now : callable
-        The current published sim time, s.
+    timeline : sim_bridge.worker.Timeline
+        Published time = ``epoch + sim_time``.
+    sim_time : callable
+        The world's current sim time, s (no epoch).
+    health : push_ros.health.NodeHealth
+        The node's health: counts ``trajectories_accepted``, logs joint states that could
+        not be published.
     guard : callable
         Wraps a callback so that nothing escapes it (the node's guard).
     on_rejected : callable
-        ``on_rejected(reason)``: count and report a rejected trajectory.
-    on_accepted : callable
-        ``on_accepted(trajectory)``: hand an accepted trajectory to the physics; returns a
-        reason if the simulator cannot take it (then it counts as rejected).
+        ``on_rejected(kind, reason)``: count and report a rejected trajectory (``kind``: the
+        :class:`TrajectoryRejected` kind, or ``busy``).
+    worker : sim_bridge.worker.Worker
+        An accepted trajectory (its stamp in the world's sim time, without the epoch) goes to
+        the running physics loop, or ``run`` is started in it (:meth:`Worker.start_arm`); a
+        busy worker rejects it (kind ``busy``).
+    run : callable
+        The worker job that steps the physics while the arm follows trajectories.
+    closing : callable
+        True once the node is being destroyed (nothing is published then).
     """
 
     def __init__(self, node: Any, controller_topic: str, max_duration: float,
-                 now: Callable[[], float], guard: Callable[..., Any],
-                 on_rejected: Callable[[str], None],
-                 on_accepted: Callable[[Trajectory], str | None]) -> None:
+                 timeline: Timeline, sim_time: Callable[[], float], health: Any,
+                 guard: Callable[..., Any], on_rejected: Callable[[str, str], None],
+                 worker: Worker, run: Callable[[], Any], closing: Callable[[], bool]) -> None:
         self.follower = TrajectoryFollower(ARM_JOINTS)
         self._node = node
-        self._now = now
+        self._timeline, self._sim_time, self._closing = timeline, sim_time, closing
+        self._health, self._worker, self._run = health, worker, run
         self._max_duration = max_duration
         self._on_rejected = on_rejected
-        self._on_accepted = on_accepted
         self._last: tuple[float, JointState] | None = None
         self.pub_joint_states = node.create_publisher(JointStateMsg, "/joint_states",
                                                       RELIABLE_QOS)
@@ -125,14 +137,41 @@ class ArmEndpoints:
 
     def _on_trajectory(self, msg: JointTrajectory) -> None:
         try:
-            trajectory = check_trajectory(command_from_msg(msg), ARM_JOINTS, self._now(),
+            trajectory = check_trajectory(command_from_msg(msg), ARM_JOINTS,
+                                          self._timeline.at(self._sim_time()),
                                           self._max_duration)
         except TrajectoryRejected as exc:
-            self._on_rejected(f"rejected trajectory ({exc.kind}): {exc}")
+            self._on_rejected(exc.kind, f"({exc.kind}) {exc}")
             return
-        reason = self._on_accepted(trajectory)
-        if reason is not None:
-            self._on_rejected(f"rejected trajectory: {reason}")
+        if trajectory.stamp != 0.0:  # the world's sim_time has no epoch
+            trajectory = replace(trajectory,
+                                 stamp=max(trajectory.stamp - self._timeline.epoch, 1e-9))
+        follower = self.follower
+        reason = self._worker.start_arm(lambda: follower.offer(trajectory), follower.open,
+                                        self._run)
+        if reason:
+            self._on_rejected("busy", reason)
+        else:
+            self._health.count("trajectories_accepted")
+
+    def run(self, world: Any, joint_state_rate: float, monitor: Any,
+            on_monitor: Callable[[Any], None], real_time_factor: float) -> ArmRun:
+        """Step ``world`` (:class:`sim_bridge.world.PushWorld`, worker thread) while the arm
+        follows the trajectories: ``/joint_states`` every ``1 / joint_state_rate`` s of sim
+        time (whole physics steps), monitor frames to ``on_monitor`` when ``monitor`` is set."""
+        steps = max(1, round(1.0 / (joint_state_rate * world.config.time_step)))
+        return world.run_arm(self.follower, steps, self.joint_state, monitor,
+                             None if monitor is None else on_monitor, real_time_factor)
+
+    def joint_state(self, sim_time: float, state: JointState) -> None:
+        """``/joint_states`` at the published time of the world's ``sim_time`` (s); any thread,
+        never raises (the physics loop calls it)."""
+        if self._closing():
+            return
+        try:
+            self.publish_state(self._timeline.at(sim_time), state)
+        except Exception as exc:  # e.g. the context shut down meanwhile
+            self._health.log.warning("joint_states", f"joint state not published: {exc}")
 
     def publish_state(self, time: float, state: JointState) -> None:
         """Publish ``/joint_states`` at sim time ``time`` (s) and keep it for the idle timer."""
@@ -151,8 +190,9 @@ class ArmEndpoints:
         """Latch the URDF on ``/robot_description``."""
         self.pub_description.publish(String(data=urdf))
 
-    def publish_tool_tip(self, run: ArmRun, epoch: float) -> None:
+    def publish_tool_tip(self, run: ArmRun) -> None:
         """``sim/tool_tip`` of one run (module docstring); times are ``epoch + sim_time``."""
+        epoch = self._timeline.epoch
         path = Path()
         path.header.frame_id = WORLD_FRAME
         path.header.stamp = stamp_from_seconds(epoch + run.t_done)

@@ -19,6 +19,7 @@ import numpy as np
 from push_core.objects import library_names, load_object
 from push_ros.node import ParamSpec
 from sim_bridge.arm_robot import DEFAULT_BASE_POSE, DEFAULT_PARK
+from sim_bridge.faults import FaultConfig
 from sim_bridge.world import CameraConfig, MonitorConfig, WorldConfig
 
 __all__ = ["PARAMETERS", "FaultConfig", "SimBridgeParams", "check_object_parameter"]
@@ -40,8 +41,10 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec("initial_pose.y", 0.0, "Initial y of the object frame in world, m.", (-1.0, 1.0)),
     ParamSpec("initial_pose.theta", 0.0, "Initial yaw of the object frame in world, rad.",
               (-math.pi, math.pi)),
-    ParamSpec("com_offset", None, "Centre of mass (x, y) in the object frame, m; unset or "
-              "empty = the object spec's COM.", constraints="2 values or empty"),
+    ParamSpec("use_com_offset", False, "Build the object with its centre of mass at "
+              "com_offset; false: the object spec's COM (random from the seed with randomize)."),
+    ParamSpec("com_offset", [0.0, 0.0], "Centre of mass (x, y) in the object frame, m; used "
+              "only with use_com_offset true.", constraints="2 finite values"),
     ParamSpec("mass", -1.0, "Object mass, kg.", (-1.0, 100.0), constraints=_UNSET_OR_NEGATIVE),
     ParamSpec("friction_table", -1.0, "Object-table Coulomb friction coefficient.",
               (-1.0, 10.0), constraints=_UNSET_OR_NEGATIVE),
@@ -92,32 +95,6 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               "faster than wall time while the arm moves (1 = like a real robot, for timing "
               "the executor's reactions); 0 = as fast as the CPU allows.", (0.0, 1000.0)),
 )
-
-
-@dataclass(frozen=True)
-class FaultConfig:
-    """Fault injection of the bridge (docs/ARCHITECTURE.md, "Faults"); all off by default.
-
-    Attributes
-    ----------
-    frame_drop : float
-        Probability in [0, 0.9] that one publication of a camera frame (colour, depth and
-        camera_info together) is dropped; ``sim/object_pose`` (ground truth) is never dropped.
-    frame_delay : float
-        Probability in [0, 0.9] that one publication of a camera frame is held back and
-        published right after the next publication of a *newer* frame (so it arrives late and
-        out of order; the idle re-publications of its own frame still go out meanwhile).
-    push_refusal : float
-        Probability in [0, 1] that a valid push is refused (``pushes_refused_fault``).
-    seed : int
-        Seed of the draws, re-seeded on every ``~/reset``. Which publications are hit also
-        depends on how many idle re-publications happen, i.e. on wall time.
-    """
-
-    frame_drop: float = 0.0
-    frame_delay: float = 0.0
-    push_refusal: float = 0.0
-    seed: int = 0
 
 
 @dataclass(frozen=True)
@@ -209,17 +186,12 @@ class SimBridgeParams:
                 load_object(name)
         except (ValueError, OSError) as exc:  # load_object's messages never quote a file
             raise ValueError(f"parameter 'object' = {name[:200]!r}: {exc}") from None
-        com = values["com_offset"]
-        if com is not None and len(com) > 0:
-            com_arr = np.asarray(com, dtype=float)
-            if com_arr.shape != (2,) or not np.all(np.isfinite(com_arr)):
-                raise ValueError(
-                    f"parameter 'com_offset' must be 2 finite values (x, y in metres, object "
-                    f"frame) or empty, got {list(com)}"
-                )
-            com_offset: tuple[float, float] | None = (float(com_arr[0]), float(com_arr[1]))
-        else:
-            com_offset = None
+        com_arr = np.asarray(values["com_offset"], dtype=float).reshape(-1)
+        if com_arr.shape != (2,) or not np.all(np.isfinite(com_arr)):
+            raise ValueError(f"parameter 'com_offset' must be 2 finite values (x, y in metres, "
+                             f"object frame), got {list(com_arr)[:10]}")
+        com_offset = ((float(com_arr[0]), float(com_arr[1]))
+                      if values["use_com_offset"] else None)
         robot = str(values.get("robot", "pusher"))
         if robot not in ("pusher", "arm"):
             raise ValueError(f"parameter 'robot' must be 'pusher' or 'arm', got {robot[:40]!r}")
