@@ -81,7 +81,8 @@ def test_robot_arm_in_simulation_adds_the_executor_enabled_and_the_bridge_s_arm(
     nodes = graph_nodes(True, robot='arm')
     assert [n.executable for n in nodes] == ['sim_bridge_node', 'segmentation_node', 'ekf_node',
                                              'planner_node', 'push_executor_node']
-    assert _overrides(nodes[0]) == {'use_sim_time': False, 'robot': 'arm'}
+    assert _overrides(nodes[0]) == {'use_sim_time': False, 'robot': 'arm',
+                                    'arm.real_time_factor': 1.0}
     assert _overrides(nodes[-1]) == {'use_sim_time': True, 'start_enabled': True}
 
 

@@ -120,7 +120,7 @@ def test_bundled_model_plans_and_beats_no_motion_on_a_straight_push():
 @pytest.mark.slow
 def test_data_generation_and_training_end_to_end(tmp_path: Path):
     from pushbot.experiments.affordance_data import DataConfig, generate, load
-    from pushbot.experiments.affordance_training import run
+    from pushbot.experiments.affordance_training import add_arguments, run
 
     cfg = DataConfig(n_samples=2, shard_size=2, points_per_sample=2, library_fraction=1.0)
     generate(cfg, tmp_path / "train", progress=False)
@@ -139,9 +139,12 @@ def test_data_generation_and_training_end_to_end(tmp_path: Path):
     np.testing.assert_allclose(generate_again(cfg, tmp_path), data["motion"], equal_nan=True)
 
     out = tmp_path / "model" / "w.pt"
-    args = argparse.Namespace(data=tmp_path / "train", test_data=tmp_path / "train", out=out,
-                              minutes=5.0, epochs=2, batch=4, lr=1e-3, rotations=2, seed=0,
-                              channels=[4, 8, 8], hidden=16)
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)  # the command's own parser: every option has its real default
+    args = parser.parse_args(["--data", str(tmp_path / "train"), "--test-data",
+                              str(tmp_path / "train"), "--out", str(out), "--minutes", "5",
+                              "--epochs", "2", "--batch", "4", "--lr", "1e-3", "--rotations",
+                              "2", "--seed", "0", "--channels", "4", "8", "8", "--hidden", "16"])
     assert run(args) == 0
     model = load_affordance_model(out)
     assert model.meta["epochs"] == 2 and model.meta["samples"] == 2

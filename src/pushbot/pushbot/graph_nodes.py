@@ -47,6 +47,11 @@ def graph_node_names(robot: str = "pusher") -> tuple[str, ...]:
 #: point inside the object), wall seconds; the push then counts as a step and nothing moved, as
 #: in-process. A push takes well under a second of wall time (the physics runs ~100x real time).
 PUSH_TIMEOUT = 5.0
+#: The simulated arm's sim time / wall time limit in protocol graphs (``arm.real_time_factor``):
+#: fast enough for evaluations, slow enough that the executor's joint-state stream and its
+#: trajectory start stay within its tracking window (unpaced, the simulator ran ~50x real time
+#: and the executor's clock lagged its joint states by over 10 s of sim time).
+ARM_REAL_TIME_FACTOR = 5.0
 #: Grace periods of the shutdown: SIGINT, then SIGTERM, then SIGKILL.
 STOP_GRACE = (10.0, 5.0)
 
@@ -112,6 +117,8 @@ class GraphNodes:
                 params += ["-p", f"push_timeout:={PUSH_TIMEOUT}", "-p", "after_goal:=report"]
             if name == "sim_bridge_node":
                 params += ["-p", f"robot:={self.robot}"]
+                if self.robot == "arm":
+                    params += ["-p", f"arm.real_time_factor:={ARM_REAL_TIME_FACTOR}"]
             if name == EXECUTOR_NODE:
                 params += ["-p", "start_enabled:=true"]
             params += [arg for value in self.node_args[name] for arg in ("-p", value)]

@@ -187,6 +187,8 @@ def graph_nodes(sim: bool, object_name: str = "", config_dir: str | None = None,
             overrides["object"] = object_name
         if package == CLOCK_SOURCE:
             overrides["robot"] = robot
+            if robot == "arm":  # the simulated arm moves in real time, as a real one
+                overrides["arm.real_time_factor"] = 1.0
         if package == EXECUTOR[0]:
             overrides["start_enabled"] = sim  # a robot starts as a dry run until ~/enable
         parameters.append(overrides)
