@@ -199,8 +199,9 @@ def test_param_set_then_reset_rebuilds_the_scene(graph: Graph) -> None:
         assert call.stdout.startswith('requester: making request: std_srvs.srv.Trigger_Request('
                                       ), call.stdout
         response = call.stdout.split('response:\n')[1]
-        assert response.startswith("std_srvs.srv.Trigger_Response(success=True, message='") \
-            and 'butter' in response, call.stdout
+        # (Python's repr: the message in double quotes when it holds a single quote)
+        assert response.startswith("std_srvs.srv.Trigger_Response(success=True, message=") \
+            and "built 'butter'" in response, call.stdout
     finally:
         pushbot('param', 'set', '/sim_bridge_node', 'object', 'rect1')
     # An integer for a double parameter is sent as a double; read-only ones are refused by the
