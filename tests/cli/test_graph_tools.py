@@ -285,7 +285,9 @@ def test_up_reports_a_killed_node_and_stops_the_others(
 def test_up_no_sim_stops_cleanly_on_sigint(processes: Any) -> None:
     proc, output = start_up(processes, '--no-sim')
     try:
-        wait_for_nodes(proc, output, ['/ekf_node', '/planner_node', '/segmentation_node'])
+        # A robot: the pipeline and the arm's push executor (robot:=arm is the default there).
+        wait_for_nodes(proc, output, ['/ekf_node', '/planner_node', '/push_executor_node',
+                                      '/segmentation_node'])
         # Wall time and the RealSense topics, as the launch file's sim:=false.
         assert pushbot('param', 'get', 'planner_node', 'use_sim_time').stdout \
             == 'Boolean value is: False\n'
@@ -296,6 +298,6 @@ def test_up_no_sim_stops_cleanly_on_sigint(processes: Any) -> None:
         assert proc.wait(timeout=60) == 0
     finally:
         stop_up(processes, proc, output)
-    assert sorted(pids) == ['ekf_node', 'planner_node', 'segmentation_node']
+    assert sorted(pids) == ['ekf_node', 'planner_node', 'push_executor_node', 'segmentation_node']
     assert not [name for name, pid in pids.items() if _alive(pid)]
     assert '[up] stopped: ' in output()

@@ -156,16 +156,18 @@ def test_graph_flag_hands_the_trials_to_the_graph_runner(tmp_path, monkeypatch):
 
     seen = {}
 
-    def fake(trials, *, out_dir, progress):
-        seen["trials"], seen["out_dir"] = list(trials), out_dir
+    def fake(trials, *, out_dir, progress, robot):
+        seen["trials"], seen["out_dir"], seen["robot"] = list(trials), out_dir, robot
         return [_record(True, 3, 0.002, 0.01, **t.as_dict()) for t in trials]
 
     monkeypatch.setitem(sys.modules, "pushbot.graph_episode",
                         types.SimpleNamespace(run_graph_trials=fake))
     opts = EvalOptions(objects=["rect1"], tasks=["mixed"], trials=3)
     doc = evaluate(opts, graph=True, out_dir=tmp_path, progress=False)
-    assert [t.index for t in seen["trials"]] == [0, 1, 2]
+    assert [t.index for t in seen["trials"]] == [0, 1, 2] and seen["robot"] == "pusher"
     assert doc["cells"][0]["n"] == 3 and doc["timing"]["engine"] == "graph"
+    doc = evaluate(opts, graph=True, out_dir=tmp_path, progress=False, robot="arm")
+    assert seen["robot"] == "arm" and doc["timing"]["engine"] == "graph (arm)"
 
 
 def test_ray_missing_is_a_clear_error(tmp_path, capsys, monkeypatch):

@@ -101,8 +101,12 @@ def test_arm_mode_follows_trajectories_and_rejects_invalid_ones(ros_context: Any
                           and seconds_from_stamp(got["rgb"][-1].header.stamp) > t0 + 1.0,
                           time.monotonic() + 10.0), "no fresh frame after the trajectory"
         np.testing.assert_allclose(node._world.arm_state().positions, q1, atol=5e-3)
-        moving = [m for m in got["js"] if seconds_from_stamp(m.header.stamp) > t0]
-        assert len(moving) >= 50  # 100 Hz of sim time over > 1 s
+        # Joint states went out while the arm moved (100 Hz of sim time, as fast as the physics
+        # runs: a reliable depth-10 reader may keep only some of a burst, so no count is
+        # asserted), stamped with advancing sim time; the one sim_bridge sent last is idle.
+        moving = [seconds_from_stamp(m.header.stamp) for m in got["js"]
+                  if seconds_from_stamp(m.header.stamp) > t0]
+        assert moving and moving == sorted(moving) and moving[-1] > t0 + 1.0
         assert max(seconds_from_stamp(c.clock) for c in got["clock"]) > t0 + 1.0
         tip = got["tip"][-1]
         assert tip.header.frame_id == "world" and len(tip.poses) >= 50
