@@ -6,13 +6,17 @@ STAMP := $(VENV)/.pushbot-installed
 PACKAGES := push_core push_ros sim_bridge push_perception push_estimator push_planner push_executor pushbot pushbot_bringup
 SETUP_FILES := $(foreach p,$(PACKAGES),src/$(p)/setup.py src/$(p)/setup.cfg)
 
-.PHONY: demo test venv lint bench constraints clean
+.PHONY: demo test test-fast venv lint bench constraints clean
 
 demo: $(STAMP)
 	$(BIN)/pushbot demo
 
 test: $(STAMP)
 	$(BIN)/python -m pytest
+
+# The fast tier: unit and in-process tests, no node processes or graphs (markers graph, slow).
+test-fast: $(STAMP)
+	$(BIN)/python -m pytest -m "not graph and not slow"
 
 venv: $(STAMP)
 

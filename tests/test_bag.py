@@ -20,7 +20,7 @@ import yaml
 
 from pushbot import cli
 
-pytestmark = pytest.mark.ros
+pytestmark = [pytest.mark.ros, pytest.mark.graph]  # starts node processes
 
 N_MESSAGES = 5
 

@@ -23,7 +23,7 @@ import pytest
 
 from pushbot import cli
 
-pytestmark = pytest.mark.ros
+pytestmark = [pytest.mark.ros, pytest.mark.graph]  # starts node processes
 
 PUSHBOT = str(Path(sys.executable).parent / 'pushbot')
 IMAGE, ESTIMATE = '/camera/color/image_raw', '/estimator/object_pose'

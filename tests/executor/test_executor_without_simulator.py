@@ -18,7 +18,7 @@ import pytest
 
 from .test_kinematics import panda_urdf
 
-pytestmark = pytest.mark.ros
+pytestmark = [pytest.mark.ros, pytest.mark.graph]  # starts node processes
 
 _spec = importlib.util.spec_from_file_location(
     "_without_simulator", Path(__file__).resolve().parents[1] / "ros" /

@@ -21,7 +21,7 @@ from typing import Any
 
 import pytest
 
-pytestmark = pytest.mark.ros
+pytestmark = [pytest.mark.ros, pytest.mark.graph]  # starts node processes
 
 BLOCKED = ("pybullet", "sim_bridge")
 SITECUSTOMIZE = f'''
