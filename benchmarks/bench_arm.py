@@ -20,6 +20,7 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import statistics
@@ -30,9 +31,10 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import format_section, update_section  # noqa: E402
 
+from pushbot.evaluate import EvalOptions, build_trials  # noqa: E402
 from pushbot.experiments.pusht_adapter import wilson_interval  # noqa: E402
 from pushbot.graph_episode import run_graph_trials  # noqa: E402
-from pushbot.protocol import Trial  # noqa: E402
+from pushbot.protocol import Trial  # noqa: E402, F401 - the trials' type
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "out" / "bench_arm"
@@ -60,8 +62,11 @@ def paired(a: list[float], b: list[float]) -> str:
 
 
 def trials_for(objects: list[str], n: int) -> list[Trial]:
-    return [Trial(object=obj, task="mixed", method="ana", k=3, state="filter", com="random",
-                  index=i, seed=0) for obj in objects for i in range(n)]
+    """The trials of ``pushbot eval push --graph --robot arm --objects OBJECTS --tasks mixed
+    --state filter --com random --trials N`` (the acceptance command of issue 20), built by the
+    same function the command uses."""
+    return build_trials(EvalOptions(objects=list(objects), tasks=["mixed"], state=["filter"],
+                                    com=["random"], trials=n))
 
 
 def _row(label: str, records: list[dict]) -> str:
@@ -94,6 +99,8 @@ def main() -> int:
         results[robot] = run_graph_trials(trials, out_dir=OUT / robot, progress=True,
                                           robot=robot)
         walls[robot] = time.monotonic() - t0
+        (OUT / robot).mkdir(parents=True, exist_ok=True)
+        (OUT / robot / "records.json").write_text(json.dumps(results[robot], indent=1))
     load_after = os.getloadavg()[0]
 
     header = ("| engine | success | 95 % Wilson | mean pushes | mean true end error (successes) "
@@ -115,7 +122,10 @@ def main() -> int:
                            [1e3 * a["end_error_xy"] for _, a in both])
     body = (
         f"Trials: {len(trials)} per engine ({', '.join(args.objects)} x {args.trials}; mixed "
-        f"task, random COM, state filter, ana, k = 3, seed 0, indices 0..{args.trials - 1}); "
+        f"task, random COM, state filter, ana, k = 3, seed 0, indices 0..{args.trials - 1}: "
+        f"the trials of `pushbot eval push --graph --robot arm --objects "
+        f"{' '.join(args.objects)} --tasks mixed --state filter --com random --trials "
+        f"{args.trials}`); "
         f"load average (1 min) {load_before:.1f} before, {load_after:.1f} after; wall time "
         f"pusher {walls['pusher'] / 60:.1f} min, arm {walls['arm'] / 60:.1f} min.\n\n"
         f"{header}\n" + "\n".join(rows) + "\n\n"
