@@ -192,7 +192,7 @@ def main() -> int:
         *rows,
         "",
         f"Wall time {wall / 60:.1f} min; load average {load_before[0]:.1f} before, "
-        f"{load_after[0]:.1f} after (shared 2-core machine).",
+        f"{load_after[0]:.1f} after.",
     ]
     print("\n".join(body))
     if not args.no_write:

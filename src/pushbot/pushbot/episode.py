@@ -5,7 +5,7 @@
 docs/ARCHITECTURE.md ("Closed loop and evaluation"). Each cycle:
 
 1. **State.** ``gt``: the true pose, the simulated COM and pusher friction and
-   ``l = spec.limit_surface_guess()`` (as ``push_planner.closed_loop``); the outline is the
+   ``l = spec.limit_surface_guess()``; the outline is the
    library shape sampled every 2 mm. ``filter``: a 640 x 480 RGB-D frame rendered after every
    push goes through the segmentation CNN (``push_perception.model.Segmenter``) and the
    mask-to-state core (``push_perception.core.EpisodeTracker``: position, orientation relative

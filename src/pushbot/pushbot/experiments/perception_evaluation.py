@@ -49,6 +49,7 @@ from numpy.typing import NDArray
 
 from push_core.geometry import closest_point_on_polyline, object_to_world
 from push_core.objects import TEST_OBJECTS
+from pushbot.experiments.machine import machine_info
 
 __all__ = ["EvalConfig", "add_arguments", "evaluate", "format_report", "run",
            "symmetry_order"]
@@ -303,7 +304,7 @@ def format_report(rows: _Rows, cfg: EvalConfig) -> str:
         "(outline: over episodes, first frame); orientation relative to each episode's first "
         "frame, modulo the object's rotational symmetry (raw = without the modulo, i.e. "
         "whether continuity picked the right equivalent). Latency: CNN + geometry per frame, "
-        "one torch thread, on the shared 2-core machine.",
+        f"one torch thread, on {machine_info()}.",
         "",
         "| group | frames (posed) | mask IoU (p10) | position mm (p90) | orientation deg (p90) "
         "| raw orientation deg | outline mm | normals deg | latency ms (CNN + geometry) |",

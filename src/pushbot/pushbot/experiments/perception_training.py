@@ -40,6 +40,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from pushbot.experiments.machine import machine_info
+
 __all__ = ["TrainConfig", "add_arguments", "evaluate_iou", "prepare", "run", "train"]
 
 #: Side of the stored full-resolution window around the object, px.
@@ -280,7 +282,8 @@ def train(data: Path, cfg: TrainConfig, progress: bool = True) -> tuple[Any, dic
               "loss_curve": curve,
               "validation": metrics,
               "parameters": sum(p.numel() for p in net.parameters()),
-              "date": datetime.datetime.now(datetime.UTC).date().isoformat()}
+              "date": datetime.datetime.now(datetime.UTC).date().isoformat(),
+              "machine": machine_info()}
     return net, report
 
 
@@ -375,9 +378,10 @@ docs/RESULTS.md (`eval_perception`, `bench_perception`).
 - command: `{report["command"]}`
 - seed {cfg["seed"]}, {cfg["steps"]} steps of {cfg["batch"]} frames, Adam (lr {cfg["lr"]},
   cosine decay, weight decay {cfg["weight_decay"]}), {cfg["threads"]} torch thread(s), CPU;
-- wall time {report["train_minutes"]} min of training on the shared 2-core machine
-  ({report["date"]}), after {report.get("prepare_minutes", "?")} min preparing the cached
-  arrays (first run on a data set only).
+- wall time {report["train_minutes"]} min of training on
+  {report.get("machine", "an unrecorded machine")} ({report["date"]}), after
+  {report.get("prepare_minutes", "?")} min preparing the cached arrays (first run on a data set
+  only).
 
 ## Metrics
 
