@@ -47,6 +47,10 @@ def graph_node_names(robot: str = "pusher") -> tuple[str, ...]:
 #: point inside the object), wall seconds; the push then counts as a step and nothing moved, as
 #: in-process. A push takes well under a second of wall time (the physics runs ~100x real time).
 PUSH_TIMEOUT = 5.0
+#: The same for the simulated arm: a push is a whole arm motion (transit, descend, push, retreat,
+#: lift, park: about 12 s of sim time at ARM_REAL_TIME_FACTOR, longer with the monitor
+#: rendering); a push the executor refuses is answered on pusher/refused at once anyway.
+ARM_PUSH_TIMEOUT = 60.0
 #: The simulated arm's sim time / wall time limit in protocol graphs (``arm.real_time_factor``):
 #: fast enough for evaluations, slow enough that the executor's joint-state stream and its
 #: trajectory start stay within its tracking window (unpaced, the simulator ran ~50x real time
@@ -114,7 +118,8 @@ class GraphNodes:
             if name == "planner_node":
                 # A protocol episode ends at "goal reached" (as in-process): the planner only
                 # reports it if the object leaves the region afterwards, it pushes no more.
-                params += ["-p", f"push_timeout:={PUSH_TIMEOUT}", "-p", "after_goal:=report"]
+                timeout = ARM_PUSH_TIMEOUT if self.robot == "arm" else PUSH_TIMEOUT
+                params += ["-p", f"push_timeout:={timeout}", "-p", "after_goal:=report"]
             if name == "sim_bridge_node":
                 params += ["-p", f"robot:={self.robot}"]
                 if self.robot == "arm":
