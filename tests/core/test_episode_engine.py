@@ -82,6 +82,20 @@ def test_a_lost_push_is_a_step_its_region_is_avoided_and_the_estimate_reopened()
     assert e._avoid == []
 
 
+def test_a_push_lost_while_the_robot_may_move_waits_for_a_newer_estimate() -> None:
+    # A "busy" / "fault" / "cancelled" refusal: planning again from the same estimate would
+    # send a push while the robot still moves (a tight loop of busy refusals otherwise).
+    e = engine()
+    e.new_goal([0.1, 0.0, 0.0])
+    e.estimate(1.0, state_at(0.0))
+    assert e.step().action == "push"
+    e.push_lost(wait_for_estimate=True)
+    assert e.steps == 1 and e.counts["lost"] == 1 and not e.in_flight
+    assert e.step().action == "wait"  # not from the estimate of 1 s again
+    e.estimate(2.0, state_at(0.01))
+    assert e.step().action == "push" and e.steps == 2
+
+
 def test_bad_events_name_themselves() -> None:
     e = engine()
     with pytest.raises(ValueError, match="goal"):

@@ -697,3 +697,22 @@ def test_a_restarted_planner_resumes_from_the_latched_goal_and_estimate(
     assert h.spin_until(lambda: h.values().get("goal") == "0.1000 0.0000 0.0000"
                         and h.count("step") == 1)
     assert h.count("goal_switches") == 0
+
+
+def test_a_busy_refusal_waits_for_a_newer_estimate(ros_context: Any,
+                                                   wait_for: Callable[..., bool]) -> None:
+    """A push refused while the robot may still move ("busy", "fault", "cancelled") is a lost
+    step, but the next push waits for a newer estimate: planning again from the same one would
+    meet the busy robot again, a loop of refusals that burns every step."""
+    from push_ros.refusal import refusal_msg
+
+    with pushing_rect1(ros_context, wait_for, 1000.0) as (h, _):
+        assert h.spin_until(lambda: len(h.pushes) == 1)
+        h.pubs["refused"].publish(refusal_msg("/executor", h.pushes[0].header.stamp, "busy",
+                                              "the arm is executing a push"))
+        assert h.spin_until(lambda: h.count("pushes_refused") == 1 and h.count("lost") == 1)
+        h.spin_until(lambda: len(h.pushes) > 1, timeout=1.0)  # give it the chance to err
+        assert len(h.pushes) == 1 and h.count("step") == 1
+        h.publish_estimate((0.0, 0.0, 0.0), stamp=11.0)  # the robot's motion ended: a new frame
+        assert h.spin_until(lambda: len(h.pushes) == 2, timeout=20.0)
+        assert h.spin_until(lambda: h.count("step") == 2)

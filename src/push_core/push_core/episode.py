@@ -219,15 +219,18 @@ class EpisodeEngine:
         self.in_flight, self._in_flight_point = False, None
         self._avoid.clear()
 
-    def push_lost(self) -> None:
+    def push_lost(self, wait_for_estimate: bool = False) -> None:
         """The push in flight was not executed (refused, or not reported in time): it stays
-        counted as a step, its contact region is avoided, the newest estimate is usable
-        again."""
+        counted as a step, its contact region is avoided, and the newest estimate is usable
+        again, unless ``wait_for_estimate``: the robot may still be moving (it was busy with
+        an earlier push, or stopped this one on the way), so the next plan waits for an
+        estimate newer than the one this push was planned from."""
         if not self.in_flight:
             return
         self.in_flight = False
         self.counts["lost"] += 1
-        self._used_stamp = -math.inf
+        if not wait_for_estimate:
+            self._used_stamp = -math.inf
         if self._in_flight_point is not None:
             self._avoid.append(self._in_flight_point)
         self._in_flight_point = None

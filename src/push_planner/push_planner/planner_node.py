@@ -8,7 +8,8 @@ twice (volatile and transient local) and de-duplicated by
 :class:`push_ros.message_info.GoalSources`; a ``pusher/refused`` for the push in flight
 (:mod:`push_ros.refusal`) is a lost push at once, as is a push not reported on
 ``pusher/executed`` within ``push_timeout`` (steady time); the node then re-plans, avoiding the
-lost push's contact region.
+lost push's contact region (after a refusal of a kind in ``push_ros.refusal.MOVING_KINDS`` the
+robot may still move: from a newer estimate).
 
 Invariants: it plans at most once per usable estimate and has at most one push in flight; push
 header stamps strictly increase (a refusal names one push); a refused input changes nothing;
@@ -52,7 +53,7 @@ from push_ros.outline import outline_from_cloud
 from push_ros.paths import push_path
 from push_ros.poses import pose_with_covariance_from_msg
 from push_ros.qos import LATCHED_QOS, RELIABLE_QOS, latched_reader_qos
-from push_ros.refusal import read_refusal, stamp_key
+from push_ros.refusal import MOVING_KINDS, read_refusal, stamp_key
 from push_ros.stamps import check_not_ahead, clock_seconds, seconds_from_stamp
 from push_ros.state import state_from_array_msg
 
@@ -299,7 +300,7 @@ class PlannerNode(Node):
                 f"{refusal.reason}")[:500]
         self.health.count("pushes_refused")
         self.health.log.warning("push_refused", f"{note}; counted as a step, planning again")
-        self._lost(note)
+        self._lost(note, wait=refusal.kind in MOVING_KINDS)
 
     def _on_timer(self) -> None:
         if self._engine.in_flight and (self._steady.now().nanoseconds * 1e-9 - self._in_flight_since
@@ -311,12 +312,12 @@ class PlannerNode(Node):
             self._lost(note, after=False)
         self.health.publish(self._level, *self._status_text())
 
-    def _lost(self, note: str, after: bool = True) -> None:
-        """The push in flight is lost (:meth:`EpisodeEngine.push_lost`: nothing moved, its
-        contact region avoided); plan again. ``note`` is set before planning (a push clears it)
-        or, with ``after``, kept when planning set none."""
+    def _lost(self, note: str, after: bool = True, wait: bool = False) -> None:
+        """The push in flight is lost (:meth:`EpisodeEngine.push_lost`: its contact region
+        avoided); plan again (``wait``: from a newer estimate). ``note`` is set before planning
+        (a push clears it) or, with ``after``, kept when planning set none."""
         self._push_key = ""
-        self._engine.push_lost()
+        self._engine.push_lost(wait)
         self._set_note("" if after else note, DiagnosticStatus.OK if after else
                        DiagnosticStatus.WARN)
         self._try_plan()

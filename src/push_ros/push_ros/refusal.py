@@ -14,7 +14,9 @@ re-plans at once instead of waiting for its ``push_timeout``:
   ``fault``, ...), ``stage`` = the motion stage that failed its check (or ``""``).
 
 A refusal whose ``push_stamp`` does not match the push in flight (a stale one, another
-planner's) is ignored by the planner.
+planner's) is ignored by the planner. After a refusal of a kind in :data:`MOVING_KINDS` the robot
+may still be moving (busy with an earlier push, or stopped on the way), so the planner plans its
+next push from a newer estimate; after any other refusal nothing moved and it plans at once.
 """
 
 from __future__ import annotations
@@ -24,8 +26,10 @@ from dataclasses import dataclass
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
-__all__ = ["Refusal", "read_refusal", "refusal_msg", "stamp_key"]
+__all__ = ["MOVING_KINDS", "Refusal", "read_refusal", "refusal_msg", "stamp_key"]
 
+#: Refusal kinds after which the robot may still be moving or the object have moved.
+MOVING_KINDS = frozenset({"busy", "fault", "cancelled"})
 #: Longest reason kept, characters.
 MAX_REASON = 500
 
