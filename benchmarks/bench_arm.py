@@ -31,10 +31,10 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import format_section, update_section  # noqa: E402
 
-from pushbot.evaluate import EvalOptions, build_trials  # noqa: E402
+from pushbot.experiments.evaluate import EvalOptions, build_trials  # noqa: E402
+from pushbot.experiments.protocol import Trial  # noqa: E402, F401 - the trials' type
 from pushbot.experiments.pusht_adapter import wilson_interval  # noqa: E402
-from pushbot.graph_episode import run_graph_trials  # noqa: E402
-from pushbot.protocol import Trial  # noqa: E402, F401 - the trials' type
+from pushbot.runner.episode import run_graph_trials  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "out" / "bench_arm"

@@ -4,13 +4,13 @@ everyday commands (issue 14).
 
 1. **Discovery timelines.** ``pushbot up --object rect1`` (four node processes) on a private
    ROS domain; ``--runs`` times, a fresh process with the CLI's hidden node
-   (``pushbot.graph.cli_node``) records, for ``--watch`` seconds, every change of what the
-   graph commands print (``pushbot.graph.graph_snapshot``: other nodes, topics, services) and
-   of the endpoints of ``estimator/object_pose`` (what ``topic info`` prints), with the time
-   since the node was created. The final view (after ``--watch`` s) is the complete graph.
+   (``pushbot.ros2cli.discovery.cli_node``) records, for ``--watch`` seconds, every change of what
+   the graph commands print (``pushbot.ros2cli.discovery.graph_snapshot``: other nodes, topics,
+   services) and of the endpoints of ``estimator/object_pose`` (what ``topic info`` prints), with
+   the time since the node was created. The final view (after ``--watch`` s) is the complete graph.
 2. **Rules replayed on the timelines.** For each rule, the view it would have returned and
-   whether it was complete: the CLI's rule (``pushbot.graph.wait_for_stable_graph``: at least
-   ``MIN_DISCOVERY_TIME``, then ``SETTLE_TIME`` without a change), a 1 s quiet period alone,
+   whether it was complete: the CLI's rule (``pushbot.ros2cli.discovery.wait_for_stable_graph``: at
+   least ``MIN_DISCOVERY_TIME``, then ``SETTLE_TIME`` without a change), a 1 s quiet period alone,
    the old ``topic list`` (a fixed 3 s) and the old ``topic info`` (0.5 s after the topic's
    first sighting).
 3. **Command wall times** (process start to exit, median over 5 runs): ``node list``,
@@ -41,7 +41,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import format_section, update_section  # noqa: E402
 
-from pushbot.graph import MIN_DISCOVERY_TIME, SETTLE_TIME  # noqa: E402
+from pushbot.ros2cli.discovery import MIN_DISCOVERY_TIME, SETTLE_TIME  # noqa: E402
 
 PUSHBOT = Path(sys.executable).parent / "pushbot"
 #: Outside the test sessions' domains (1-200, tests/conftest.py).
@@ -51,7 +51,7 @@ TOPIC = "/estimator/object_pose"
 COMMAND_RUNS = 5
 WATCHER = """
 import json, sys, time
-from pushbot.graph import cli_node, graph_snapshot
+from pushbot.ros2cli.discovery import cli_node, graph_snapshot
 
 watch, topic = float(sys.argv[1]), sys.argv[2]
 with cli_node('bench_watch') as (node, executor):

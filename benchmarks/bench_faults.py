@@ -1,16 +1,16 @@
 """Fault scenarios in graph mode, repeated (issue 15, item 5).
 
-Every scenario of :data:`pushbot.graph_faults.SCENARIOS` runs protocol trials (each object of
+Every scenario of :data:`pushbot.runner.faults.SCENARIOS` runs protocol trials (each object of
 ``--objects``, default butter; mixed task, random COM, ana, k = 3, state ``filter``, trial
 indices 0, 1, 2, ...: seeded scenes, goals and planner seeds; the bridge's fault draws seeded
 from the trial) through the real graph
-(:class:`pushbot.graph_episode.GraphRunner`: four node processes over DDS, one graph for the
+(:class:`pushbot.runner.episode.GraphRunner`: four node processes over DDS, one graph for the
 whole run, restarted after a trial that broke it). Per scenario: runs, success by ground truth
 (the true end pose against the true initial pose + the goal offset, the task's 0.75 cm / 5 deg
 region), true end errors, pushes sent, how many runs the fault was injected in, and
 scenario-specific counts (goal switches noted by the planner, goal left after a knock, the
 bridge's dropped / delayed / reordered frames and refused pushes, re-anchored perceptions).
-Scenarios are described in :mod:`pushbot.graph_faults`.
+Scenarios are described in :mod:`pushbot.runner.faults`.
 
 Writes the ``faults`` section of ``docs/RESULTS.md`` (``--no-write`` to only print). The
 machine is shared (2 cores): the load average is recorded with the figures.
@@ -51,9 +51,9 @@ def wilson(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
 def run_scenario(graph, name: str, n: int, obj: str) -> list[dict]:
     """``n`` trials of scenario ``name`` with object ``obj`` on ``graph``; one record each."""
     from push_core.episode import new_record
-    from pushbot.graph_episode import GraphError
-    from pushbot.graph_faults import make_fault
-    from pushbot.protocol import Trial
+    from pushbot.experiments.protocol import Trial
+    from pushbot.runner.episode import GraphError
+    from pushbot.runner.faults import make_fault
 
     records = []
     before = dict(getattr(graph, "_bench_counts", {}))
@@ -118,6 +118,12 @@ def summary_row(name: str, obj: str, records: list[dict]) -> str:
     if name == "kill-segmentation":
         extra.append(f"re-anchored {sum(r.get('perception_anchored', 0) >= 1 for r in records)}"
                      f"/{n}")
+    if name == "kill-ekf":
+        gaps = [r["first_estimate_after_restart_s"] for r in records
+                if r.get("first_estimate_after_restart_s") is not None]
+        if gaps:
+            extra.append(f"first estimate {statistics.median(gaps):.1f} s after the restart "
+                         f"(median; max {max(gaps):.1f} s; process start included)")
     if name == "second-goal":
         extra.append(f"goal switch noted {sum(r.get('goal_switches', 0) >= 1 for r in records)}"
                      f"/{n}")
@@ -133,8 +139,9 @@ def summary_row(name: str, obj: str, records: list[dict]) -> str:
 def main() -> int:
     # Its own DDS domain (outside the test sessions' 1-100) unless the caller chose one.
     os.environ.setdefault("ROS_DOMAIN_ID", str(200 + os.getpid() % 30))
-    from pushbot.graph_episode import GraphRunner, sigterm_as_keyboard_interrupt
-    from pushbot.graph_faults import SCENARIOS
+    from pushbot.ros2cli.discovery import sigterm_as_keyboard_interrupt
+    from pushbot.runner.episode import GraphRunner
+    from pushbot.runner.faults import SCENARIOS
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=3, help="runs per scenario (default 3)")
@@ -169,7 +176,7 @@ def main() -> int:
     rows = [summary_row(name, obj, recs) for (name, obj), recs in results.items()]
     body = [
         " ".join(f"""Fault scenarios through the real graph (four node processes over DDS,
-        `pushbot.graph_faults`): {', '.join(objects)}, mixed task (10 cm, 0.35 rad), random COM,
+        `pushbot.runner.faults`): {', '.join(objects)}, mixed task (10 cm, 0.35 rad), random COM,
         ana, k = 3, perception + EKF, trial indices 0..n-1 (seeded scenes, goals, planner seeds
         and fault draws). Success = the true end pose within 0.75 cm / 5 deg of the true
         initial pose + the goal offset (for `second-goal`: the second goal's), 95 % Wilson

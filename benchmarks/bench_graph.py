@@ -13,10 +13,10 @@ graph vs in-process agreement (issue 7).
    ``planner/push`` as seen by a client process (perception of the new frame, EKF update,
    planning, DDS), over every step of the agreement trials.
 4. **Agreement.** ``--trials`` protocol trials (butter, mixed task, random COM, ana, k = 3,
-   state ``filter``) through the graph (:func:`pushbot.graph_episode.run_graph_trials`) and
-   in-process (:func:`pushbot.episode.run_trial`): success rates with 95 % Wilson intervals
-   and a two-sided two-proportion z-test, trial-by-trial outcome agreement, steps and true end
-   errors.
+   state ``filter``) through the graph (:func:`pushbot.runner.episode.run_graph_trials`) and
+   in-process (:func:`pushbot.experiments.inprocess.run_trial`): success rates with 95 % Wilson
+   intervals and a two-sided two-proportion z-test, trial-by-trial outcome agreement, steps and true
+   end errors.
 
 Writes the ``graph`` section of ``docs/RESULTS.md``. The machine is shared (2 cores): the load
 average is recorded with the figures.
@@ -60,7 +60,7 @@ COUNTER = """
 import json, sys, time
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Image
-from pushbot.graph import cli_node, spin_until
+from pushbot.ros2cli.discovery import cli_node, spin_until
 seconds = float(sys.argv[1])
 arrivals = {"rgb": [], "depth": []}
 with cli_node("bench_graph") as (node, executor):
@@ -133,9 +133,9 @@ def two_proportion_p(s1: int, s2: int, n: int) -> float:
 
 
 def agreement(n: int, out_dir: Path) -> tuple[list[dict], list[dict]]:
-    from pushbot.episode import run_trial
-    from pushbot.graph_episode import run_graph_trials
-    from pushbot.protocol import Trial
+    from pushbot.experiments.inprocess import run_trial
+    from pushbot.experiments.protocol import Trial
+    from pushbot.runner.episode import run_graph_trials
 
     trials = [Trial(object="butter", task="mixed", method="ana", k=3, state="filter",
                     com="random", index=i, seed=0) for i in range(n)]
@@ -167,7 +167,7 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         old = Path(tmp) / "old_fastdds.xml"
         old.write_text(OLD_PROFILE)
-        from pushbot.dds import profile_path
+        from push_ros.dds import profile_path
 
         for label, profile in (("before (default transports)", str(old)),
                                ("after (bundled profile)", str(profile_path()))):
@@ -226,7 +226,7 @@ def main() -> int:
         f"| graph (4 processes, DDS) | {s_g}/{n} | [{lo_g:.2f}, {hi_g:.2f}] | "
         f"{statistics.mean(r['steps'] for r in graph):.1f} | {_mean_mm(graph)} | "
         f"{statistics.mean(r['wall_s'] for r in graph):.1f} |",
-        f"| in-process (`pushbot.episode`) | {s_p}/{n} | [{lo_p:.2f}, {hi_p:.2f}] | "
+        f"| in-process (`pushbot.experiments.inprocess`) | {s_p}/{n} | [{lo_p:.2f}, {hi_p:.2f}] | "
         f"{statistics.mean(r['steps'] for r in in_process):.1f} | {_mean_mm(in_process)} | "
         f"{statistics.mean(r['wall_s'] for r in in_process):.1f} |",
         "",

@@ -1,8 +1,8 @@
 """Speed of the analytical pushing model: affordances (300 contact points x 10 pushes) and rollouts.
 
-Times ``push_core.model.predict_motion`` for 300 outline points x the 10 representative pushes
-of SPEC section 2.4 (numpy, the target: median <= 1 ms), the same call through torch (float64,
-for information), and ``push_core.rollout.rollout_push`` for B = 15 pushes of 10 substeps
+Times ``push_core.model.predict_motion`` for 300 outline points x the 10 representative pushes of
+the analytical pushing model (numpy, the target: median <= 1 ms), the same call through torch
+(float64, for information), and ``push_core.rollout.rollout_push`` for B = 15 pushes of 10 substeps
 against the 637-vertex butter outline (for information: the planner's per-direction rollouts).
 Reports medians over many repeats (wall clock, one call per repeat, after a warm-up) and writes
 them into the ``bench_model`` section of ``docs/RESULTS.md``.

@@ -188,7 +188,7 @@ def main(argv: list[str] | None = None) -> int:
         "within +-60 deg of the inward normal, length 1-5 cm, 20 mm/s, object at rest at the "
         "origin; model driven by the executed pusher motion with l = "
         "`spec.limit_surface_guess()` and m = the simulated pusher friction). A measurement, "
-        "not a pass/fail test; the \"no motion\" row is the error of predicting that nothing "
+        'not a pass/fail test; the "no motion" row is the error of predicting that nothing '
         "moves (= the true motion). Relative errors divide by the true translation (rotation) "
         "over the n pushes that moved the object by at least 1 mm (1 deg).\n\n" + table
     )

@@ -8,7 +8,7 @@
    (``pushbot.experiments.planner_loop``) in the pybullet world with *randomised* physics
    (``WorldConfig(randomize=True)``: mass x[0.5, 2], COM anywhere in the outline shrunk by
    30 %, table friction 0.15-0.4, pusher friction 0.15-0.5; the state carries the true COM and
-   pusher friction, ``l`` is the uniform-pressure value), the three tasks of SPEC section 5
+   pusher friction, ``l`` is the uniform-pressure value), the three tasks of the protocol
    (translation 20 cm, rotation 0.5 rad, mixed 10 cm + 0.35 rad), objects rect1, tri1 and
    butter, ``ana`` with k = 3. Trial i of a task: start at the workspace centre with
    orientation ``2 pi i / n``, physics seed i, goal direction and rotation sign from

@@ -10,7 +10,7 @@ and the renderer's speed.
    recorded / published, bag size, the recorder's CPU time (user + system) per second.
 2. **Demo bag and renderer.** ``pushbot demo --skip-doctor`` (the bridge's monitor on at the
    demo's default 10 Hz of sim time): the bag's size, messages and topics, then
-   ``pushbot.render.render_bag`` on it timed (ms per video frame), MP4 and GIF sizes.
+   ``pushbot.viz.render.render_bag`` on it timed (ms per video frame), MP4 and GIF sizes.
 3. **What the monitor costs.** The same demo with ``--monitor-rate 10`` (default) and
    ``--monitor-rate 0`` (camera frames only), alternating, ``--demo-runs`` times each: the
    demo process's wall time (start to exit: graph, episode, recording, rendering), the
@@ -63,7 +63,7 @@ def record_rate(rate: float, seconds: float, tmp: Path) -> dict[str, float]:
     from push_ros.poses import pose_stamped_msg
     from push_ros.qos import RELIABLE_QOS, SENSOR_QOS
     from push_ros.stamps import stamp_from_seconds
-    from pushbot.graph import spin_until
+    from pushbot.ros2cli.discovery import spin_until
 
     bag = tmp / f"bag_{rate:g}"
     context = Context()
@@ -120,8 +120,8 @@ def demo_bag(tmp: Path, monitor_rate: float = 10.0) -> dict[str, float]:
     """Run the demo once; measure its bag, the renderer and the MP4."""
     import imageio_ffmpeg
 
-    from pushbot.bag import open_reader
-    from pushbot.render import render_bag
+    from pushbot.ros2cli.bag import open_reader
+    from pushbot.viz.render import render_bag
 
     out = tmp / f"demo_{monitor_rate:g}"
     shutil.rmtree(out, ignore_errors=True)
@@ -158,7 +158,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="demo runs with and without the monitor each (part 3)")
     parser.add_argument("--no-write", action="store_true", help="do not update docs/RESULTS.md")
     args = parser.parse_args(argv)
-    from pushbot import dds
+    from push_ros import dds
 
     dds.apply_default_profile()  # as every pushbot process (the graph's nodes, the recorder)
 

@@ -88,7 +88,7 @@ def main() -> int:
     body = "\n".join([
         f"`pushbot demo --object {args.object} --com {args.com}` run {args.runs} times in a row "
         "(each: doctor, four node processes, one mixed-task episode; the confident stop rule "
-        "of docs/ARCHITECTURE.md, \"Stopping\").",
+        'of docs/ARCHITECTURE.md, "Stopping").',
         "",
         f"**{ok} of {args.runs} succeeded by ground truth; {consecutive} consecutive from the "
         f"first** (target: 20 of 20). Pushes median {statistics.median(steps):g} "

@@ -1,15 +1,18 @@
-"""Push-T (gym-pusht) success of the push_core planner next to Diffusion Policy (issue 16).
+"""Push-T (gym-pusht) success of the push_core planner next to Diffusion Policy (issues 16, 24).
 
 Runs ``pushbot eval pusht`` for both observations (the env state; the env's 96 x 96 image +
-agent position) over the benchmark's protocol (episodes with seeds 0..N-1, 300 control steps),
-keeps each run's ``results.json`` under ``--out``, and writes the ``eval_pusht`` section of
-``docs/RESULTS.md`` with LeRobot's Diffusion Policy figures beside them and what each method is
-given.
+agent position) and both object models (``env``: the T read from the env's body; ``estimated``:
+the T unknown, its outline from the image, COM, limit surface and friction estimated online)
+over the benchmark's protocol (episodes with seeds 0..N-1, 300 control steps), keeps each run's
+``results.json`` under ``--out`` (``<obs>`` for the env model, ``<obs>-estimated``), and writes
+the ``eval_pusht`` section of ``docs/RESULTS.md`` with LeRobot's Diffusion Policy figures beside
+them and what each method is given.
 
 Usage::
 
     nice -n 5 .venv/bin/python benchmarks/eval_pusht.py [--episodes 500] [--workers 2]
-        [--obs state pixels] [--out out/eval_pusht] [--no-write]
+        [--obs state pixels] [--object-model env estimated] [--out out/eval_pusht]
+        [--reuse] [--no-write]
 """
 
 from __future__ import annotations
@@ -30,12 +33,26 @@ from pushbot.experiments.pusht_adapter import evaluate  # noqa: E402
 DIFFUSION_POLICY = {"success_rate": 0.638, "avg_max_reward": 0.959}
 
 GIVEN = {
-    "state": "the env state (agent xy, block xy and angle); the T's outline, COM, mass and "
-             "moment read from the env's pymunk body; no demonstrations, no training",
-    "pixels": "the env's 96 x 96 RGB image + agent xy (Diffusion Policy's observation); the "
-              "T's outline, COM, mass and moment from the env's body; no demonstrations, no "
-              "training",
+    ("state", "env"): "the env state (agent xy, block xy and angle); the T's outline, COM, mass "
+                      "and moment read from the env's pymunk body; no demonstrations, no "
+                      "training",
+    ("pixels", "env"): "the env's 96 x 96 RGB image + agent xy (Diffusion Policy's "
+                       "observation); the T's outline, COM, mass and moment from the env's "
+                       "body; no demonstrations, no training",
+    ("state", "estimated"): "the env state's agent xy and block pose (of an unknown reference "
+                            "point) + the first 96 x 96 image for the outline; COM, l and "
+                            "friction estimated online from the robot graph's priors; the "
+                            "env's bodies and shapes sealed; no demonstrations, no training",
+    ("pixels", "estimated"): "the env's 96 x 96 RGB image + agent xy only (Diffusion Policy's "
+                             "observation): outline, pose and goal from the image, COM, l and "
+                             "friction estimated online from the robot graph's priors; the "
+                             "env's bodies and shapes sealed; no demonstrations, no training",
 }
+
+
+def _folder(out: Path, obs: str, model: str) -> Path:
+    return out / (obs if model == "env" else f"{obs}-{model}")
+
 
 
 def contact_fidelity(trials: int = 300, seed: int = 0) -> str:
@@ -114,49 +131,75 @@ def fidelity_errors(trials: int, seed: int, two_faces: bool) -> dict[bool, list]
     return rows
 
 
+def _row(args: argparse.Namespace, obs: str, model: str, reused: list[str]) -> str:
+    """One table row: the run of (obs, model), run now or read back (``--reuse``)."""
+    t0 = time.perf_counter()
+    folder = _folder(args.out, obs, model)
+    saved = folder / "results.json"
+    if args.reuse and saved.is_file():
+        r = json.loads(saved.read_text())
+        c = r["config"]
+        if c["episodes"] != args.episodes or c["seed0"] != 0 or c["max_steps"] != 300:
+            raise SystemExit(f"{saved}: not a run of {args.episodes} episodes from seed 0")
+        if c.get("object_model", "env") != model or c["obs"] != obs:
+            raise SystemExit(f"{saved}: not a run of --obs {obs} --object-model {model}")
+        wall = None
+        n = r["n_episodes"]
+        reused.append(f"{obs}/{model}" + ("" if n == args.episodes else
+                                          f" (cut after {n} of {args.episodes} episodes: "
+                                          f"seeds 0-{n - 1})"))
+    else:
+        r = evaluate(args.episodes, 0, 300, obs, folder, video=2, workers=args.workers,
+                     progress=True, object_model=model)
+        wall = time.perf_counter() - t0
+    print(json.dumps({k: v for k, v in r.items() if k != "episodes"}), flush=True)
+    lo, hi = r["success_wilson_95"]
+    given = GIVEN[(obs, model)]
+    if r["pose_error_mm_median"] is not None:
+        given += (f" (pose estimate error at planning: median {r['pose_error_mm_median']:.2f}"
+                  f", 95th percentile {r['pose_error_mm_p95']:.2f} units)")
+    outline = "-" if r.get("outline_error_mm_mean") is None else \
+        (f"{r['outline_error_mm_mean']:.2f} / {r['outline_max_error_mm_mean']:.1f} mm (95th "
+         f"pct of the largest: {r['outline_max_error_mm_p95']:.1f} mm)")
+    com = "-" if r.get("com_error_mm_mean") is None else \
+        (f"{r['com_error_prior_mm_mean']:.1f} -> {r['com_error_mm_mean']:.1f} mm (end: l "
+         f"{r['l_mm_mean']:.1f} mm, m {r['m_mean']:.2f})")
+    goal = "-" if r.get("goal_error_mm_mean") is None else f"{r['goal_error_mm_mean']:.2f} mm"
+    cut = "" if r["n_episodes"] == args.episodes else f" ({r['n_episodes']} episodes)"
+    return (f"| push_core planner, {obs}, {model} model{cut} | {r['success_rate']:.3f} "
+            f"[{lo:.3f}, "
+            f"{hi:.3f}] | {r['avg_max_reward']:.3f} | {r['mean_max_coverage']:.3f} | "
+            f"{r['steps_mean']:.1f} | {r['pushes_mean']:.1f} | {outline} | {com} | {goal} | "
+            f"{r['planning_ms_median']:.0f} ms | {r['episode_wall_s_mean']:.2f} s"
+            + (f" ({wall / 60:.1f} min, {args.workers} workers)" if wall is not None else "")
+            + f" | {given} |")
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=500)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--obs", nargs="+", choices=("state", "pixels"),
                         default=["state", "pixels"])
+    parser.add_argument("--object-model", nargs="+", choices=("env", "estimated"),
+                        default=["env", "estimated"])
     parser.add_argument("--out", type=Path, default=Path("out/eval_pusht"))
     parser.add_argument("--no-write", action="store_true")
     parser.add_argument("--reuse", action="store_true",
-                        help="read OUT/<obs>/results.json of an earlier run of this script with "
-                             "the same --episodes instead of running the episodes again")
+                        help="read OUT/<obs>[-estimated]/results.json of an earlier run (of this "
+                             "script or `pushbot eval pusht --out` to that folder) with the same "
+                             "--episodes from seed 0 where it exists instead of running the "
+                             "episodes again")
     args = parser.parse_args()
-    rows = []
-    for obs in args.obs:
-        t0 = time.perf_counter()
-        saved = args.out / obs / "results.json"
-        if args.reuse:
-            r = json.loads(saved.read_text())
-            if r["n_episodes"] != args.episodes or r["config"]["seed0"] != 0:
-                raise SystemExit(f"{saved}: not a run of {args.episodes} episodes from seed 0")
-            wall = None
-        else:
-            r = evaluate(args.episodes, 0, 300, obs, args.out / obs, video=2,
-                         workers=args.workers, progress=True)
-            wall = time.perf_counter() - t0
-        lo, hi = r["success_wilson_95"]
-        given = GIVEN[obs]
-        if r["pose_error_mm_median"] is not None:
-            given += (f" (pose estimate error at planning: median {r['pose_error_mm_median']:.2f}"
-                      f", 95th percentile {r['pose_error_mm_p95']:.2f} units)")
-        rows.append(
-            f"| push_core planner, {obs} | {r['success_rate']:.3f} [{lo:.3f}, {hi:.3f}] | "
-            f"{r['avg_max_reward']:.3f} | {r['mean_max_coverage']:.3f} | "
-            f"{r['steps_mean']:.1f} | {r['pushes_mean']:.1f} | "
-            f"{r['planning_ms_median']:.0f} ms | {r['episode_wall_s_mean']:.2f} s"
-            + (f" ({wall / 60:.1f} min, {args.workers} workers)" if wall is not None else "")
-            + f" | {given} |")
-        print(json.dumps({k: v for k, v in r.items() if k != "episodes"}), flush=True)
+    rows, reused = [], []
+    for model in args.object_model:
+        for obs in args.obs:
+            rows.append(_row(args, obs, model, reused))
     rows.append(
         f"| LeRobot Diffusion Policy (reference, not re-run) | "
         f"{DIFFUSION_POLICY['success_rate']:.3f} | {DIFFUSION_POLICY['avg_max_reward']:.3f} | - "
-        f"| - | - | - | - | 96 x 96 images + agent xy; 206 human demonstrations; about 7 "
-        f"GPU-hours of training |")
+        f"| - | - | - | - | - | - | - | - | 96 x 96 images + agent xy; 206 human "
+        f"demonstrations; about 7 GPU-hours of training |")
     body = "\n".join([
         f"gym-pusht 0.1.8 `gym_pusht/PushT-v0`, {args.episodes} episodes (seeds 0-"
         f"{args.episodes - 1}), 300 control steps, the env's own dynamics, reward and success "
@@ -164,14 +207,38 @@ def main() -> int:
         "episodes of max clip(coverage / 0.95, 0, 1) (LeRobot's metric); steps = control steps "
         "until success or 300; planning = one `Planner.plan` + transit path. Adapter, frames "
         "and units: `pushbot.experiments.pusht_adapter`; per-episode records in "
-        f"`{args.out}/<obs>/results.json`.",
+        f"`{args.out}/<obs>[-estimated]/results.json`.",
         "",
-        *(["With `--reuse` the episodes are read from the `results.json` files written by "
-           "earlier runs of this script (same protocol); only the fidelity table below is "
-           "measured again.", ""] if args.reuse else []),
+        "Object model `env` (issue 16): the T read from the env's body. `estimated` (issue 24, "
+        "`pushbot eval pusht --object-model estimated`, `pushbot.experiments.pusht_estimated`): "
+        "the T unknown; its outline from the episode's first 96 x 96 image (the perception "
+        "core's mask -> footprint step on the block-colour mask, then every polygon vertex "
+        "fitted sub-pixel by least squares through a model of the renderer: the 512 x 512 "
+        "render with the block drawn 2 units fat, sampled bilinearly by the resize to 96 x 96); "
+        "COM, limit surface l and friction m estimated online by push_core's EKF from the "
+        "pushes, from the robot graph's priors (`EKFConfig` defaults: COM at the outline's "
+        "centroid, l_0 the uniform-pressure guess +-25 %, m = 0.3 +- 0.15 clipped to [0.05, "
+        "1.2]; the true contact is frictionless, m = 0; the graph's process noise; "
+        "observation noise 0.6 mm / 0.4 deg from pixels, 0.1 mm / 0.1 deg from the state); "
+        "pose from the image (pixels) or the state's block pose through the perceived frame "
+        "(state); from pixels the goal is the "
+        "green goal region fitted with the perceived outline. The env's bodies and shapes are "
+        "sealed (`pusht_guard.SealedEnv`: any read from outside the env raises); the true T is "
+        "read from a second env for the error columns only. Outline error = mean distance "
+        "between the perceived and the true outline / largest (Hausdorff), mean over episodes; "
+        "COM error = distance of the filter's COM from the true centre of gravity at the prior "
+        "(the centroid) -> at the episode's end, with the filter's mean l and m at the end (true: "
+        "l = 54.8 mm, m = 0); goal = position error of the goal fitted in the image.",
+        "",
+        *([f"Rows read from earlier runs' `results.json` (same protocol, `--reuse`; written by "
+           f"`pushbot eval pusht --obs OBS --object-model MODEL --episodes {args.episodes} "
+           f"--out {args.out}/OBS[-estimated]`, which saves its episodes so far at every "
+           f"progress line): {', '.join(reused)}; the fidelity table below is measured again.",
+           ""] if reused else []),
         "| method | success [95 % CI] | avg max reward | mean max coverage | steps mean | "
-        "pushes mean | planning median | wall per episode | given |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+        "pushes mean | outline error mean / max | COM error prior -> end | goal error | "
+        "planning median | wall per episode | given |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
         *rows,
     ])
     body += ("\n\nModel fidelity on the T (contact-model check of issue 16): push_core's rollout "

@@ -9,9 +9,9 @@ the COM is random (``com random``: uniform over the outline shrunk by 30 %) exce
 to the outline). ``--trials`` trials per object and task (protocol index i: initial orientation
 2 pi (i mod 20) / 20), seed 0.
 
-Runs through the in-process evaluation API (:class:`pushbot.evaluate.EvalOptions`,
-:func:`pushbot.evaluate.evaluate`) like ``benchmarks/eval_push.py``; the objects are given as
-spec-file paths relative to the repository root (the script works from there). Output:
+Runs through the in-process evaluation API (:class:`pushbot.experiments.evaluate.EvalOptions`,
+:func:`pushbot.experiments.evaluate.evaluate`) like ``benchmarks/eval_push.py``; the objects are
+given as spec-file paths relative to the repository root (the script works from there). Output:
 ``--out`` (default ``out/eval/shapes``) holds ``com_random/`` and ``com_spec/`` (the
 ``results.json`` of each evaluation) and ``summary.md``; the section ``eval_shapes`` of
 docs/RESULTS.md gets a table per class (per object and task: success with its Wilson 95 %
@@ -37,11 +37,18 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _pushes import pushes_over_minimum  # noqa: E402
 from _results import format_section, update_section  # noqa: E402
 from bench_graph import wilson  # noqa: E402
 
 from push_core.procedural import SHAPE_CLASSES  # noqa: E402
-from pushbot.evaluate import EvalOptions, evaluate, stats, usable_cores, write_outputs  # noqa: E402
+from pushbot.experiments.evaluate import (  # noqa: E402
+    EvalOptions,
+    evaluate,
+    stats,
+    usable_cores,
+    write_outputs,
+)
 
 ROOT = Path(__file__).resolve().parent.parent
 OBJECTS_DIR = Path("benchmarks") / "objects"  # relative to ROOT
@@ -116,13 +123,15 @@ def row(label: str, records: list[dict]) -> str:
     est = fails.get(ESTIMATE_NOT_TRUE, 0)
     reasons = ", ".join(f"{k} {v}" for k, v in fails.items() if k != ESTIMATE_NOT_TRUE)
     return (f"| {label} | {s['n']} | {s['success_rate']:.2f} [{lo:.2f}, {hi:.2f}] | "
-            f"{_f(s['steps_mean'])} | {_f(s['end_error_xy_mean'], scale=1e3)} | "
+            f"{_f(s['steps_mean'])} | {_f(pushes_over_minimum(records), '.2f')} | "
+            f"{_f(s['end_error_xy_mean'], scale=1e3)} | "
             f"{deg} | {est} | "
             f"{reasons or '-'} |")
 
 
-HEAD = ("| {} | trials | success [95 % CI] | steps | end mm | end deg | estimate in, truth "
-        "out | other failures |\n| --- | --- | --- | --- | --- | --- | --- | --- |")
+HEAD = ("| {} | trials | success [95 % CI] | steps | pushes / min | end mm | end deg | "
+        "estimate in, truth out | other failures |\n"
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
 
 
 def summary(records: list[dict], of_class: dict[str, str]) -> str:
@@ -188,8 +197,8 @@ def main(argv: list[str] | None = None) -> int:
         "outline); randomised mass and frictions. Objects: `benchmarks/objects/<class>/` "
         "(`benchmarks/make_shape_objects.py`, seed 0). Success and end errors from ground "
         "truth (orientation modulo the object's symmetry; for discs not counted and left out of "
-        "the mean end deg). Steps: mean over the successful trials. \"estimate in, truth "
-        "out\": the estimate reached the goal region, the true pose did not.",
+        'the mean end deg). Steps: mean over the successful trials. "estimate in, truth '
+        'out": the estimate reached the goal region, the true pose did not.',
         "",
         summary(records, of_class),
         "",

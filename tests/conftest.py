@@ -14,7 +14,7 @@ so for every child process, which inherits ``os.environ``):
   memory with 32 MB segments and UDPv4 with 4 MB buffers, so camera images reach other
   processes) and Fast DDS then ignores this variable (docs/ARCHITECTURE.md, "DDS profile");
 - ``ROS_LOCALHOST_ONLY`` removed (deprecated in Jazzy; it conflicts with the range above);
-- ``FASTRTPS_DEFAULT_PROFILES_FILE`` = the bundled profile (``pushbot.dds``) unless set: the
+- ``FASTRTPS_DEFAULT_PROFILES_FILE`` = the bundled profile (``push_ros.dds``) unless set: the
   transports above, and reliable writers heartbeat every 100 ms, so a sample lost behind
   camera-image fragments is repaired at once instead of after Fast DDS's default 3 s.
 
@@ -46,8 +46,8 @@ from typing import Any
 
 import pytest
 
-from pushbot.dds import apply_default_profile
-from pushbot.graph import spin_until  # imports no rclpy at module level
+from push_ros.dds import apply_default_profile
+from pushbot.ros2cli.discovery import spin_until  # imports no rclpy at module level
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 
@@ -64,7 +64,7 @@ def _free_domain() -> int:
     start = os.getpid() % 100
     for offset in range(100):
         domain = 1 + (start + offset) % 100
-        lock = open(Path(tempfile.gettempdir()) / f'pushbot-test-domain-{domain}.lock', 'a')
+        lock = open(Path(tempfile.gettempdir()) / f"pushbot-test-domain-{domain}.lock", "a")
         try:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
@@ -72,17 +72,17 @@ def _free_domain() -> int:
             continue
         _DOMAIN_LOCK = lock
         return domain
-    raise RuntimeError('all ROS test domains 1-100 are held by other pytest sessions')
+    raise RuntimeError("all ROS test domains 1-100 are held by other pytest sessions")
 
 
 def _isolate_ros_session() -> int:
-    override = os.environ.get('PUSHBOT_TEST_DOMAIN_ID')
+    override = os.environ.get("PUSHBOT_TEST_DOMAIN_ID")
     domain = int(override) if override else _free_domain()
-    os.environ['ROS_DOMAIN_ID'] = str(domain)
-    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-    os.environ['FASTDDS_BUILTIN_TRANSPORTS'] = 'UDPv4'  # ignored under the bundled profile
-    os.environ.pop('ROS_LOCALHOST_ONLY', None)
-    apply_default_profile()  # image-sized transports, 100 ms heartbeats (pushbot.dds)
+    os.environ["ROS_DOMAIN_ID"] = str(domain)
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    os.environ["FASTDDS_BUILTIN_TRANSPORTS"] = "UDPv4"  # ignored under the bundled profile
+    os.environ.pop("ROS_LOCALHOST_ONLY", None)
+    apply_default_profile()  # image-sized transports, 100 ms heartbeats (push_ros.dds)
     return domain
 
 
@@ -90,8 +90,8 @@ TEST_DOMAIN_ID = _isolate_ros_session()
 
 
 def pytest_report_header(config: pytest.Config) -> str:
-    return (f'ROS isolation: ROS_DOMAIN_ID={TEST_DOMAIN_ID}, '
-            'ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, FASTDDS_BUILTIN_TRANSPORTS=UDPv4')
+    return (f"ROS isolation: ROS_DOMAIN_ID={TEST_DOMAIN_ID}, "
+            "ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, FASTDDS_BUILTIN_TRANSPORTS=UDPv4")
 
 
 def venv_executable(name: str) -> str:
@@ -101,7 +101,7 @@ def venv_executable(name: str) -> str:
         return str(candidate)
     found = shutil.which(name)
     if found is None:
-        pytest.fail(f'{name} is not installed next to {sys.executable}: run make venv')
+        pytest.fail(f"{name} is not installed next to {sys.executable}: run make venv")
     return found
 
 
@@ -125,7 +125,7 @@ def ros_context() -> Iterator[Any]:
         yield context
 
 
-@pytest.fixture(scope='module')
+@pytest.fixture(scope="module")
 def module_ros_context() -> Iterator[Any]:
     """The same, shared by the tests of one module (e.g. one node under fuzzing)."""
     with _initialised_context() as context:
@@ -166,10 +166,10 @@ class ProcessManager:
         self, argv: Sequence[str], *, env: dict[str, str] | None = None, name: str | None = None
     ) -> subprocess.Popen:
         """Start ``argv``; ``env`` entries are added to the session environment."""
-        full_env = {**os.environ, 'PYTHONUNBUFFERED': '1', **(env or {})}
+        full_env = {**os.environ, "PYTHONUNBUFFERED": "1", **(env or {})}
         label = name or Path(argv[0]).name
-        log = self.log_dir / f'{len(self._procs):02d}_{label}.log'
-        with open(log, 'wb') as out:
+        log = self.log_dir / f"{len(self._procs):02d}_{label}.log"
+        with open(log, "wb") as out:
             proc = subprocess.Popen(
                 list(argv), env=full_env, stdout=out, stderr=subprocess.STDOUT,
                 stdin=subprocess.DEVNULL,
@@ -181,15 +181,15 @@ class ProcessManager:
         self, node: str, *node_args: str, env: dict[str, str] | None = None
     ) -> subprocess.Popen:
         """Start ``pushbot run <node> <node_args...>`` (e.g. ``--ros-args -p x:=1``)."""
-        return self.start([venv_executable('pushbot'), 'run', node, *node_args],
+        return self.start([venv_executable("pushbot"), "run", node, *node_args],
                           env=env, name=node)
 
     def output(self, proc: subprocess.Popen) -> str:
         """Everything the process wrote so far (stdout and stderr interleaved)."""
         for candidate, log in self._procs:
             if candidate is proc:
-                return log.read_text(errors='replace')
-        raise KeyError(f'process {proc.pid} was not started by this manager')
+                return log.read_text(errors="replace")
+        raise KeyError(f"process {proc.pid} was not started by this manager")
 
     @staticmethod
     def stop(proc: subprocess.Popen, grace: float = 5.0) -> int:
@@ -221,16 +221,16 @@ def _managed_processes(log_dir: Path) -> Iterator[ProcessManager]:
 @pytest.fixture
 def processes(tmp_path: Path) -> Iterator[ProcessManager]:
     """A :class:`ProcessManager` whose processes are always stopped after the test."""
-    log_dir = tmp_path / 'process_logs'
+    log_dir = tmp_path / "process_logs"
     log_dir.mkdir()
     with _managed_processes(log_dir) as manager:
         yield manager
 
 
-@pytest.fixture(scope='module')
+@pytest.fixture(scope="module")
 def module_processes(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ProcessManager]:
     """Like ``processes``, shared by the tests of one module (e.g. one bridge for all)."""
-    with _managed_processes(tmp_path_factory.mktemp('process_logs')) as manager:
+    with _managed_processes(tmp_path_factory.mktemp("process_logs")) as manager:
         yield manager
 
 

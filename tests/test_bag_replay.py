@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from pushbot import cli
-from pushbot.render import GOAL_RGB
+from pushbot.viz.render import GOAL_RGB
 
 #: Distinct camera stamps (s); the second frame is published twice.
 STAMPS = (10.0, 11.0, 11.0, 12.5, 14.0)
@@ -46,13 +46,13 @@ def _markers(pts_world: np.ndarray, stamp):
     def _points(xy: np.ndarray, z: float) -> list:
         return [Point(x=float(x), y=float(y), z=z) for x, y in xy]
 
-    outline = Marker(ns='planner/outline', id=0, type=Marker.SPHERE_LIST)
-    outline.header.frame_id, outline.header.stamp = 'world', stamp
+    outline = Marker(ns="planner/outline", id=0, type=Marker.SPHERE_LIST)
+    outline.header.frame_id, outline.header.stamp = "world", stamp
     outline.points = _points(pts_world, 0.015)
     outline.colors = [ColorRGBA(r=float(v), g=1.0 - float(v), b=0.0, a=1.0)
                       for v in np.linspace(0, 1, len(pts_world))]
-    cand = Marker(ns='planner/candidates', id=1, type=Marker.SPHERE_LIST)
-    cand.header.frame_id, cand.header.stamp = 'world', stamp
+    cand = Marker(ns="planner/candidates", id=1, type=Marker.SPHERE_LIST)
+    cand.header.frame_id, cand.header.stamp = "world", stamp
     cand.points = _points(pts_world[:3], 0.015)
     return MarkerArray(markers=[outline, cand])
 
@@ -76,7 +76,7 @@ def write_episode_bag(path: Path, *, with_extrinsics: bool = True,
     from push_ros.paths import push_path
     from push_ros.poses import pose_stamped_msg, pose_with_covariance_msg, transform_msg
     from push_ros.stamps import stamp_from_seconds
-    from pushbot.bag import message_definition
+    from pushbot.ros2cli.bag import message_definition
     from sim_bridge.camera import CameraConfig, intrinsics, look_at_pose, project
 
     cfg = CameraConfig(width=160, height=120)
@@ -84,13 +84,13 @@ def write_episode_bag(path: Path, *, with_extrinsics: bool = True,
     pts, normals = _square()
     messages = []  # (topic, message, receive time s)
     t0 = stamp_from_seconds(STAMPS[0])
-    messages.append(('/camera/color/camera_info', camera_info_msg(k, 160, 120, t0), 0.0))
+    messages.append(("/camera/color/camera_info", camera_info_msg(k, 160, 120, t0), 0.0))
     if with_extrinsics:
-        messages.append(('/camera/color/extrinsics',
-                         transform_msg(t_wc, t0, 'world', 'camera_color_optical_frame'), 0.0))
-    messages.append(('/perception/outline', outline_cloud_msg(pts, normals, t0), 0.1))
+        messages.append(("/camera/color/extrinsics",
+                         transform_msg(t_wc, t0, "world", "camera_color_optical_frame"), 0.0))
+    messages.append(("/perception/outline", outline_cloud_msg(pts, normals, t0), 0.1))
     goal = np.array([0.04, 0.02, 0.3])
-    messages.append(('/goal_pose', pose_stamped_msg(goal, t0), 0.2))
+    messages.append(("/goal_pose", pose_stamped_msg(goal, t0), 0.2))
     for i, stamp_s in enumerate(STAMPS):
         stamp = stamp_from_seconds(stamp_s)
         pose = np.array([0.01 * i, 0.005 * i, 0.05 * i])
@@ -101,15 +101,15 @@ def write_episode_bag(path: Path, *, with_extrinsics: bool = True,
         lo, hi = np.floor(uv.min(axis=0)).astype(int), np.ceil(uv.max(axis=0)).astype(int)
         mask[max(lo[1], 0):hi[1], max(lo[0], 0):hi[0]] = True
         t = 1.0 + i
-        messages.append(('/camera/color/image_raw', rgb_image_msg(rgb, stamp), t))
-        messages.append(('/perception/mask', mask_image_msg(mask, stamp), t + 0.05))
-        messages.append(('/sim/object_pose', pose_stamped_msg(pose, stamp), t))
-        messages.append(('/estimator/object_pose',
+        messages.append(("/camera/color/image_raw", rgb_image_msg(rgb, stamp), t))
+        messages.append(("/perception/mask", mask_image_msg(mask, stamp), t + 0.05))
+        messages.append(("/sim/object_pose", pose_stamped_msg(pose, stamp), t))
+        messages.append(("/estimator/object_pose",
                          pose_with_covariance_msg(pose + 0.002, np.diag([1e-6, 1e-6, 1e-4]),
                                                   stamp), t + 0.1))
         world = np.asarray(object_to_world(pose, pts))
-        messages.append(('/planner/affordances', _markers(world, stamp), t + 0.2))
-        messages.append(('/planner/push', push_path(world[5] - [0, 0.02], world[5],
+        messages.append(("/planner/affordances", _markers(world, stamp), t + 0.2))
+        messages.append(("/planner/push", push_path(world[5] - [0, 0.02], world[5],
                                                     world[5] + [0, 0.02], stamp_s, 0.05),
                          t + 0.2))
         later = [m for m in monitor_stamps() if stamp_s < m <= stamp_s + 1.5] \
@@ -119,16 +119,16 @@ def write_episode_bag(path: Path, *, with_extrinsics: bool = True,
             small = np.full((60, 80, 3), MONITOR_RGB, dtype=np.uint8)
             # The last one of the episode arrives after the camera frame that follows it.
             late = m == monitor_stamps()[-1]
-            messages.append(('/sim/monitor/image_raw', rgb_image_msg(small, m_stamp),
+            messages.append(("/sim/monitor/image_raw", rgb_image_msg(small, m_stamp),
                              t + (1.02 if late else 0.3 + 0.05 * j)))
             k_small = np.diag([0.5, 0.5, 1.0]) @ k
-            messages.append(('/sim/monitor/camera_info',
+            messages.append(("/sim/monitor/camera_info",
                              camera_info_msg(k_small, 80, 60, m_stamp), t + 0.3 + 0.05 * j))
     with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
         conns = {}
         for topic, msg, t in sorted(messages, key=lambda m: m[2]):
             if topic not in conns:
-                msgtype = type(msg).__module__.split('.')[0] + '/msg/' + type(msg).__name__
+                msgtype = type(msg).__module__.split(".")[0] + "/msg/" + type(msg).__name__
                 msgdef, rihs01 = message_definition(msgtype)
                 conns[topic] = writer.add_connection(topic, msgtype, msgdef=msgdef,
                                                      rihs01=rihs01)
@@ -136,9 +136,9 @@ def write_episode_bag(path: Path, *, with_extrinsics: bool = True,
     return len(set(STAMPS))
 
 
-@pytest.fixture(scope='module')
+@pytest.fixture(scope="module")
 def episode_bag(tmp_path_factory) -> tuple[Path, int]:
-    bag = tmp_path_factory.mktemp('replay') / 'episode'
+    bag = tmp_path_factory.mktemp("replay") / "episode"
     return bag, write_episode_bag(bag)
 
 
@@ -148,11 +148,11 @@ def test_replay_writes_one_video_frame_per_camera_frame(episode_bag, tmp_path: P
     import imageio_ffmpeg
 
     bag, frames = episode_bag
-    out = tmp_path / 'video.mp4'
-    assert cli.main(['replay', str(bag), '-o', str(out), '--gif']) == 0
-    assert f'rendered {frames} frames' in capsys.readouterr().out
+    out = tmp_path / "video.mp4"
+    assert cli.main(["replay", str(bag), "-o", str(out), "--gif"]) == 0
+    assert f"rendered {frames} frames" in capsys.readouterr().out
     assert imageio_ffmpeg.count_frames_and_secs(str(out))[0] == frames
-    assert (tmp_path / 'video.gif').is_file() and (tmp_path / 'video_estimate.png').is_file()
+    assert (tmp_path / "video.gif").is_file() and (tmp_path / "video_estimate.png").is_file()
     with imageio.get_reader(out) as reader:
         first = reader.get_data(0)
     assert first.shape[1] >= 480 and first.shape[0] % 16 == 0 and first.shape[1] % 16 == 0
@@ -163,29 +163,29 @@ def test_replay_writes_one_video_frame_per_camera_frame(episode_bag, tmp_path: P
 
 def test_replay_default_output_next_to_the_bag(episode_bag, capsys) -> None:
     bag, frames = episode_bag
-    assert cli.main(['replay', str(bag)]) == 0
-    assert (bag.parent / 'episode.mp4').is_file()
-    assert (bag.parent / 'episode_estimate.png').is_file()
+    assert cli.main(["replay", str(bag)]) == 0
+    assert (bag.parent / "episode.mp4").is_file()
+    assert (bag.parent / "episode_estimate.png").is_file()
 
 
 def test_replay_without_extrinsics_is_a_clear_error(tmp_path: Path, capsys) -> None:
-    bag = tmp_path / 'noext'
+    bag = tmp_path / "noext"
     write_episode_bag(bag, with_extrinsics=False)
-    assert cli.main(['replay', str(bag), '-o', str(tmp_path / 'x.mp4')]) == 1
+    assert cli.main(["replay", str(bag), "-o", str(tmp_path / "x.mp4")]) == 1
     err = capsys.readouterr().err
-    assert 'lacks /camera/color/camera_info or /camera/color/extrinsics' in err
-    assert err.count('\n') == 1
+    assert "lacks /camera/color/camera_info or /camera/color/extrinsics" in err
+    assert err.count("\n") == 1
 
 
-@pytest.mark.parametrize('argv, message', [
-    (['replay', '/nonexistent'], 'is not a bag folder'),
-    (['replay', '.', '--fps', '0'], '--fps must be in (0, 120]'),
-    (['replay', '.', '-o', 'video.avi'], 'the output must be an .mp4 file'),
+@pytest.mark.parametrize("argv, message", [
+    (["replay", "/nonexistent"], "is not a bag folder"),
+    (["replay", ".", "--fps", "0"], "--fps must be in (0, 120]"),
+    (["replay", ".", "-o", "video.avi"], "the output must be an .mp4 file"),
 ])
 def test_replay_bad_input(argv: list[str], message: str, capsys) -> None:
     assert cli.main(argv) == 2
     err = capsys.readouterr().err
-    assert message in err and err.count('\n') == 1
+    assert message in err and err.count("\n") == 1
 
 
 def test_replay_merges_monitor_frames_in_time_order(tmp_path: Path, capsys) -> None:
@@ -193,27 +193,27 @@ def test_replay_merges_monitor_frames_in_time_order(tmp_path: Path, capsys) -> N
     2 x the monitor rate; monitor frames are scaled to the camera's size and drawn on."""
     import imageio.v2 as imageio
 
-    from pushbot.render import MONITOR_SPEEDUP, PUSH_RGB
+    from pushbot.viz.render import MONITOR_SPEEDUP, PUSH_RGB
 
-    bag = tmp_path / 'monitored'
+    bag = tmp_path / "monitored"
     cameras = write_episode_bag(bag, with_monitor=True)
-    stamps = sorted([(s, 'camera') for s in set(STAMPS)]
-                    + [(s, 'monitor') for s in monitor_stamps() if s not in STAMPS])
+    stamps = sorted([(s, "camera") for s in set(STAMPS)]
+                    + [(s, "monitor") for s in monitor_stamps() if s not in STAMPS])
     assert len(stamps) == cameras + 13  # 4 + 6 + 6 monitor frames, 3 at camera stamps
-    out = tmp_path / 'monitored.mp4'
-    assert cli.main(['replay', str(bag), '-o', str(out), '--gif']) == 0
-    assert f'rendered {len(stamps)} frames' in capsys.readouterr().out
+    out = tmp_path / "monitored.mp4"
+    assert cli.main(["replay", str(bag), "-o", str(out), "--gif"]) == 0
+    assert f"rendered {len(stamps)} frames" in capsys.readouterr().out
     with imageio.get_reader(out) as reader:
-        fps = reader.get_meta_data()['fps']
+        fps = reader.get_meta_data()["fps"]
         frames = [f for f in reader]
     assert fps == pytest.approx(MONITOR_SPEEDUP / MONITOR_PERIOD)
     assert len({f.shape for f in frames}) == 1
     kinds = []
     for f in frames:  # below the 30 px time bar, above the legend: grey camera, blue monitor
         body = f[40:-60].reshape(-1, 3).astype(float)
-        kinds.append('monitor' if np.median(body[:, 1]) < 100 else 'camera')
+        kinds.append("monitor" if np.median(body[:, 1]) < 100 else "camera")
     assert kinds == [k for _, k in stamps]
     # The push arrow (cyan) is drawn on the monitor frames too.
-    first_monitor = frames[kinds.index('monitor')].astype(int)
+    first_monitor = frames[kinds.index("monitor")].astype(int)
     assert (np.abs(first_monitor - np.asarray(PUSH_RGB)).sum(axis=-1) < 90).sum() > 20
-    assert (tmp_path / 'monitored.gif').is_file()
+    assert (tmp_path / "monitored.gif").is_file()

@@ -20,22 +20,23 @@ from typing import Any
 import pytest
 import yaml
 
-from pushbot import cli, nodes
-from pushbot.messages import ArraySummary, message_to_dict, to_yaml
+from pushbot import cli
+from pushbot.ros2cli.messages import ArraySummary, message_to_dict, to_yaml
+from pushbot.runner import run
 
 NODES = {
-    'sim_bridge_node': 'sim_bridge',
-    'segmentation_node': 'push_perception',
-    'ekf_node': 'push_estimator',
-    'planner_node': 'push_planner',
+    "sim_bridge_node": "sim_bridge",
+    "segmentation_node": "push_perception",
+    "ekf_node": "push_estimator",
+    "planner_node": "push_planner",
 }
-SUBCOMMANDS = ('doctor', 'run', 'up', 'topic', 'node', 'param', 'service', 'goal', 'demo')
+SUBCOMMANDS = ("doctor", "run", "up", "topic", "node", "param", "service", "goal", "demo")
 
 
 def pushbot(*args: str, env: dict[str, str] | None = None,
             timeout: float = 120.0) -> subprocess.CompletedProcess:
     """Run the installed ``pushbot`` console script (the one next to this Python)."""
-    exe = Path(sys.executable).parent / 'pushbot'
+    exe = Path(sys.executable).parent / "pushbot"
     return subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=timeout,
                           env={**os.environ, **(env or {})})
 
@@ -43,21 +44,21 @@ def pushbot(*args: str, env: dict[str, str] | None = None,
 # --- help -----------------------------------------------------------------------------------
 
 def test_help_lists_subcommands() -> None:
-    result = pushbot('--help')
+    result = pushbot("--help")
     assert result.returncode == 0, result.stderr
     for command in SUBCOMMANDS:
-        assert re.search(rf'^\s+{command}\s', result.stdout, re.MULTILINE), result.stdout
+        assert re.search(rf"^\s+{command}\s", result.stdout, re.MULTILINE), result.stdout
 
 
-@pytest.mark.parametrize('command', [*SUBCOMMANDS, 'topic list', 'topic echo', 'topic hz',
-                                     'topic info', 'topic pub', 'node list', 'node info',
-                                     'param list', 'param get', 'param set', 'param dump',
-                                     'service list', 'service call'])
+@pytest.mark.parametrize("command", [*SUBCOMMANDS, "topic list", "topic echo", "topic hz",
+                                     "topic info", "topic pub", "node list", "node info",
+                                     "param list", "param get", "param set", "param dump",
+                                     "service list", "service call"])
 def test_every_subcommand_has_help(command: str, capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit) as exit_info:
-        cli.main([*command.split(), '--help'])
+        cli.main([*command.split(), "--help"])
     assert exit_info.value.code == 0
-    assert 'usage: pushbot ' + command in capsys.readouterr().out
+    assert "usage: pushbot " + command in capsys.readouterr().out
 
 
 # --- doctor ---------------------------------------------------------------------------------
@@ -65,19 +66,19 @@ def test_every_subcommand_has_help(command: str, capsys: pytest.CaptureFixture[s
 @pytest.mark.ros
 @pytest.mark.slow
 def test_doctor_passes_with_two_process_pubsub() -> None:
-    result = pushbot('doctor')
+    result = pushbot("doctor")
     assert result.returncode == 0, result.stdout + result.stderr
     lines = result.stdout.splitlines()
-    pubsub = [line for line in lines if 'pub/sub' in line]
-    assert len(pubsub) == 1 and pubsub[0].startswith('OK'), result.stdout
-    assert '5/5 messages' in pubsub[0]
-    for label in ('rclpy', 'RMW implementation', 'torch', 'pybullet', 'OpenCV', 'numpy',
-                  'ROS_DOMAIN_ID', 'discovery range'):
-        assert any(line.startswith('OK') and label in line for line in lines), label
+    pubsub = [line for line in lines if "pub/sub" in line]
+    assert len(pubsub) == 1 and pubsub[0].startswith("OK"), result.stdout
+    assert "5/5 messages" in pubsub[0]
+    for label in ("rclpy", "RMW implementation", "torch", "pybullet", "OpenCV", "numpy",
+                  "ROS_DOMAIN_ID", "discovery range"):
+        assert any(line.startswith("OK") and label in line for line in lines), label
     assert re.search(rf'ROS_DOMAIN_ID\s+{os.environ["ROS_DOMAIN_ID"]}$', result.stdout, re.M)
-    assert re.search(r'discovery range\s+LOCALHOST$', result.stdout, re.M)
-    assert 'rmw_fastrtps_cpp' in result.stdout
-    assert re.fullmatch(r'doctor: all \d+ checks passed', lines[-1]), lines[-1]
+    assert re.search(r"discovery range\s+LOCALHOST$", result.stdout, re.M)
+    assert "rmw_fastrtps_cpp" in result.stdout
+    assert re.fullmatch(r"doctor: all \d+ checks passed", lines[-1]), lines[-1]
 
 
 @pytest.mark.ros
@@ -85,13 +86,13 @@ def test_doctor_passes_with_two_process_pubsub() -> None:
 def test_doctor_fails_clearly_when_messages_cannot_arrive() -> None:
     # A real failure: the probe subscriber runs on another DDS domain, so it never discovers
     # the publisher.
-    result = pushbot('doctor', '--timeout', '4', env={'PUSHBOT_DOCTOR_SUB_DOMAIN_OFFSET': '1'})
+    result = pushbot("doctor", "--timeout", "4", env={"PUSHBOT_DOCTOR_SUB_DOMAIN_OFFSET": "1"})
     assert result.returncode == 1, result.stdout
-    pubsub = next(line for line in result.stdout.splitlines() if 'pub/sub' in line)
-    assert pubsub.startswith('FAIL')
-    assert 'no message reached the subscriber within 4 s' in pubsub
-    assert 'check ROS_DOMAIN_ID / firewall / FASTDDS_BUILTIN_TRANSPORTS' in pubsub
-    assert 'Traceback' not in result.stdout + result.stderr
+    pubsub = next(line for line in result.stdout.splitlines() if "pub/sub" in line)
+    assert pubsub.startswith("FAIL")
+    assert "no message reached the subscriber within 4 s" in pubsub
+    assert "check ROS_DOMAIN_ID / firewall / FASTDDS_BUILTIN_TRANSPORTS" in pubsub
+    assert "Traceback" not in result.stdout + result.stderr
 
 
 @pytest.mark.slow
@@ -99,77 +100,77 @@ def test_doctor_reports_a_missing_module_without_traceback() -> None:
     # sys.modules[name] = None makes `import name` fail exactly as if it were not installed.
     code = ('import sys; sys.modules["torch"] = None\n'
             'from pushbot.cli import main; sys.exit(main(["doctor", "--timeout", "30"]))')
-    result = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                             timeout=300)
     assert result.returncode == 1
-    assert re.search(r'^FAIL\s+torch\s+torch is not installed: run make venv$', result.stdout,
+    assert re.search(r"^FAIL\s+torch\s+torch is not installed: run make venv$", result.stdout,
                      re.M), result.stdout
-    assert 'Traceback' not in result.stdout + result.stderr
+    assert "Traceback" not in result.stdout + result.stderr
 
 
 @pytest.mark.ros
 @pytest.mark.slow
 @pytest.mark.graph
 def test_demo_runs_doctor_then_the_closed_loop_through_the_graph(tmp_path: Path) -> None:
-    result = pushbot('demo', '--object', 'rect1', '--com', 'centre', '--out', str(tmp_path),
+    result = pushbot("demo", "--object", "rect1", "--com", "centre", "--out", str(tmp_path),
                      timeout=300)
     assert result.returncode == 0, result.stdout + result.stderr
     out = result.stdout
-    assert 'checks passed' in out
+    assert "checks passed" in out
     # The four nodes ran as processes: each wrote its log.
     for name in NODES:
-        assert (tmp_path / 'graph_logs' / f'{name}.log').stat().st_size > 0, name
-    record = json.loads((tmp_path / 'episode.json').read_text())
-    assert record['trial']['object'] == 'rect1' and record['trial']['task'] == 'mixed'
-    assert record['reason'] == 'goal reached' and record['success'], out
+        assert (tmp_path / "graph_logs" / f"{name}.log").stat().st_size > 0, name
+    record = json.loads((tmp_path / "episode.json").read_text())
+    assert record["trial"]["object"] == "rect1" and record["trial"]["task"] == "mixed"
+    assert record["reason"] == "goal reached" and record["success"], out
     # a push the bridge refused (e.g. still busy with the scene) is a step without a new pose
-    assert 1 <= record['steps'] == len(record['pushes'])
-    assert len(record['poses_true']) == record['steps'] - record['refused'] + 1
+    assert 1 <= record["steps"] == len(record["pushes"])
+    assert len(record["poses_true"]) == record["steps"] - record["refused"] + 1
     # The summary prints the ground-truth figures of the record.
-    match = re.search(r'^result: goal reached after (\d+) pushes \(success by ground truth\)$',
+    match = re.search(r"^result: goal reached after (\d+) pushes \(success by ground truth\)$",
                       out, re.M)
-    assert match and int(match.group(1)) == record['steps'], out
-    match = re.search(r'^true end-pose error: ([\d.]+) mm, ([\d.]+) deg', out, re.M)
+    assert match and int(match.group(1)) == record["steps"], out
+    match = re.search(r"^true end-pose error: ([\d.]+) mm, ([\d.]+) deg", out, re.M)
     assert match, out
-    assert float(match.group(1)) == pytest.approx(1e3 * record['end_error_xy'], abs=0.06)
+    assert float(match.group(1)) == pytest.approx(1e3 * record["end_error_xy"], abs=0.06)
     assert float(match.group(1)) <= 7.5 and float(match.group(2)) <= 5.0
-    assert re.search(r'^centre of mass \(object frame, mm\): estimated \(.*\), true \(.*\), '
-                     r'error [\d.]+ mm$', out, re.M), out
-    assert re.search(r'^wall time: ([\d.]+) s in all', out, re.M), out  # figures: RESULTS.md
+    assert re.search(r"^centre of mass \(object frame, mm\): estimated \(.*\), true \(.*\), "
+                     r"error [\d.]+ mm$", out, re.M), out
+    assert re.search(r"^wall time: ([\d.]+) s in all", out, re.M), out  # figures: RESULTS.md
     from PIL import Image
 
-    from pushbot.render import GIF_MAX_FRAMES
+    from pushbot.viz.render import GIF_MAX_FRAMES
 
     # Camera frames (one lost in transport is skipped) and the bridge's monitor frames of the
     # pushes, subsampled to at most GIF_MAX_FRAMES.
-    with Image.open(tmp_path / 'episode.gif') as gif:
-        assert record['steps'] + 1 < gif.n_frames <= GIF_MAX_FRAMES
-    assert (tmp_path / 'trajectory.png').stat().st_size > 10_000
+    with Image.open(tmp_path / "episode.gif") as gif:
+        assert record["steps"] + 1 < gif.n_frames <= GIF_MAX_FRAMES
+    assert (tmp_path / "trajectory.png").stat().st_size > 10_000
 
 
-@pytest.mark.parametrize('value', ['-1', 'nan', 'inf'])
+@pytest.mark.parametrize("value", ["-1", "nan", "inf"])
 def test_demo_rejects_a_bad_pause_before_starting_anything(value: str, tmp_path: Path) -> None:
-    result = pushbot('demo', '--skip-doctor', '--pause', value, '--out', str(tmp_path))
+    result = pushbot("demo", "--skip-doctor", "--pause", value, "--out", str(tmp_path))
     assert result.returncode == 2
-    assert '--pause must be a finite number of seconds >= 0' in result.stderr
-    assert not (tmp_path / 'graph_logs').exists()  # no node was started
+    assert "--pause must be a finite number of seconds >= 0" in result.stderr
+    assert not (tmp_path / "graph_logs").exists()  # no node was started
 
 
 # --- run ------------------------------------------------------------------------------------
 
 def test_run_list_shows_the_four_nodes_with_their_packages() -> None:
-    result = pushbot('run', '--list')
+    result = pushbot("run", "--list")
     assert result.returncode == 0, result.stderr
     listed = {tuple(line.split()[::-1]) for line in result.stdout.splitlines()}
     assert set(NODES.items()) <= listed, result.stdout
 
 
 def test_run_unknown_node_exits_2_and_lists_known_nodes() -> None:
-    result = pushbot('run', 'no_such_node')
+    result = pushbot("run", "no_such_node")
     assert result.returncode == 2
     assert "unknown node 'no_such_node'" in result.stderr
     for node, package in NODES.items():
-        assert f'{node} ({package})' in result.stderr
+        assert f"{node} ({package})" in result.stderr
 
 
 class _StubEntryPoint:
@@ -180,17 +181,17 @@ class _StubEntryPoint:
         return lambda: self.record.append(list(sys.argv))
 
 
-@pytest.mark.parametrize('prefix', [['argv_node'], ['argv_pkg', 'argv_node']])
+@pytest.mark.parametrize("prefix", [["argv_node"], ["argv_pkg", "argv_node"]])
 def test_run_passes_everything_after_the_node_to_its_main(
     prefix: list[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     record: list[list[str]] = []
-    stub = nodes.NodeEntry('argv_node', 'argv_pkg', 'stub:main', _StubEntryPoint(record))
-    monkeypatch.setattr(nodes, 'discover_nodes', lambda: [stub])
-    monkeypatch.setattr(sys, 'argv', ['pushbot'])
-    node_args = ['--ros-args', '-p', 'x:=1', '-r', 'a:=b', '--help']
-    assert cli.main(['run', *prefix, *node_args]) == 0
-    assert record == [['argv_node', *node_args]]
+    stub = run.NodeEntry("argv_node", "argv_pkg", "stub:main", _StubEntryPoint(record))
+    monkeypatch.setattr(run, "discover_nodes", lambda: [stub])
+    monkeypatch.setattr(sys, "argv", ["pushbot"])
+    node_args = ["--ros-args", "-p", "x:=1", "-r", "a:=b", "--help"]
+    assert cli.main(["run", *prefix, *node_args]) == 0
+    assert record == [["argv_node", *node_args]]
 
 
 # --- message formatting (no ROS graph needed) -----------------------------------------------
@@ -200,25 +201,25 @@ def test_message_to_dict_nests_and_truncates_large_arrays() -> None:
     from nav_msgs.msg import Path as PathMsg
     from sensor_msgs.msg import Image
 
-    image = Image(height=2, width=3, encoding='rgb8', step=9, data=bytes(range(18)))
-    image.header.frame_id = 'camera_color_optical_frame'
+    image = Image(height=2, width=3, encoding="rgb8", step=9, data=bytes(range(18)))
+    image.header.frame_id = "camera_color_optical_frame"
     as_dict = message_to_dict(image, max_array=16)
-    assert as_dict['header'] == {'stamp': {'sec': 0, 'nanosec': 0},
-                                 'frame_id': 'camera_color_optical_frame'}
-    assert isinstance(as_dict['data'], ArraySummary)
-    assert as_dict['data'].startswith('<18 x uint8, starts [0, 1, 2')
-    assert message_to_dict(image, max_array=0)['data'] == list(range(18))
+    assert as_dict["header"] == {"stamp": {"sec": 0, "nanosec": 0},
+                                 "frame_id": "camera_color_optical_frame"}
+    assert isinstance(as_dict["data"], ArraySummary)
+    assert as_dict["data"].startswith("<18 x uint8, starts [0, 1, 2")
+    assert message_to_dict(image, max_array=0)["data"] == list(range(18))
 
     pose = PoseWithCovarianceStamped()
     pose.pose.pose.orientation = Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)
-    covariance = message_to_dict(pose, max_array=36)['pose']['covariance']
+    covariance = message_to_dict(pose, max_array=36)["pose"]["covariance"]
     assert covariance == [0.0] * 36
 
     path = PathMsg()
     path.poses = [pose_stamped_at(1.0), pose_stamped_at(2.0)]
     text = to_yaml(message_to_dict(path))
     loaded = yaml.safe_load(text)
-    assert [p['pose']['position']['x'] for p in loaded['poses']] == [1.0, 2.0]
+    assert [p["pose"]["position"]["x"] for p in loaded["poses"]] == [1.0, 2.0]
 
 
 def pose_stamped_at(x: float):  # noqa: ANN201
@@ -229,10 +230,10 @@ def pose_stamped_at(x: float):  # noqa: ANN201
     return msg
 
 
-@pytest.mark.parametrize('text', ['hello', 'a: b', '', '42', 'true', '- x', 'line\nbreak',
-                                  ' padded', '#comment', 'ok #not'])
+@pytest.mark.parametrize("text", ["hello", "a: b", "", "42", "true", "- x", "line\nbreak",
+                                  " padded", "#comment", "ok #not"])
 def test_yaml_strings_round_trip(text: str) -> None:
-    assert yaml.safe_load(to_yaml({'data': text})) == {'data': text}
+    assert yaml.safe_load(to_yaml({"data": text})) == {"data": text}
 
 
 @pytest.mark.ros
@@ -249,34 +250,34 @@ def test_compatible_qos_receives_from_best_effort_and_latched_publishers(
     )
     from std_msgs.msg import String
 
-    from pushbot.graph import compatible_qos
+    from pushbot.ros2cli.discovery import compatible_qos
 
-    node = Node('qos_test', context=ros_context)
+    node = Node("qos_test", context=ros_context)
     executor = SingleThreadedExecutor(context=ros_context)
     executor.add_node(node)
     try:
         latched = node.create_publisher(
-            String, 'qos_test/latched',
+            String, "qos_test/latched",
             QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
-        latched.publish(String(data='published before anyone subscribed'))
-        sensor = node.create_publisher(String, 'qos_test/sensor', qos_profile_sensor_data)
+        latched.publish(String(data="published before anyone subscribed"))
+        sensor = node.create_publisher(String, "qos_test/sensor", qos_profile_sensor_data)
         received: dict[str, str] = {}
         chosen = {}
-        for name in ('latched', 'sensor'):
-            topic = f'/qos_test/{name}'
+        for name in ("latched", "sensor"):
+            topic = f"/qos_test/{name}"
             assert wait_for(lambda t=topic: node.get_publishers_info_by_topic(t), timeout=10)
             chosen[name] = compatible_qos(node.get_publishers_info_by_topic(topic))
             node.create_subscription(String, topic,
                                      lambda msg, n=name: received.setdefault(n, msg.data),
                                      chosen[name])
-        assert chosen['latched'].durability == DurabilityPolicy.TRANSIENT_LOCAL
-        assert chosen['latched'].reliability == ReliabilityPolicy.RELIABLE
-        assert chosen['sensor'].reliability == ReliabilityPolicy.BEST_EFFORT
-        assert chosen['sensor'].durability == DurabilityPolicy.VOLATILE
+        assert chosen["latched"].durability == DurabilityPolicy.TRANSIENT_LOCAL
+        assert chosen["latched"].reliability == ReliabilityPolicy.RELIABLE
+        assert chosen["sensor"].reliability == ReliabilityPolicy.BEST_EFFORT
+        assert chosen["sensor"].durability == DurabilityPolicy.VOLATILE
         assert wait_for(lambda: sensor.get_subscription_count() > 0, timeout=10)
-        sensor.publish(String(data='live'))
+        sensor.publish(String(data="live"))
         assert wait_for(lambda: len(received) == 2, timeout=10, executor=executor), received
-        assert received == {'latched': 'published before anyone subscribed', 'sensor': 'live'}
+        assert received == {"latched": "published before anyone subscribed", "sensor": "live"}
     finally:
         executor.shutdown()
         node.destroy_node()
@@ -284,7 +285,7 @@ def test_compatible_qos_receives_from_best_effort_and_latched_publishers(
 
 # --- topic (a real publisher in another process) --------------------------------------------
 
-PUBLISHER = textwrap.dedent('''
+PUBLISHER = textwrap.dedent("""
     import sys
     import rclpy
     from rclpy.executors import ExternalShutdownException
@@ -320,16 +321,16 @@ PUBLISHER = textwrap.dedent('''
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
-''')
+""")
 RATE_HZ = 10.0
 
 
-@pytest.fixture(scope='module')
+@pytest.fixture(scope="module")
 def publisher(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     """A publisher process of three topics under a unique prefix; yields the prefix."""
-    script = tmp_path_factory.mktemp('publisher') / 'publisher.py'
+    script = tmp_path_factory.mktemp("publisher") / "publisher.py"
     script.write_text(PUBLISHER)
-    prefix = f'/cli_test_{secrets.token_hex(4)}'
+    prefix = f"/cli_test_{secrets.token_hex(4)}"
     proc = subprocess.Popen([sys.executable, str(script), prefix, str(RATE_HZ)],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
@@ -346,49 +347,49 @@ def publisher(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
 @pytest.mark.ros
 @pytest.mark.graph
 def test_topic_list_sees_the_other_process(publisher: str) -> None:
-    result = pushbot('topic', 'list', '-t')
+    result = pushbot("topic", "list", "-t")
     assert result.returncode == 0, result.stderr
-    assert f'{publisher}/chatter [std_msgs/msg/String]' in result.stdout.splitlines()
-    assert f'{publisher}/image [sensor_msgs/msg/Image]' in result.stdout.splitlines()
+    assert f"{publisher}/chatter [std_msgs/msg/String]" in result.stdout.splitlines()
+    assert f"{publisher}/image [sensor_msgs/msg/Image]" in result.stdout.splitlines()
 
 
 @pytest.mark.ros
 @pytest.mark.graph
 def test_topic_echo_prints_one_message(publisher: str) -> None:
-    result = pushbot('topic', 'echo', f'{publisher}/chatter', '--count', '1', '--timeout', '20')
+    result = pushbot("topic", "echo", f"{publisher}/chatter", "--count", "1", "--timeout", "20")
     assert result.returncode == 0, result.stderr
-    documents = result.stdout.split('---\n')
-    assert documents[-1] == '' and len(documents) == 2, result.stdout
-    assert re.fullmatch(r'hello \d+', yaml.safe_load(documents[0])['data'])
+    documents = result.stdout.split("---\n")
+    assert documents[-1] == "" and len(documents) == 2, result.stdout
+    assert re.fullmatch(r"hello \d+", yaml.safe_load(documents[0])["data"])
 
 
 @pytest.mark.ros
 @pytest.mark.graph
 def test_topic_echo_matches_best_effort_and_summarises_image_data(publisher: str) -> None:
     # A reliable subscription would never receive from this best-effort publisher.
-    result = pushbot('topic', 'echo', f'{publisher}/image', '-n', '1', '--timeout', '20')
+    result = pushbot("topic", "echo", f"{publisher}/image", "-n", "1", "--timeout", "20")
     assert result.returncode == 0, result.stderr
-    image = yaml.safe_load(result.stdout.split('---\n')[0])
-    assert (image['height'], image['width'], image['encoding']) == (48, 64, 'rgb8')
-    assert image['header']['frame_id'] == 'camera_color_optical_frame'
-    assert image['data'].startswith('<9216 x uint8, starts [0, 0')
+    image = yaml.safe_load(result.stdout.split("---\n")[0])
+    assert (image["height"], image["width"], image["encoding"]) == (48, 64, "rgb8")
+    assert image["header"]["frame_id"] == "camera_color_optical_frame"
+    assert image["data"].startswith("<9216 x uint8, starts [0, 0")
 
 
 @pytest.mark.ros
 @pytest.mark.graph
 def test_topic_echo_receives_latched_message(publisher: str) -> None:
     # Published once at start-up: only a transient-local subscription gets it now.
-    result = pushbot('topic', 'echo', f'{publisher}/latched', '-n', '1', '--timeout', '20')
+    result = pushbot("topic", "echo", f"{publisher}/latched", "-n", "1", "--timeout", "20")
     assert result.returncode == 0, result.stderr
-    assert yaml.safe_load(result.stdout.split('---\n')[0]) == {'data': 'latched: once'}
+    assert yaml.safe_load(result.stdout.split("---\n")[0]) == {"data": "latched: once"}
 
 
 @pytest.mark.ros
 @pytest.mark.graph
 def test_topic_hz_reports_the_publisher_rate(publisher: str) -> None:
-    result = pushbot('topic', 'hz', f'{publisher}/chatter', '--duration', '3', '--timeout', '20')
+    result = pushbot("topic", "hz", f"{publisher}/chatter", "--duration", "3", "--timeout", "20")
     assert result.returncode == 0, result.stderr
-    rates = [float(r) for r in re.findall(r'average rate: ([\d.]+)', result.stdout)]
+    rates = [float(r) for r in re.findall(r"average rate: ([\d.]+)", result.stdout)]
     assert rates, result.stdout
     # Behaviour, not a benchmark: loose bounds around the 10 Hz timer.
     assert 0.5 * RATE_HZ < rates[-1] < 1.5 * RATE_HZ, result.stdout
@@ -397,20 +398,20 @@ def test_topic_hz_reports_the_publisher_rate(publisher: str) -> None:
 @pytest.mark.ros
 @pytest.mark.graph
 def test_topic_info_shows_type_and_qos(publisher: str) -> None:
-    result = pushbot('topic', 'info', f'{publisher}/image', '--timeout', '20')
+    result = pushbot("topic", "info", f"{publisher}/image", "--timeout", "20")
     assert result.returncode == 0, result.stderr
-    assert 'Type: sensor_msgs/msg/Image' in result.stdout
-    assert 'Publisher count: 1' in result.stdout
-    assert '/cli_test_publisher' in result.stdout
-    assert 'reliability=BEST_EFFORT' in result.stdout
+    assert "Type: sensor_msgs/msg/Image" in result.stdout
+    assert "Publisher count: 1" in result.stdout
+    assert "/cli_test_publisher" in result.stdout
+    assert "reliability=BEST_EFFORT" in result.stdout
 
 
 @pytest.mark.ros
 def test_topic_echo_on_a_missing_topic_exits_1_clearly() -> None:
-    result = pushbot('topic', 'echo', '/no_such_topic_here', '--timeout', '2')
+    result = pushbot("topic", "echo", "/no_such_topic_here", "--timeout", "2")
     assert result.returncode == 1
-    assert 'topic /no_such_topic_here did not appear within 2 s' in result.stderr
-    assert 'Traceback' not in result.stderr
+    assert "topic /no_such_topic_here did not appear within 2 s" in result.stderr
+    assert "Traceback" not in result.stderr
 
 
 def test_readme_lists_every_command_and_option() -> None:
@@ -421,11 +422,11 @@ def test_readme_lists_every_command_and_option() -> None:
     from pushbot.cli import build_parser
     from pushbot.cli_reference import readme_section, reference_markdown
 
-    readme = Path(__file__).resolve().parents[1] / 'docs' / 'CLI.md'
-    section = readme_section(readme.read_text(encoding='utf-8'))
-    assert section is not None, 'docs/CLI.md has no cli-reference section'
+    readme = Path(__file__).resolve().parents[1] / "docs" / "CLI.md"
+    section = readme_section(readme.read_text(encoding="utf-8"))
+    assert section is not None, "docs/CLI.md has no cli-reference section"
     assert section == reference_markdown(), \
-        'docs/CLI.md command reference is stale: python -m pushbot.cli_reference docs/CLI.md'
+        "docs/CLI.md command reference is stale: python -m pushbot.cli_reference docs/CLI.md"
     options = set()
     stack = [build_parser()]
     while stack:
@@ -434,7 +435,7 @@ def test_readme_lists_every_command_and_option() -> None:
             if isinstance(action, argparse._SubParsersAction):
                 stack.extend(action.choices.values())
             else:
-                options.update(o for o in action.option_strings if o.startswith('--'))
-    missing = sorted(o for o in options - {'--help', '--version'} if f'`{o}' not in section
-                     and f', {o}' not in section)
+                options.update(o for o in action.option_strings if o.startswith("--"))
+    missing = sorted(o for o in options - {"--help", "--version"} if f"`{o}" not in section
+                     and f", {o}" not in section)
     assert not missing, missing

@@ -7,6 +7,10 @@ under ``if TYPE_CHECKING:`` are left out (they never run). Checked:
   itself and packages of a lower layer; the node packages never import each other; the
   deployment package ``pushbot_bringup`` (launch file included) imports no ``pushbot`` module
   and no node package, only ``push_ros``;
+- inside ``pushbot``, the direction between its subpackages (docs/ARCHITECTURE.md, "Packages"):
+  ``ros2cli <- viz <- runner <- experiments <- pushbot.cli``; the one exception is the trial
+  definition ``pushbot.experiments.protocol`` (it imports no ``pushbot`` module), which the
+  runner runs;
 - every first-party package a package imports is declared in its ``package.xml``;
 - no import cycle among first-party modules.
 """
@@ -25,6 +29,13 @@ LAYERS = {"push_core": 0, "push_ros": 1, "sim_bridge": 2, "push_perception": 2,
           "pushbot": 3}
 #: Extra limits beyond the layers.
 ALLOWED_BELOW = {"pushbot_bringup": {"push_ros"}}
+#: ``pushbot`` subpackage -> layer inside ``pushbot``; the top-level modules (``pushbot.cli``,
+#: ``pushbot.cli_reference``, which load the commands by name) are above them all.
+PUSHBOT_LAYERS = {"ros2cli": 0, "viz": 1, "runner": 2, "experiments": 3}
+TOP = len(PUSHBOT_LAYERS)
+#: (subpackage, module) imports allowed against the layers: the runner runs the experiments'
+#: trials, whose definition imports no pushbot module (test below).
+PUSHBOT_EXCEPTIONS = {("runner", "pushbot.experiments.protocol")}
 
 
 def _type_checking_lines(tree: ast.Module) -> set[int]:
@@ -116,6 +127,56 @@ def test_packages_import_only_lower_layers() -> None:
             if not allowed:
                 problems.append(f"{path.relative_to(SRC)}: {package} imports {target}")
     assert not problems, "\n".join(sorted(problems))
+
+
+def _pushbot_part(module: str) -> str | None:
+    """The ``pushbot`` subpackage of ``module``, ``""`` for a top-level module, None outside."""
+    parts = module.split(".")
+    if parts[0] != "pushbot":
+        return None
+    return parts[1] if len(parts) > 1 and parts[1] in PUSHBOT_LAYERS else ""
+
+
+def _pushbot_problems(edges: dict[str, set[str]]) -> list[str]:
+    """Imports between ``pushbot`` subpackages against :data:`PUSHBOT_LAYERS`."""
+    problems = []
+    for module, targets in edges.items():
+        part = _pushbot_part(module)
+        if part is None:
+            continue
+        layer = PUSHBOT_LAYERS.get(part, TOP)
+        for target in targets:
+            other = _pushbot_part(target)
+            if other is None or other == part or (part, target) in PUSHBOT_EXCEPTIONS:
+                continue
+            if PUSHBOT_LAYERS.get(other, TOP) >= layer:
+                problems.append(f"{module} ({part or 'top'}) imports {target}")
+    return sorted(problems)
+
+
+def test_pushbot_layer_rule_by_hand() -> None:
+    assert _pushbot_problems({"pushbot.ros2cli.bag": {"pushbot.runner.graph_nodes"},
+                              "pushbot.viz.view": {"pushbot.ros2cli.bag", "push_ros.dds"},
+                              "pushbot.runner.demo": {"pushbot.experiments.protocol"},
+                              "pushbot.runner.up": {"pushbot.experiments.evaluate"},
+                              "pushbot.experiments.replay": {"pushbot.cli"},
+                              "pushbot.cli": {"pushbot.runner.up"}}) == [
+        "pushbot.experiments.replay (experiments) imports pushbot.cli",
+        "pushbot.ros2cli.bag (ros2cli) imports pushbot.runner.graph_nodes",
+        "pushbot.runner.up (runner) imports pushbot.experiments.evaluate"]
+
+
+def test_pushbot_subpackages_import_only_lower_ones() -> None:
+    assert set(PUSHBOT_LAYERS) == {p.name for p in (SRC / "pushbot" / "pushbot").iterdir()
+                                   if (p / "__init__.py").exists()}
+    problems = _pushbot_problems(_edges())
+    assert not problems, "\n".join(problems)
+
+
+def test_the_pushbot_exceptions_import_no_pushbot_module() -> None:
+    edges = _edges()
+    for _, module in PUSHBOT_EXCEPTIONS:
+        assert not {t for t in edges[module] if _pushbot_part(t) is not None}, module
 
 
 def test_package_xml_declares_first_party_dependencies() -> None:

@@ -343,7 +343,10 @@ def test_reset_service_starts_a_new_episode(tester: EkfHarness) -> None:
     tester.observe((0.0, 0.0, 0.0), 1.0)  # the previous episode's frame, repeated: dropped
     tester.wait_count("refused_duplicate", 1)
     assert len(tester.poses) == 1 and tester.value("state") == "waiting for first observation"
-    tester.observe((0.2, -0.1, -2.0), 0.5)  # earlier stamp and far away: a new episode
+    tester.observe((0.3, 0.1, 1.0), 0.9)  # taken before the reset (in flight): dropped too
+    tester.wait_count("refused_duplicate", 2)
+    assert len(tester.poses) == 1
+    tester.observe((0.2, -0.1, -2.0), 1.5)  # the camera's next frame, far away: a new episode
     assert tester.wait(lambda: len(tester.poses) == 2)
     np.testing.assert_allclose(planar(tester.poses[-1]), [0.2, -0.1, -2.0], atol=1e-12)
     tester.wait_count("observations", 2)

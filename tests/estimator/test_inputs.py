@@ -109,3 +109,52 @@ def test_check_parameter_set() -> None:
     assert reason.startswith("the current outline does not build a filter with these values: "
                              "points: polygon is self-intersecting")
     assert check_parameter_set(DEFAULTS, {"iterations": 2}, None, None) == ""
+
+
+def test_episode_inputs_drop_repeats_and_what_precedes_the_episode() -> None:
+    from push_estimator.inputs import REFERENCE_MARGIN, EpisodeInputs
+
+    e = EpisodeInputs()
+    assert not e.old(0.1) and e.reset() == ""  # nothing seen: every stamp is new
+    e.last = 5.0
+    assert e.old(5.0) and not e.old(5.5)  # a repeat of the last stamp
+    assert e.reset() == " (inputs after 5.000000000 s)"
+    assert e.last == -math.inf
+    assert e.old(5.0) and e.old(4.5)  # in flight at the reset
+    assert not e.old(5.5)  # the camera's next frame
+    assert not e.old(0.2)  # a restarted clock (more than the window before)
+    e.new_outline(6.0)  # perception's episode begins at its outline's frame
+    assert e.old(5.5) and not e.old(6.0) and e.boundary == 6.0 - REFERENCE_MARGIN
+    e.new_outline(1.0)  # an older outline never moves the boundary back
+    assert e.boundary == 6.0 - REFERENCE_MARGIN
+
+
+def test_relearn_parameters_build_the_filter_config() -> None:
+    from push_estimator.config import EkfNodeParams
+
+    values = {**DEFAULTS, "relearn.enabled": True, "relearn.window": 5,
+              "relearn.probability": 0.95}
+    cfg = EkfNodeParams.from_values(values).config
+    assert (cfg.relearn, cfg.relearn_window, cfg.relearn_probability) == (True, 5, 0.95)
+    assert not EkfNodeParams.from_values(DEFAULTS).config.relearn  # off by default
+    assert check_parameter_set(DEFAULTS, {"relearn.enabled": True}, *_square_outline()) == ""
+
+
+def test_observation_problem_and_outline_summary_texts() -> None:
+    from types import SimpleNamespace
+
+    from push_estimator.inputs import observation_problem, outline_summary
+
+    ok = SimpleNamespace(nis=2.0, reinitialized=False)
+    gated = SimpleNamespace(nis=81.9, reinitialized=True)
+    assert observation_problem(1.0, ok, False, 21.1) == ""
+    assert observation_problem(1.5, gated, False, 21.1) == (
+        "observation at 1.500 s failed the gate (NIS 81.9 > 21.1): pose re-initialised, c, l, "
+        "m kept")
+    assert observation_problem(2.0, gated, True, 21.1).endswith(
+        "c, l, m re-learnt from the prior; pose re-initialised")
+    outline = SimpleNamespace(vertices=[0] * 20, limit_surface=0.0343, symmetry_order=4)
+    assert outline_summary(outline, 176, 176, True) == (
+        "new outline: 176 points -> 20 contact vertices, l_0 = 34.3 mm, symmetry order 4; new "
+        "episode")
+    assert "(decimated from 900)" in outline_summary(outline, 400, 900, False)

@@ -2,8 +2,8 @@
 
 Each shape (``push_core.procedural.random_simple_polygon``: 40 each of convex polygons,
 ellipses and discs, stars, blobs, L/T shapes, random radial polygons, U shapes and crosses) goes
-through one step of the in-process ``filter`` loop (``pushbot.episode``) with the default
-640 x 480 camera: a randomised scene (``PushWorld.reset``), a frame, perception
+through one step of the in-process ``filter`` loop (``pushbot.experiments.inprocess``) with the
+default 640 x 480 camera: a randomised scene (``PushWorld.reset``), a frame, perception
 (``Segmenter`` + ``EpisodeTracker.measure_frame``), ``PushEKF`` (first measurement), the
 planner (``prepare_outline`` of the perceived outline, ``Planner.plan`` towards a mixed-task
 goal), the planned push executed, ``predict_push`` with the executed pusher motion, a second
@@ -29,7 +29,7 @@ from push_core.estimator import EKFConfig, PushEKF
 from push_core.objects import load_object
 from push_core.planner import Planner, PlannerConfig, prepare_outline
 from push_core.procedural import RANDOM_KINDS, random_simple_polygon
-from pushbot.protocol import Trial
+from pushbot.experiments.protocol import Trial
 
 N_SHAPES = 320
 SEED = 2024
@@ -133,9 +133,9 @@ def _describe(index: int) -> str:
 
 @pytest.fixture
 def one_torch_thread():
-    """One torch and OpenCV thread, as the evaluation's workers run (``pushbot.evaluate``): on
-    the shared 2-core machine under load, two torch threads made this test six times slower
-    (1.6 s instead of 0.27 s per shape)."""
+    """One torch and OpenCV thread, as the evaluation's workers run
+    (``pushbot.experiments.evaluate``): on the shared 2-core machine under load, two torch threads
+    made this test six times slower (1.6 s instead of 0.27 s per shape)."""
     import cv2
     import torch
 

@@ -1,4 +1,5 @@
-"""In-process episodes (pushbot.episode): record contents, success from ground truth."""
+"""In-process episodes (pushbot.experiments.inprocess): record contents, success from ground
+truth."""
 
 from __future__ import annotations
 
@@ -7,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from pushbot.episode import run_trial, true_errors
-from pushbot.protocol import Trial
+from pushbot.experiments.inprocess import run_trial, true_errors
+from pushbot.experiments.protocol import Trial
 
 RECORD_KEYS = {"trial", "success", "steps", "end_error_xy", "end_error_theta", "com_error",
                "planning_ms", "poses_true", "poses_est", "pushes", "wall_s", "reason"}

@@ -1,4 +1,5 @@
-"""pushbot eval push (pushbot.evaluate): options, determinism, outputs, error messages."""
+"""pushbot eval push (pushbot.experiments.evaluate): options, determinism, outputs, error
+messages."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import sys
 import pytest
 
 from pushbot import cli
-from pushbot.evaluate import (
+from pushbot.experiments.evaluate import (
     EvalOptions,
     build_trials,
     deterministic_view,
@@ -144,11 +145,11 @@ def test_cli_writes_outputs(tmp_path, capsys):
 
 
 def test_graph_flag_without_graph_module_is_a_clear_error(tmp_path, capsys, monkeypatch):
-    monkeypatch.setitem(sys.modules, "pushbot.graph_episode", None)  # import fails
+    monkeypatch.setitem(sys.modules, "pushbot.runner.episode", None)  # import fails
     code = cli.main(["eval", "push", "--graph", "--objects", "rect1", "--trials", "1",
                      "--tasks", "mixed", "--out", str(tmp_path)])
     assert code == 2
-    assert "--graph needs pushbot.graph_episode" in capsys.readouterr().err
+    assert "--graph needs pushbot.runner.episode" in capsys.readouterr().err
 
 
 def test_graph_flag_hands_the_trials_to_the_graph_runner(tmp_path, monkeypatch):
@@ -160,7 +161,7 @@ def test_graph_flag_hands_the_trials_to_the_graph_runner(tmp_path, monkeypatch):
         seen["trials"], seen["out_dir"], seen["robot"] = list(trials), out_dir, robot
         return [_record(True, 3, 0.002, 0.01, **t.as_dict()) for t in trials]
 
-    monkeypatch.setitem(sys.modules, "pushbot.graph_episode",
+    monkeypatch.setitem(sys.modules, "pushbot.runner.episode",
                         types.SimpleNamespace(run_graph_trials=fake))
     opts = EvalOptions(objects=["rect1"], tasks=["mixed"], trials=3)
     doc = evaluate(opts, graph=True, out_dir=tmp_path, progress=False)

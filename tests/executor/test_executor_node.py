@@ -76,8 +76,9 @@ class StandInController(Node):
         times = np.array([p.time_from_start.sec + 1e-9 * p.time_from_start.nanosec
                           for p in msg.points])
         qs = np.array([np.array(p.positions)[order] for p in msg.points])
-        if self.executing:
-            self.traj = (self.t, np.concatenate([[0.0], times]),
+        if self.executing:  # a non-zero stamp is the start (held until then), as JTC does
+            start = seconds_from_stamp(msg.header.stamp) or self.t
+            self.traj = (start, np.concatenate([[0.0], times]),
                          np.vstack([self.q, qs]), self.q.copy())
 
     def _tick(self) -> None:
@@ -177,7 +178,11 @@ def test_a_push_is_executed(graph: Graph) -> None:
     assert graph.spin_until(lambda: graph.executed or graph.refused, 60.0)
     assert not graph.refused, read_refusal(graph.refused[0])
     traj = graph.arm.received[0]
-    assert len(graph.arm.received) == 1 and traj.header.stamp == Time()  # stamp 0: now
+    # Stamped with the node's clock (the controller's time) + start_delay (0.5 s): it starts
+    # then, whatever the delivery latency.
+    assert len(graph.arm.received) == 1
+    start = seconds_from_stamp(traj.header.stamp)
+    assert 100.0 + 0.5 <= start <= graph.arm.t + 0.5
     assert traj.joint_names == ARM
     times = [p.time_from_start.sec + 1e-9 * p.time_from_start.nanosec for p in traj.points]
     assert times[0] > 0 and np.all(np.diff(times) > 0)

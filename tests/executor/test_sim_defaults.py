@@ -21,14 +21,3 @@ def test_executor_defaults_are_the_simulated_arm_s() -> None:
     assert executor["tool.radius"] == sim["pusher_radius"]
     assert executor["controller_topic"] == sim["arm.controller_topic"]
 
-
-def test_the_bundled_parameter_file_is_generated_from_the_table() -> None:
-    from pathlib import Path
-
-    from push_executor.parameters import YAML_HEADER
-    from push_ros.node import parameter_yaml
-
-    path = (Path(__file__).resolve().parents[2] / "src" / "pushbot_bringup" / "config"
-            / "push_executor.yaml")
-    assert path.read_text() == parameter_yaml("push_executor_node", PARAMETERS, YAML_HEADER), \
-        "stale: .venv/bin/python -m push_executor.parameters > " + str(path)

@@ -26,7 +26,7 @@ from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Image
 
 from push_ros.dds import PROFILE_ENV, profile_path
-from pushbot.graph import cli_node, spin_until
+from pushbot.ros2cli.discovery import cli_node, spin_until
 
 if TYPE_CHECKING:  # the fixtures come from tests/conftest.py
     from conftest import ProcessManager

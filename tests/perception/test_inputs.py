@@ -187,3 +187,7 @@ def test_anchor_wait_reset_marks_the_previous_episode() -> None:
     assert wait.admit(7.0, False, now=2.0) == "previous"
     assert wait.admit(8.0, False, now=2.0) == "go"
     assert wait.admit(1.0, False, now=2.0) == "go"  # a restarted clock is not the old scene
+    wait.reset(boundary=20.0)  # a reset at sim time 20 s (after the newest frame, 8 s)
+    assert wait.admit(19.5, False, now=3.0) == "previous"  # taken before the reset
+    assert wait.admit(20.0, False, now=3.0) == "previous"
+    assert wait.admit(20.5, False, now=3.0) == "go"  # the camera's next frame

@@ -47,7 +47,7 @@ from push_ros.images import (  # noqa: E402
 from push_ros.outline import outline_from_cloud  # noqa: E402
 from push_ros.poses import transform_msg, xytheta_from_pose  # noqa: E402
 from push_ros.stamps import stamp_from_seconds  # noqa: E402
-from pushbot.graph import spin_until  # noqa: E402
+from pushbot.ros2cli.discovery import spin_until  # noqa: E402
 
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,

@@ -1,4 +1,6 @@
-"""Tests of the learned affordance model (push_core.learned), its data and its training."""
+"""The learned affordance model in use: the bundled weights plan, the mirror augmentation of the
+training command matches the physics, and data generation and training run end to end (the
+model itself: tests/core/test_learned.py)."""
 
 from __future__ import annotations
 
@@ -8,59 +10,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import torch
 
 from push_core.affordances import analytical_affordances
-from push_core.learned import (
-    GRID,
-    RESOLUTION,
-    AffordanceNet,
-    LearnedAffordances,
-    contact_frame_targets,
-    load_affordance_model,
-    shape_encoding,
-)
+from push_core.learned import contact_frame_targets, load_affordance_model
 from push_core.objects import load_object
 from push_core.planner import Planner, PlannerConfig, prepare_outline
 from push_planner.models import default_weights
 from pushbot.experiments.affordance_training import MIRROR_PUSH
-
-
-def test_shape_encoding_geometry():
-    spec = load_object("tri1")  # right angle at (0.042, 0.042): spans x, y in [-0.084, 0.042]
-    points, normals = spec.outline(0.002)
-    enc = shape_encoding(points, normals)
-    assert enc.shape == (4, GRID, GRID)
-    assert enc[0].sum() * RESOLUTION**2 == pytest.approx(spec.area, rel=0.08)
-    rows, cols = np.nonzero(enc[0])
-    centre = GRID / 2 - 0.5
-    for idx in (rows, cols):  # rows run along +y, columns along +x
-        lo, hi = (idx.min() - centre) * RESOLUTION, (idx.max() - centre) * RESOLUTION
-        # within 2 pixels: no pixel centre may fall into the thin acute corners
-        assert lo == pytest.approx(-0.084, abs=0.008) and hi == pytest.approx(0.042, abs=0.008)
-    on = enc[1] > 0
-    assert np.allclose(np.hypot(enc[2], enc[3])[on], 1.0, atol=1e-6)
-    assert np.all(enc[2:, ~on] == 0.0)
-    # The hypotenuse (outward normal (-1, -1)/sqrt 2) lies towards low x and y.
-    r, c = np.nonzero(on & (enc[2] < -0.5) & (enc[3] < -0.5))
-    assert r.size > 5 and np.all(r + c < 2 * centre + 2)
-
-
-def test_targets_and_output_conversion_are_inverse():
-    spec = load_object("hex")
-    points, normals = spec.outline(0.004)
-    com = np.array([0.01, -0.02])
-    aff = analytical_affordances(points, normals, com, 0.04, 0.3)
-    targets = contact_frame_targets(points[None], normals[None], com[None], aff[None])
-    net = AffordanceNet()
-    net.forward = lambda *a: torch.tensor(targets, dtype=torch.float32)  # type: ignore
-    back = net.origin_motion(torch.zeros(1, 4, GRID, GRID), torch.tensor(com[None]).float(),
-                             torch.tensor(points[None]).float(),
-                             torch.tensor(normals[None]).float())
-    np.testing.assert_allclose(back[0].numpy(), aff, atol=1e-6)
-    # A push along the inward normal through the contact moves the COM along the normal.
-    straight = targets[0, :, 5]
-    assert np.all(straight[:, 0] > 0.0)
 
 
 def test_mirror_augmentation_matches_the_physics():
@@ -76,28 +32,6 @@ def test_mirror_augmentation_matches_the_physics():
     tm = contact_frame_targets(mp, mn, com * m,
                                analytical_affordances(mp, mn, com * m, 0.04, 0.3))
     np.testing.assert_allclose(tm[::-1], t[:, MIRROR_PUSH] * [1.0, -1.0, -1.0], atol=1e-9)
-
-
-def test_callable_model_shapes_cache_and_weights_round_trip(tmp_path: Path):
-    torch.manual_seed(0)
-    net = AffordanceNet()
-    model = LearnedAffordances(net, {"note": "random weights"})
-    points, normals = load_object("rect1").outline(0.002)
-    out = model(points, normals, [0.0, 0.01])
-    assert out.shape == (len(points), 10, 3) and out.dtype == np.float64
-    assert len(model._cache) == 1
-    model(points, normals, [0.01, 0.0])
-    assert len(model._cache) == 1  # the static encoding is reused, the COM is not cached
-    path = tmp_path / "w.pt"
-    torch.save({"format_version": 1, "config": {"channels": [16, 32, 32], "hidden": 128,
-                                                "grid": GRID, "resolution": RESOLUTION},
-                "state_dict": net.state_dict(), "meta": model.meta}, path)
-    loaded = load_affordance_model(path)
-    np.testing.assert_allclose(loaded(points, normals, [0.0, 0.01]), out, atol=1e-7)
-    assert loaded.meta == {"note": "random weights"}
-    torch.save({"something": 1}, tmp_path / "bad.pt")
-    with pytest.raises(ValueError, match="not a learned affordance model"):
-        load_affordance_model(tmp_path / "bad.pt")
 
 
 @pytest.mark.skipif(not default_weights().exists(), reason="no bundled weights yet")

@@ -416,7 +416,8 @@ def test_max_steps_and_reset(ros_context: Any, wait_for: Callable[..., bool]) ->
         assert h.spin_until(future.done)
         assert future.result().success
         # The goal is forgotten (an episode is one goal), the outline kept.
-        assert h.spin_until(lambda: h.status[-1].message == "waiting for goal, estimate")
+        assert h.spin_until(lambda: h.status[-1].message.startswith(
+            "waiting for goal, estimate on goal_pose"))
         h.publish_estimate((0.02, 0.0, 0.0), stamp=4.0)
         assert h.spin_until(lambda: h.count("estimates") == 2)
         assert len(h.pushes) == 1  # no plan against the previous episode's goal
@@ -458,6 +459,25 @@ def test_episode_parameters_apply_on_reset(ros_context: Any,
         assert h.node.get_parameter("method").value == "ana"
         assert call_reset().success
         assert h.node.params.planner.method == "ana" and h.node.params.planner.k == 5
+    finally:
+        h.executor.shutdown()
+        h.client.destroy_node()
+        h.node.destroy_node()
+
+
+def test_lookahead_and_contradicted_push_parameters_reach_the_planner(
+        ros_context: Any, wait_for: Callable[..., bool]) -> None:
+    h = make_harness(ros_context, wait_for, [
+        Parameter("lookahead.horizon", value=2), Parameter("lookahead.beam", value=4),
+        Parameter("lookahead.push_cost", value=15.0),
+        Parameter("avoid_contradicted", value=True)])
+    try:
+        cfg = h.node.params.planner
+        assert (cfg.horizon, cfg.beam, cfg.push_cost, cfg.avoid_contradicted) == (2, 4, 15.0,
+                                                                                  True)
+        summary = h.node.params.summary()
+        assert "lookahead 2 pushes (beam 4, push cost 15.0 mm)" in summary
+        assert "contradicted pushes avoided" in summary
     finally:
         h.executor.shutdown()
         h.client.destroy_node()
@@ -519,7 +539,10 @@ def test_node_process_starts_with_the_yaml_and_refuses_bad_parameters(
     try:
         assert wait_for(lambda: bool(status), timeout=60.0, executor=executor), \
             processes.output(proc)
-        assert status[-1].message == "waiting for goal, outline, estimate"
+        message = status[-1].message
+        assert message.startswith("waiting for goal, outline, estimate on goal_pose")
+        # what a goal is and how a (re)started planner still gets one, with both CLIs
+        assert "transient_local" in message and "pushbot goal" in message
         assert status[-1].name == "/planner_node"
         assert proc.poll() is None
     finally:
@@ -584,7 +607,7 @@ def test_reset_clears_a_wedge_accepted_before_the_clock_started(
         assert not h.pushes
         assert call_reset(h).success
         assert h.spin_until(lambda: h.values().get("last_push_end") == "-inf"
-                            and h.status[-1].message == "waiting for goal, estimate")
+                            and h.status[-1].message.startswith("waiting for goal, estimate"))
         h.publish_goal(0.1, 0.0, 0.0)
         h.publish_estimate((0.0, 0.0, 0.0), stamp=6.0)
         assert h.spin_until(lambda: len(h.pushes) == 1)
@@ -625,6 +648,25 @@ def test_after_the_goal_a_displaced_object_is_reported_and_pushed_again(
         h.executor.shutdown()
         h.client.destroy_node()
         h.node.destroy_node()
+
+
+def test_a_new_goal_after_the_last_one_finished_is_no_switch(harness: Harness) -> None:
+    # The same user sending `pushbot goal` twice: two processes, so two publishers, but the
+    # second goal comes after the first was reached: a new request, not a rival client.
+    h = harness
+    other = h.client.create_publisher(PoseStamped, "goal_pose", RELIABLE_QOS)
+    assert h.spin_until(lambda: other.get_subscription_count() > 0)
+    h.publish_outline(*rect1_outline())
+    h.publish_goal(0.1, 0.0, 0.0)
+    h.publish_estimate((0.1, 0.0, 0.0), stamp=1.0)  # at the goal
+    assert h.spin_until(lambda: h.status[-1].message.startswith("goal reached"))
+    msg = PoseStamped()
+    msg.header.frame_id = "world"
+    msg.pose.position.x, msg.pose.orientation.w = -0.1, 1.0
+    other.publish(msg)
+    assert h.spin_until(lambda: h.values().get("goal") == "-0.1000 0.0000 0.0000")
+    assert h.values()["goal_switches"] == "0"
+    assert "another publisher" not in h.status[-1].message
 
 
 def test_a_goal_from_another_publisher_is_noted(harness: Harness) -> None:

@@ -19,6 +19,8 @@ from pushbot.experiments import pusht_adapter as P  # noqa: E402
 
 ADAPTER_FILES = [Path(P.__file__),
                  Path(P.__file__).with_name("pusht_vision.py"),
+                 Path(P.__file__).with_name("pusht_estimated.py"),
+                 Path(P.__file__).with_name("pusht_guard.py"),
                  Path(P.__file__).with_name("pusht.py")]
 
 

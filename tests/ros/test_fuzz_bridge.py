@@ -48,7 +48,7 @@ from std_srvs.srv import Trigger  # noqa: E402
 
 from push_ros.frames import WORLD_FRAME  # noqa: E402
 from push_ros.paths import push_path, push_points_from_path  # noqa: E402
-from pushbot.graph import spin_until  # noqa: E402
+from pushbot.ros2cli.discovery import spin_until  # noqa: E402
 from sim_bridge.params import PARAMETERS, SimBridgeParams  # noqa: E402
 from sim_bridge.sim_bridge_node import SimBridgeNode  # noqa: E402
 

@@ -542,13 +542,13 @@ def test_stamps_cannot_wedge_the_node_and_reset_clears_them(harness: Harness) ->
     msg.header.stamp = Time(sec=2147483647, nanosec=999_999_999)
     h.callbacks["/perception/object_pose"](msg)
     assert h.node.counts["refused_invalid"] == 1
-    h.observe((0.001, 0.0, 0.0), 2.0)  # still accepted: not wedged
+    h.observe((0.001, 0.0, 0.0), 3.0)  # still accepted: not wedged
     assert h.node.counts["observations"] == 2
     h.observe((0.001, 0.0, 0.0), 0.5)  # before the episode
     assert h.node.counts["refused_out_of_order"] == 1
     assert "before the episode" in h.node._problem
     assert h.reset().success
-    h.observe((0.0, 0.0, 0.0), 0.5)  # a new episode may start earlier
+    h.observe((0.0, 0.0, 0.0), 0.5)  # a new episode may start earlier (a restarted clock)
     assert h.node.counts["observations"] == 3 and h.node.filter.initialized
 
 

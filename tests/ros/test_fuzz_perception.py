@@ -58,7 +58,7 @@ from push_ros.images import camera_info_msg, depth_image_msg, rgb_image_msg  # n
 from push_ros.outline import outline_cloud_msg  # noqa: E402
 from push_ros.poses import transform_msg, xytheta_from_pose  # noqa: E402
 from push_ros.stamps import stamp_from_seconds  # noqa: E402
-from pushbot.graph import spin_until  # noqa: E402
+from pushbot.ros2cli.discovery import spin_until  # noqa: E402
 
 #: Messages per topic of the in-process run (issue 15: >= 2,000).
 N_FUZZ = 2000

@@ -28,7 +28,7 @@ from push_ros.paths import push_path  # noqa: E402
 from push_ros.qos import CLOCK_QOS, LATCHED_QOS, RELIABLE_QOS, SENSOR_QOS  # noqa: E402
 from push_ros.refusal import read_refusal, stamp_key  # noqa: E402
 from push_ros.stamps import seconds_from_stamp, stamp_from_seconds  # noqa: E402
-from pushbot.graph import spin_until  # noqa: E402
+from pushbot.ros2cli.discovery import spin_until  # noqa: E402
 from sim_bridge.arm_robot import ARM_JOINTS  # noqa: E402
 from sim_bridge.sim_bridge_node import SimBridgeNode  # noqa: E402
 

@@ -126,14 +126,18 @@ def test_arm_runs_share_the_worker_but_not_with_other_jobs() -> None:
 
 def test_timeline_never_goes_back_and_continues_across_episodes() -> None:
     timeline, sent = Timeline(), []
-    assert not timeline.repeat(sent.append)  # nothing published yet
     assert timeline.advance(timeline.at(2.5), sent.append)
     assert not timeline.advance(2.0, sent.append) and not timeline.advance(2.5, sent.append)
     timeline.new_episode(timeline.at(3.0))  # the world restarts its sim_time at 0
     assert timeline.at(0.25) == 3.25
     assert timeline.advance(timeline.at(0.25), sent.append)
-    assert timeline.repeat(sent.append)
-    assert sent == [2.5, 3.25, 3.25]
+    # the world rests half a second: same sim_time, later published time
+    assert timeline.idle(0.5, 0.25) == timeline.at(0.25) == 3.75
+    assert timeline.advance(timeline.at(0.25), sent.append)
+    assert timeline.advance(timeline.at(0.5), sent.append)  # a push after the rest
+    assert sent == [2.5, 3.25, 3.75, 4.0]
+    with pytest.raises(ValueError, match=">= 0"):
+        timeline.idle(-0.1, 0.25)
 
 
 # ---- commands ------------------------------------------------------------------------------
@@ -152,10 +156,12 @@ def test_knock_checks() -> None:
 def test_scene_summary_carries_the_com_pushbot_reads() -> None:
     spec = SimpleNamespace(name="rect1", mass=0.25, com=(0.0123, -0.004),
                            friction_table=0.25, friction_pusher=0.3)
-    text = scene_summary(spec, (0.0, 0.01, -0.2), 320, 240)
-    match = re.search(r"COM \((-?[0-9.]+), (-?[0-9.]+)\) m", text)  # pushbot.graph_episode
+    text = scene_summary(spec, (0.0, 0.01, -0.2), 320, 240, 12.3456789)
+    match = re.search(r"COM \((-?[0-9.]+), (-?[0-9.]+)\) m", text)  # pushbot.runner.episode
     assert match and (float(match.group(1)), float(match.group(2))) == (0.0123, -0.004)
-    assert text.endswith("camera 320x240") and "'rect1' (mass 0.25 kg" in text
+    first = re.search(r"first frame at ([0-9.]+) s", text)  # the runner's episode boundary
+    assert first and float(first.group(1)) == 12.3456789
+    assert "camera 320x240;" in text and "'rect1' (mass 0.25 kg" in text
 
 
 def test_unused_com_offset_is_named() -> None:

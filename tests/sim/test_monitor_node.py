@@ -29,7 +29,7 @@ from push_ros.images import camera_matrix_from_info, image_to_array  # noqa: E40
 from push_ros.paths import push_path  # noqa: E402
 from push_ros.qos import SENSOR_QOS  # noqa: E402
 from push_ros.stamps import seconds_from_stamp  # noqa: E402
-from pushbot.graph import spin_until  # noqa: E402
+from pushbot.ros2cli.discovery import spin_until  # noqa: E402
 from sim_bridge.sim_bridge_node import SimBridgeNode  # noqa: E402
 
 HALF = 0.045  # rect1 is a 9 cm square at the origin

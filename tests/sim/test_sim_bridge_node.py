@@ -39,7 +39,7 @@ from push_ros.images import camera_matrix_from_info, image_to_array
 from push_ros.paths import points_from_path
 from push_ros.poses import matrix_from_transform, xytheta_from_pose
 from push_ros.stamps import seconds_from_stamp
-from pushbot.graph import cli_node, spin_until
+from pushbot.ros2cli.discovery import cli_node, spin_until
 
 if TYPE_CHECKING:  # the fixtures come from tests/conftest.py
     from conftest import ProcessManager
@@ -351,6 +351,30 @@ def test_frame_triple_shares_stamp_frame_and_size(bridge: BridgeClient) -> None:
     extrinsics = bridge.got.extrinsics[-1]
     assert (extrinsics.header.frame_id, extrinsics.child_frame_id) == (
         "world", "camera_color_optical_frame")
+
+
+def test_the_camera_streams_still_frames_while_the_world_rests(fresh: BridgeClient) -> None:
+    # A real camera does not stop when nothing moves: the resting world's frames come with
+    # advancing stamps (sim time runs as wall time while idle), /clock ahead of or at each, the
+    # object where it was, and fresh sensor noise.
+    assert fresh.reset(depth_noise=True).success
+    try:
+        n_rgb = len(fresh.got.rgb)
+        fresh.spin_until(lambda: len(fresh.got.rgb) >= n_rgb + 3, 10.0, "three more frames")
+    finally:
+        fresh.set_parameters(depth_noise=False)  # applies at the next test's reset
+    frames = fresh.got.rgb[n_rgb:]
+    stamps = [seconds_from_stamp(m.header.stamp) for m in frames]
+    assert all(b > a for a, b in zip(stamps, stamps[1:], strict=False)), stamps
+    clock = seconds_from_stamp(fresh.got.clock[-1].clock)
+    assert clock >= stamps[-1]
+    poses = [xytheta_from_pose(m) for m in fresh.got.pose[-3:]]
+    np.testing.assert_allclose(poses[0], poses[-1], atol=1e-12)  # nothing moved
+    depth = {seconds_from_stamp(m.header.stamp): image_to_array(m) for m in fresh.got.depth}
+    both = [t for t in stamps if t in depth]
+    assert len(both) >= 2
+    a, b = depth[both[0]], depth[both[-1]]
+    assert not np.array_equal(np.nan_to_num(a), np.nan_to_num(b))  # fresh noise per frame
 
 
 def test_table_pixels_deproject_to_the_table_plane(bridge: BridgeClient) -> None:

@@ -1,15 +1,14 @@
 """Affordances: predicted object motion for every outline point x representative push.
 
-SPEC section 2 step 4. An affordance model maps an outline (points with outward normals in the
-object frame), the COM offset ``c`` and the pushing-model parameters ``l``, ``m`` to the
+docs/ARCHITECTURE.md, "Planner". An affordance model maps an outline (points with outward normals in
+the object frame), the COM offset ``c`` and the pushing-model parameters ``l``, ``m`` to the
 predicted motion of the object for each of the 10 representative pushes
-(:func:`push_core.model.representative_pushes`: directions 0, +-30, +-60 degrees relative to
-the inward normal, lengths 1 cm and 5 cm, length-major) at every point. Two interchangeable
-models implement the :class:`AffordanceModel` protocol:
-
-- :func:`analytical_affordances` (``ana``): the analytical model of SPEC section 3, one step,
-  all points x pushes in one vectorised call;
-- ``push_core.learned.LearnedAffordances`` (``lrn``): the CNN of SPEC section 2 step 4 (ignores
+(:func:`push_core.model.representative_pushes`: directions 0, +-30, +-60 degrees relative to the
+inward normal, lengths 1 cm and 5 cm, length-major) at every point. Two interchangeable models
+implement the :class:`AffordanceModel` protocol:
+- :func:`analytical_affordances` (``ana``): the analytical model of :mod:`push_core.model`, one
+  step, all points x pushes in one vectorised call;
+- ``push_core.learned.LearnedAffordances`` (``lrn``): the CNN of :mod:`push_core.learned` (ignores
   ``l`` and ``m``).
 
 Units and frames: metres and radians; everything in the object frame. The motion is that of the
@@ -52,7 +51,7 @@ class AffordanceModel(Protocol):
         points: NDArray[np.float64],
         normals_out: NDArray[np.float64],
         com: NDArray[np.float64],
-        l: float,  # noqa: E741 - the symbol of SPEC section 3
+        l: float,  # noqa: E741 - the limit-surface symbol of Lynch et al.
         m: float,
     ) -> NDArray[np.float64]:
         """Predicted motion, shape (N, 10, 3); see :func:`analytical_affordances`."""
@@ -63,7 +62,7 @@ def analytical_affordances(
     points: ArrayLike,
     normals_out: ArrayLike,
     com: ArrayLike,
-    l: float,  # noqa: E741 - the symbol of SPEC section 3
+    l: float,  # noqa: E741 - the limit-surface symbol of Lynch et al.
     m: float,
 ) -> NDArray[np.float64]:
     """Analytical one-step affordances (``ana``) for every point x representative push.

@@ -1,6 +1,6 @@
 """The push EKF: pose, centre of mass, limit surface and friction from pushes and poses.
 
-SPEC section 2 step 3. ROS-free: numpy in, numpy out. :class:`PushEKF` is an
+docs/ARCHITECTURE.md, "Estimator". ROS-free: numpy in, numpy out. :class:`PushEKF` is an
 :class:`~push_core.kalman.EKFBase` over the state of :mod:`push_core.estimator_config`; its
 prediction is the process model :func:`push_core.process_model.predict_push` on the perceived
 outline (:class:`push_core.contact.ContactOutline`) with the per-push process noise
@@ -43,6 +43,18 @@ Gating: an innovation whose squared Mahalanobis distance exceeds the chi-square 
 ``gate_probability`` (3 degrees of freedom) re-initialises the pose from the observation
 (covariance R, no correlation with the parameters) and keeps ``c``, ``l``, ``m`` and their
 covariance; :class:`UpdateResult` reports it (``reinitialized``).
+
+Re-learning (``EKFConfig.relearn``, issue 22): a gate failure on the first observation after
+a push, or NIS values of the last ``relearn_window`` observations after pushes that together
+exceed the chi-square quantile ``relearn_probability`` (``3 x window`` degrees of freedom),
+mean the pushes' observed motion contradicts the model's prediction, most likely
+because ``c``, ``l`` or ``m`` are wrong (keeping them, the planner plans with the very
+parameters that are wrong and the gate fires again). The filter then returns to the pre-push
+state, restarts the parameters' covariance at the prior (:meth:`PushEKF.initial_state`; means
+kept, correlations with the pose dropped), predicts the push again and gates the observation
+again: if it passes it is fused (the contradiction now moves the parameters), otherwise the
+pose is re-initialised as above, with the parameters left at the prior covariance so the next
+pushes re-learn them. :class:`UpdateResult` reports it (``relearned``).
 """
 
 from __future__ import annotations
@@ -81,6 +93,10 @@ class UpdateResult:
         False if the observation carried no orientation (its variance was at or above
         ``push_core.symmetry.UNOBSERVED_THRESHOLD``): only the position was fused, ``nis``
         has 2 degrees of freedom and the innovation's angle is 0.
+    relearned : bool
+        True if the observation contradicted the last push's prediction and ``c``, ``l``,
+        ``m`` were restarted at their prior covariance (``EKFConfig.relearn``); ``nis`` is
+        then the first (failed) test and ``reinitialized`` says whether the second failed too.
     """
 
     innovation: NDArray[np.float64]
@@ -88,6 +104,7 @@ class UpdateResult:
     reinitialized: bool = False
     initialized: bool = False
     orientation_observed: bool = True
+    relearned: bool = False
 
 
 class PushEKF(EKFBase):
@@ -141,6 +158,10 @@ class PushEKF(EKFBase):
         self.last_prediction: PushPrediction | None = None
         #: (state, covariance, pusher_start, pusher_end) before the last push, for iterating.
         self._before_push: tuple | None = None
+        #: NIS of the recent observations after pushes (the windowed test of ``relearn``).
+        self._nis_window: list[float] = []
+        self._relearn_threshold = float(chi2.ppf(cfg.relearn_probability,
+                                                  3 * cfg.relearn_window))
 
     # ---- state access ------------------------------------------------------------------------
     @property
@@ -191,16 +212,18 @@ class PushEKF(EKFBase):
         self.initialized = True
         self.last_prediction = None
         self._before_push = None
+        self._nis_window = []
 
     def snapshot(self) -> tuple:
         """The filter's state at this point, for :meth:`restore` (re-filtering late inputs)."""
         return (self.x.copy(), self.P.copy(), self.initialized, self._before_push,
-                self.last_prediction)
+                self.last_prediction, list(self._nis_window))
 
     def restore(self, snapshot: tuple) -> None:
         """Return to a :meth:`snapshot` of this filter."""
-        x, p, self.initialized, self._before_push, self.last_prediction = snapshot
+        x, p, self.initialized, self._before_push, self.last_prediction, window = snapshot
         self.x, self.P = x.copy(), p.copy()
+        self._nis_window = list(window)
 
     def reset(self) -> None:
         """Forget the episode; the next observation initialises the filter again."""
@@ -209,6 +232,7 @@ class PushEKF(EKFBase):
         self.initialized = False
         self.last_prediction = None
         self._before_push = None
+        self._nis_window = []
 
     # ---- prediction --------------------------------------------------------------------------
     def predict_push(self, pusher_start: ArrayLike, pusher_end: ArrayLike) -> PushPrediction:
@@ -358,14 +382,32 @@ class PushEKF(EKFBase):
         s = self.P[0:n, 0:n] + r[0:n, 0:n]
         si = np.linalg.inv(s)
         nis = float(y[0:n, 0] @ si @ y[0:n, 0])
-        if nis > (self._gate if observed else self._gate_position):
+        gate = self._gate if observed else self._gate_position
+        relearned = False
+        if self.config.relearn and self._before_push is not None and self._contradicted(nis, n):
+            relearned = True
+            self._restart_parameters()
+            y = self.residual(zc, self.x[0:3])
+            if not observed:
+                y[2] = 0.0
+            s = self.P[0:n, 0:n] + r[0:n, 0:n]
+            si = np.linalg.inv(s)
+            if float(y[0:n, 0] @ si @ y[0:n, 0]) <= gate:
+                innovation = y[:, 0].copy()
+                self._update(zc, r, y, s, si, n)
+                for _ in range(self.config.iterations - 1):
+                    self._iterate(zc, r, n)
+                self._before_push = None
+                return UpdateResult(innovation=innovation, nis=nis, orientation_observed=observed,
+                                    relearned=True)
+        if nis > gate:
             if observed:
                 self._reinitialize_pose(self.x[0:3, 0] + y[:, 0], r)
             else:
                 self._reinitialize_position(z[:2], r[:2, :2])
             self._before_push = None
             return UpdateResult(innovation=y[:, 0].copy(), nis=nis, reinitialized=True,
-                                orientation_observed=observed)
+                                orientation_observed=observed, relearned=relearned)
         innovation = y[:, 0].copy()
         self._update(zc, r, y, s, si, n)
         if self._before_push is not None:
@@ -414,6 +456,32 @@ class PushEKF(EKFBase):
         if n < 3:
             y[2] = 0.0
         self._update(zc, r, y, n=n)
+
+    def _contradicted(self, nis: float, n: int) -> bool:
+        """The tests of ``relearn`` for the observation after a push (module docstring); the
+        window restarts after a contradiction."""
+        window = self._nis_window
+        window.append(nis * 3.0 / n)  # a position-only observation scaled to 3 dof
+        del window[:-self.config.relearn_window]
+        gate = self._gate if n == 3 else self._gate_position
+        if nis > gate or (len(window) == self.config.relearn_window
+                          and sum(window) > self._relearn_threshold):
+            window.clear()
+            return True
+        return False
+
+    def _restart_parameters(self) -> None:
+        """Back to the state before the last push with the covariance of ``c``, ``l``, ``m``
+        restarted at the prior (means kept, uncorrelated with the pose); predict the push
+        again (module docstring, "Re-learning")."""
+        x_prev, p_prev, start, end = self._before_push
+        _, prior = self.initial_state(x_prev[0:3])
+        p = p_prev.copy()
+        p[3:, :] = 0.0
+        p[:, 3:] = 0.0
+        p[3:, 3:] = prior[3:, 3:]
+        self.x, self.P = x_prev[:, None].copy(), p
+        self.predict(u=(start, end))
 
     def _reinitialize_pose(self, pose: NDArray[np.float64], r: NDArray[np.float64]) -> None:
         """Pose from the observation (angle continuous), covariance R, uncorrelated."""

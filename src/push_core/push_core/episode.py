@@ -1,7 +1,7 @@
 """The episode engine: one goal, pushed for until it is reached, ROS-free (issue 13).
 
 One set of rules for every closed loop: ``planner_node`` (events from DDS), the in-process
-evaluation (``pushbot.episode``) and the ground-truth planner loop all drive an
+evaluation (``pushbot.experiments.inprocess``) and the ground-truth planner loop all drive an
 :class:`EpisodeEngine`, so graph and in-process runs make the same decisions by construction.
 The caller reports events (a new goal, an outline, an estimate, a push executed or lost) and
 asks :meth:`EpisodeEngine.step` what to do; the engine never blocks, never reads a clock and
@@ -49,6 +49,17 @@ Rules (docs/ARCHITECTURE.md, "Episode engine"):
      later estimate that satisfies the stop rule again gives ``reached``.
 
    The in-process loops end at the first ``reached``, so this changes nothing for them.
+8. **Contradicted pushes** (issue 22; only with ``PlannerConfig.avoid_contradicted``). The first
+   usable estimate after an executed push is compared with the push's predicted pose
+   (``PushPlan.predicted_pose``): the push *contradicted its prediction* when the estimate is
+   more than ``CONTRADICTION_MISS`` (eq. 5.1 units) from the prediction and the score to the
+   goal improved by less than ``CONTRADICTION_GAIN`` of the predicted improvement (the issue's
+   depth-noise stall: predicted 163 -> 108 mm, observed a 3.6 mm move, 27 times). Its outline
+   point joins a second avoid list (the ``MAX_CONTRADICTED`` newest; kept until a new goal or
+   outline, unlike refused pushes the object did move), counted as ``contradicted`` and said
+   by :meth:`EpisodeEngine.status_text` until the next push is planned: the same push is not
+   planned again, the planner tries another contact region (with the estimator's
+   ``EKFConfig.relearn`` the model is re-learnt from the same observation).
 
 Scoring (:func:`end_score`, :func:`true_errors`): success from the *true* end pose against the
 true goal, the orientation modulo the object's k-fold symmetry and not counted for a
@@ -65,27 +76,51 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from push_core.geometry import wrap_angle
-from push_core.planner import NoFeasiblePush, Outline, Planner, PushPlan
+from push_core.planner import NoFeasiblePush, Outline, Planner, PushPlan, motion_score
 from push_core.symmetry import has_continuous_symmetry, symmetry_order_of_polygon
 
 __all__ = [
     "AFTER_GOAL",
     "COUNTERS",
     "ORIENTATION_IGNORED",
+    "PREVIOUS_EPISODE_WINDOW",
     "EpisodeEngine",
     "Step",
     "end_score",
+    "min_pushes",
     "new_record",
+    "precedes_episode",
     "true_errors",
 ]
 
 #: Counters an :class:`EpisodeEngine` keeps (``planner_node`` reports them in its status).
 COUNTERS = ("estimates", "planned", "ignored_stale", "ignored_duplicate", "ignored_busy",
-            "lost", "left")
+            "lost", "left", "contradicted")
+#: Rule 8: an executed push contradicts its prediction when the observed pose is more than this
+#: (eq. 5.1 score units, mm + lambda deg) from the predicted one ...
+CONTRADICTION_MISS = 10.0
+#: ... and it gained less than this fraction of the score gain it was predicted to make.
+CONTRADICTION_GAIN = 0.5
+#: Rule 8: contact regions of at most this many contradicted pushes are avoided (the newest).
+MAX_CONTRADICTED = 8
 #: What the engine does when the object leaves the goal region after ``reached`` (rule 7).
 AFTER_GOAL = ("resume", "report")
 #: Said by :meth:`EpisodeEngine.status_text` when the outline is continuously symmetric.
 ORIENTATION_IGNORED = "orientation ignored: rotationally symmetric outline"
+
+
+#: How long before an episode boundary an input still counts as the old episode's, s: frames
+#: in flight at a ``~/reset`` (a camera streaming at >= 1 Hz, delivery well under a second).
+#: An input older than that comes from a restarted clock (a restarted simulator starts near 0)
+#: and is not skipped.
+PREVIOUS_EPISODE_WINDOW = 2.0
+
+
+def precedes_episode(stamp: float, boundary: float) -> bool:
+    """Whether an input stamped ``stamp`` (s) belongs to the episode before ``boundary`` (s;
+    ``push_ros.stamps.episode_boundary``): at or before it, by at most
+    :data:`PREVIOUS_EPISODE_WINDOW`."""
+    return boundary - PREVIOUS_EPISODE_WINDOW <= stamp <= boundary
 
 
 @dataclass(frozen=True)
@@ -160,6 +195,12 @@ class EpisodeEngine:
     _used_stamp: float = -math.inf
     _in_flight_point: NDArray[np.float64] | None = None
     _avoid: list[NDArray[np.float64]] = field(default_factory=list)
+    _contradicted: list[NDArray[np.float64]] = field(default_factory=list)
+    #: (pose planned from, predicted pose, outline point) of the last executed push, until its
+    #: outcome is judged (rule 8).
+    _outcome: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None = None
+    _planned: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None = None
+    last_contradiction: str = ""
 
     def __post_init__(self) -> None:
         if not (callable(getattr(self.planner, "plan", None))
@@ -184,6 +225,9 @@ class EpisodeEngine:
         self.goal = g
         self.phase, self.steps, self.failure = "waiting", 0, ""
         self._used_stamp = -math.inf
+        self._contradicted.clear()
+        self._outcome = None
+        self.last_contradiction = ""
 
     def set_outline(self, outline: Outline) -> None:
         """The object's outline (``push_core.planner.prepare_outline``); clears the avoid
@@ -192,6 +236,8 @@ class EpisodeEngine:
             raise ValueError(f"outline: expected an Outline, got {type(outline).__name__}")
         self.outline = outline
         self._avoid.clear()
+        self._contradicted.clear()
+        self._outcome = None
 
     def estimate(self, stamp: float, state: ArrayLike,
                  covariance: ArrayLike | None = None) -> None:
@@ -218,6 +264,7 @@ class EpisodeEngine:
         self.last_push_end = max(self.last_push_end, float(end_stamp))
         self.in_flight, self._in_flight_point = False, None
         self._avoid.clear()
+        self._outcome, self._planned = self._planned, None
 
     def push_lost(self, wait_for_estimate: bool = False) -> None:
         """The push in flight was not executed (refused, or not reported in time): it stays
@@ -234,6 +281,7 @@ class EpisodeEngine:
         if self._in_flight_point is not None:
             self._avoid.append(self._in_flight_point)
         self._in_flight_point = None
+        self._planned = None
 
     # ---- decision ------------------------------------------------------------------------------
     @property
@@ -257,7 +305,8 @@ class EpisodeEngine:
         symmetric outline), ``goal left``, ``failed after max steps`` or ``failed: no feasible
         push``."""
         if self.phase == "pushing":
-            return f"pushing step {self.steps}"
+            return f"pushing step {self.steps}" + (f" - {self.last_contradiction}"
+                                                   if self.last_contradiction else "")
         if self.phase == "reached":
             return "goal reached" + ("" if self.orientation_matters
                                      else f" ({ORIENTATION_IGNORED})")
@@ -280,6 +329,7 @@ class EpisodeEngine:
         if stamp < self.last_push_end or stamp <= self._used_stamp:
             return Step("wait")
         self._used_stamp = stamp
+        self._judge_outcome(state)
         resumed, why = False, ""
         if self.phase == "reached":  # rule 7: watching the reached goal
             if self.planner.reached(state[:3], self.goal, None, self.outline):
@@ -299,7 +349,8 @@ class EpisodeEngine:
             self.phase, self.failure = "failed", "max steps"
             return Step("failed", state=state, reason="max steps", resumed=resumed)
         try:
-            plan = self.planner.plan(self.outline, state, self.goal, avoid=self._avoid)
+            plan = self.planner.plan(self.outline, state, self.goal,
+                                     avoid=self._avoid + self._contradicted)
         except NoFeasiblePush as exc:
             self.phase, self.failure = "failed", "no feasible push"
             return Step("failed", state=state, reason=f"no feasible push: {exc}",
@@ -314,7 +365,44 @@ class EpisodeEngine:
         self.in_flight = True
         index = getattr(plan, "index", None)  # the pushnet baseline has no contact point
         self._in_flight_point = None if index is None else self.outline.points[index].copy()
+        self._planned = None
+        if self._in_flight_point is not None and self._avoids_contradicted():
+            self._planned = (state[:3].copy(), np.asarray(plan.predicted_pose, dtype=np.float64),
+                             self._in_flight_point)
         return Step("push", plan=plan, state=state, reason=why, resumed=resumed)
+
+    def _avoids_contradicted(self) -> bool:
+        """Rule 8 is on (``PlannerConfig.avoid_contradicted``)."""
+        return bool(getattr(getattr(self.planner, "config", None), "avoid_contradicted", False))
+
+    def _judge_outcome(self, state: NDArray[np.float64]) -> None:
+        """Rule 8: did the last executed push contradict its prediction? (once per push)"""
+        if self._outcome is None or self.goal is None:
+            self.last_contradiction = ""
+            return
+        start, predicted, point = self._outcome
+        self._outcome = None
+        lam = getattr(self.planner.config, "lam", 0.0) if self.orientation_matters else 0.0
+        goal = self.goal if self.orientation_matters else np.r_[self.goal[:2], 0.0]
+
+        def to_go(pose: NDArray[np.float64]) -> float:
+            p = pose if self.orientation_matters else np.r_[pose[:2], 0.0]
+            return float(motion_score(goal - p, lam))
+
+        p_obs = state[:3] if self.orientation_matters else np.r_[state[:2], 0.0]
+        p_pred = predicted if self.orientation_matters else np.r_[predicted[:2], 0.0]
+        miss = float(motion_score(p_obs - p_pred, lam))
+        gain, predicted_gain = to_go(start) - to_go(state[:3]), to_go(start) - to_go(predicted)
+        if miss > CONTRADICTION_MISS and gain < CONTRADICTION_GAIN * predicted_gain:
+            self.counts["contradicted"] += 1
+            self._contradicted.append(point)
+            del self._contradicted[:-MAX_CONTRADICTED]
+            self.last_contradiction = (
+                f"the last push contradicted its prediction (predicted {to_go(predicted):.1f} "
+                f"mm to go, observed {to_go(state[:3]):.1f} from {to_go(start):.1f}): its "
+                f"contact region is avoided")
+        else:
+            self.last_contradiction = ""
 
     def _how_far(self, state: NDArray[np.float64]) -> str:
         """How far the point estimate is off the goal (for the rule 7 report)."""
@@ -364,3 +452,50 @@ def end_score(polyline: ArrayLike, end_true: ArrayLike, goal_true: ArrayLike,
     return {"end_error_xy": exy, "end_error_theta": eth,
             "success": bool(exy <= tol_xy and (ignored or eth <= tol_theta)),
             "orientation_ignored": ignored}
+
+
+def min_pushes(offset: ArrayLike, tolerances: tuple[float, float], max_push_length: float,
+               order: int = 1) -> int:
+    """The physical minimum of pushes for a goal ``offset`` (docs/ARCHITECTURE.md, "Pushes
+    against the physical minimum")::
+
+        n_min = max(ceil((d - tol_xy) / L_max), 1 if |theta| > tol_theta else 0)
+
+    ``d = |(dx, dy)|``: a quasi-static object moves no farther than the pusher, which advances
+    at most ``L_max`` past the contact per push, and the goal region accepts ``tol_xy`` less;
+    a rotation beyond the tolerance needs at least one push (one push can turn an object by
+    any amount, pivoting near the contact). ``theta`` is taken modulo ``2 pi / order`` (the
+    object's symmetry).
+
+    Parameters
+    ----------
+    offset : array_like, shape (3,)
+        Goal minus initial pose: ``(dx, dy)`` in metres (any frame), ``theta`` in radians.
+    tolerances : (float, float)
+        Goal region: position (m) and orientation (rad), > 0.
+    max_push_length : float
+        Longest push past the contact, metres (> 0).
+    order : int
+        Rotational symmetry order of the object (1: none).
+
+    Returns
+    -------
+    int
+        >= 0 (0: the goal is already within the region).
+
+    Raises
+    ------
+    ValueError
+        Naming ``offset``, ``tolerances`` or ``max_push_length``.
+    """
+    o = np.asarray(offset, dtype=np.float64)
+    if o.shape != (3,) or not np.all(np.isfinite(o)):
+        raise ValueError(f"offset: expected 3 finite numbers, got {offset!r}")
+    tol_xy, tol_theta = (float(v) for v in tolerances)
+    if not (tol_xy > 0.0 and tol_theta > 0.0):
+        raise ValueError(f"tolerances: expected positive (m, rad), got {tolerances!r}")
+    if not max_push_length > 0.0:
+        raise ValueError(f"max_push_length: expected > 0 m, got {max_push_length!r}")
+    dxy, dtheta = true_errors(np.zeros(3), o, order)
+    translation = max(0, math.ceil((dxy - tol_xy) / max_push_length - 1e-9))
+    return max(translation, 1 if dtheta > tol_theta else 0)

@@ -1,7 +1,7 @@
 """Extended Kalman filter over the object pose, centre of mass, limit surface and friction.
 
-SPEC section 2 step 3. ROS-free: numpy in, numpy out, float seconds where time appears. This
-module is the estimator's public face: it re-exports the names of the modules that hold the
+docs/ARCHITECTURE.md, "Estimator". ROS-free: numpy in, numpy out, float seconds where time appears.
+This module is the estimator's public face: it re-exports the names of the modules that hold the
 parts, so ``from push_core.estimator import PushEKF`` and the rest keep working:
 
 - :mod:`push_core.estimator_config`: the state layout ``x = (x, y, theta, c_x, c_y, l, m)``

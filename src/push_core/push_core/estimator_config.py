@@ -85,6 +85,21 @@ class EKFConfig:
         push.
     gate_probability : float
         Chi-square probability (3 dof) of the innovation gate, in (0, 1]; 1 disables gating.
+    relearn : bool
+        When the observations after pushes contradict their predictions (one fails the gate,
+        or the NIS of the last ``relearn_window`` after pushes sum beyond the chi-square
+        quantile ``relearn_probability`` with ``3 x relearn_window`` degrees of freedom: a
+        confidently wrong parameter whose every push lands a little outside the prediction),
+        re-learn ``c``, ``l`` and ``m`` instead of keeping them:
+        their covariance is restarted at the prior (means kept, correlations dropped), the push
+        is predicted again from the pre-push state and the observation fused if it now passes
+        the gate (else the pose is re-initialised, the parameters stay at the prior
+        covariance). Default False: the pose is re-initialised and ``c``, ``l``, ``m`` kept
+        (issue 22).
+    relearn_window : int
+        Observations after pushes in the windowed consistency test of ``relearn`` (1-64).
+    relearn_probability : float
+        Chi-square probability of that test, in (0, 1).
     iterations : int
         Linearisations of the push per observation (>= 1). 1 is the plain EKF; each further
         iteration re-linearises the process model at the smoothed pre-push state and redoes
@@ -122,6 +137,9 @@ class EKFConfig:
     l_noise: float = 5e-4
     m_noise: float = 0.01
     gate_probability: float = 0.9999
+    relearn: bool = False
+    relearn_window: int = 3
+    relearn_probability: float = 0.99
     iterations: int = 2
     known_com: tuple[float, float] | None = None
     known_l: float | None = None
@@ -143,12 +161,16 @@ class EKFConfig:
                                      f"{'> 0' if f.name == 'known_l' else '>= 0'} or None, got "
                                      f"{value!r}")
                 object.__setattr__(self, f.name, float(value))
+            elif f.name == "relearn":
+                if not isinstance(value, bool | np.bool_):
+                    raise ValueError(f"relearn must be a bool, got {value!r}")
+                object.__setattr__(self, f.name, bool(value))
             elif f.name == "m_range":
                 lo, hi = _pair("m_range", value)
                 if not 0.0 < lo < hi:
                     raise ValueError(f"m_range must satisfy 0 < low < high, got {value!r}")
                 object.__setattr__(self, "m_range", (lo, hi))
-            elif f.name in ("symmetry_order", "iterations", "max_substeps"):
+            elif f.name in ("symmetry_order", "iterations", "max_substeps", "relearn_window"):
                 low = 0 if f.name == "symmetry_order" else 1
                 high = 10**6 if f.name == "max_substeps" else 64
                 if isinstance(value, bool) or not isinstance(value, int | float) or \
@@ -174,6 +196,9 @@ class EKFConfig:
         for name in non_negative:
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+        if not 0.0 < self.relearn_probability < 1.0:
+            raise ValueError(f"relearn_probability must be in (0, 1), got "
+                             f"{self.relearn_probability!r}")
         if not self.gate_probability <= 1.0:
             raise ValueError(f"gate_probability must be in (0, 1], got {self.gate_probability!r}")
         if not self.l_min_fraction < 1.0:

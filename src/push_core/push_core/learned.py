@@ -1,5 +1,5 @@
-"""Learned affordance model (``lrn``, SPEC section 2 step 4): a CNN from shape encoding, COM and
-pushes to the object motion of every outline point x representative push.
+"""Learned affordance model (``lrn``; docs/ARCHITECTURE.md, "Planner"): a CNN from shape encoding,
+COM and pushes to the object motion of every outline point x representative push.
 
 Architecture (:class:`AffordanceNet`):
 
@@ -21,8 +21,8 @@ Architecture (:class:`AffordanceNet`):
   :func:`push_core.affordances.analytical_affordances`.
 
 The contact-frame inputs and outputs make the head invariant to rotations of the object frame;
-training rotates and mirrors the shape encoding accordingly. The model does not use ``l`` and
-``m`` (SPEC); it learns them from the data, including pushes that slide off corners.
+training rotates and mirrors the shape encoding accordingly. The model does not use ``l`` and ``m``
+of the analytical model; it learns them from the data, including pushes that slide off corners.
 
 Weights: ``torch.save`` of ``{"format_version", "config", "state_dict", "meta"}``; load with
 :func:`load_affordance_model` (``weights_only=True``). CPU, one intra-op thread recommended.

@@ -1,9 +1,9 @@
 """Analytical quasi-static pushing model (Lynch et al. 1992, ellipsoidal limit surface).
 
-Implements SPEC section 3 once, generic over numpy and torch: every function computes in torch
-(differentiable, e.g. for ``torch.func.jacfwd``) when any input is a ``torch.Tensor`` and in numpy
-float64 otherwise (:func:`push_core.geometry.array_namespace`). All inputs broadcast over leading
-dimensions.
+Implements the model (docs/ARCHITECTURE.md, "The pushing model") once, generic over numpy and torch:
+every function computes in torch (differentiable, e.g. for ``torch.func.jacfwd``) when any input is
+a ``torch.Tensor`` and in numpy float64 otherwise (:func:`push_core.geometry.array_namespace`). All
+inputs broadcast over leading dimensions.
 
 Conventions (``docs/ARCHITECTURE.md``): the contact point ``r``, the centre of mass ``c`` and the
 normal ``n`` are given in one common frame (usually the object frame) and ``n`` points **into**
@@ -18,9 +18,9 @@ Contact modes. With ``alpha = atan(m)``, the friction-cone edges ``f_r = R(+alph
 cone with ``v_pr`` counter-clockwise of ``v_pl``. The push ``v_u`` (with ``v_u . n > 0``) sticks
 when it lies inside the cone; otherwise the contact slides along the boundary on the side where
 ``v_u`` leaves the cone, ``v_p = (v_u . n) / (v_pb . n) v_pb``. For ordinary parameters this is
-exactly "the boundary closer to v_u" of SPEC section 3; the side test (cross products, valid
-only against a boundary with ``v_pb . n > 0``) also stays correct for very high friction, where
-one boundary can point away from the surface and the "closer" rule would divide by a negative
+exactly the usual "boundary closer to v_u" rule (Lynch et al. 1992); the side test (cross products,
+valid only against a boundary with ``v_pb . n > 0``) also stays correct for very high friction,
+where one boundary can point away from the surface and the "closer" rule would divide by a negative
 ``v_pb . n``.
 """
 
@@ -42,7 +42,8 @@ ALPHA_MAX = float(np.deg2rad(89.9))
 #: A normal with squared norm at or below this is treated as zero (no contact).
 NORMAL_EPS2 = 1e-24
 
-#: Representative push set of SPEC section 2 step 4.
+#: Representative push set of the affordances: directions relative to the inward normal (deg)
+#: and lengths (m), 10 pushes (Kloss et al. 2020; docs/ARCHITECTURE.md, "Planner").
 REPRESENTATIVE_ANGLES_DEG = (0.0, 30.0, -30.0, 60.0, -60.0)
 REPRESENTATIVE_LENGTHS = (0.01, 0.05)
 
@@ -52,11 +53,11 @@ def push_twist(
     contact: ArrayLike,
     normal_in: ArrayLike,
     com: ArrayLike,
-    l: ArrayLike,  # noqa: E741 - the symbol of SPEC section 3
+    l: ArrayLike,  # noqa: E741 - the limit-surface symbol of Lynch et al.
     m: ArrayLike,
     contact_indicator: ArrayLike = 1.0,
 ) -> Array:
-    """Object twist about the COM caused by a push at one contact (SPEC section 3).
+    """Object twist about the COM caused by a push at one contact (module docstring).
 
     Parameters
     ----------
@@ -192,7 +193,7 @@ def predict_motion(
     l: ArrayLike,  # noqa: E741
     m: ArrayLike,
 ) -> Array:
-    """One-step object motion for every contact point x push (affordances, SPEC section 2.4).
+    """One-step object motion for every contact point x push (the affordances).
 
     Parameters
     ----------
@@ -244,7 +245,8 @@ def representative_pushes(
     angles_deg: Sequence[float] = REPRESENTATIVE_ANGLES_DEG,
     lengths: Sequence[float] = REPRESENTATIVE_LENGTHS,
 ) -> Array:
-    """The representative push set of SPEC section 2.4 at every contact point.
+    """The representative push set (:data:`REPRESENTATIVE_ANGLES_DEG` x
+    :data:`REPRESENTATIVE_LENGTHS`) at every contact point.
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""Greedy affordance-based push planner (SPEC section 2 step 5): one push per cycle.
+"""Greedy affordance-based push planner (docs/ARCHITECTURE.md, "Planner"): one push per cycle.
 
 ROS-free, numpy, seeded. One planning step (:meth:`Planner.plan`):
 
@@ -78,6 +78,7 @@ from statistics import NormalDist
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from push_core import lookahead
 from push_core.affordances import N_ANGLES, AffordanceModel, analytical_affordances
 from push_core.geometry import (
     check_polyline,
@@ -239,9 +240,10 @@ def goal_reached(pose: ArrayLike, goal: ArrayLike, tolerance_xy: float,
                  confidence: float = STOP_CONFIDENCE, orientation: bool = True) -> bool:
     """The stop rule: is the goal reached, with confidence (docs/ARCHITECTURE.md, "Stopping")?
 
-    With no covariance this is the goal region of SPEC section 5 (0.75 cm and 5 degrees by
-    default) around the pose. With the estimator's covariance the region is shrunk by ``z``
-    standard deviations, ``z = Phi^-1(confidence)`` (2.33 at the default 0.99)::
+    With no covariance this is the evaluation's "small" goal region (0.75 cm and 5 degrees by
+    default; docs/ARCHITECTURE.md, "Closed loop and evaluation") around the pose. With the
+    estimator's covariance the region is shrunk by ``z`` standard deviations, ``z =
+    Phi^-1(confidence)`` (2.33 at the default 0.99)::
 
         |p - p_goal| + z * sqrt(lambda_max(P_xy)) <= tolerance_xy   and
         |theta - theta_goal| + z * sigma_theta    <= tolerance_theta
@@ -384,7 +386,7 @@ def sample_contacts(scores: ArrayLike, k: int, temperature: float,
 
 
 def geo_mask(points: ArrayLike, normals_out: ArrayLike, desired: ArrayLike) -> NDArray[np.bool_]:
-    """The ``geo`` baseline's eligible contact points (SPEC section 2 step 5).
+    """The ``geo`` baseline's eligible contact points (docs/ARCHITECTURE.md, "Planner").
 
     With ``u`` the unit direction of the desired translation (object frame) and ``d_i`` the
     signed distance of point ``i`` from the line through the current position along ``u``
@@ -605,6 +607,16 @@ class PlannerConfig:
     two_faces : bool
         Rollouts of frictionless pushes (``m = 0``) let a pusher in an inner corner push both
         faces at once (:func:`push_core.rollout.wedge_twist`); default False (nearest face).
+    horizon : int
+        Pushes looked ahead (:mod:`push_core.lookahead`), >= 1; 1 (default) is the greedy
+        planner: each push chosen by its own predicted score.
+    beam : int
+        ``horizon > 1``: first pushes looked ahead from, >= 1.
+    push_cost : float
+        ``horizon > 1``: price of one push in eq. (5.1) score units (mm), >= 0.
+    avoid_contradicted : bool
+        The episode engine avoids the contact regions of executed pushes whose outcome
+        contradicted their prediction (:mod:`push_core.episode`, rule 8); default False.
     """
 
     method: str = "ana"
@@ -628,6 +640,10 @@ class PlannerConfig:
     transit_clearance: float = 0.0
     require_improvement: bool = False
     two_faces: bool = False
+    horizon: int = 1
+    beam: int = 8
+    push_cost: float = 20.0
+    avoid_contradicted: bool = False
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -635,7 +651,7 @@ class PlannerConfig:
         if not isinstance(self.direct, bool | np.bool_):
             raise ValueError(f"direct: expected a bool, got {self.direct!r}")
         object.__setattr__(self, "direct", bool(self.direct))
-        for name, low in (("k", 1), ("seed", 0)):
+        for name, low in (("k", 1), ("seed", 0), ("horizon", 1), ("beam", 1)):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < low:
                 raise ValueError(f"{name}: expected an integer >= {low}, got {value!r}")
@@ -645,7 +661,7 @@ class PlannerConfig:
                              ("approach_clearance", True), ("min_push_length", True),
                              ("max_push_length", True), ("substep", True),
                              ("simplify_tolerance", False), ("travel_weight", False),
-                             ("transit_clearance", False)):
+                             ("transit_clearance", False), ("push_cost", False)):
             value = getattr(self, name)
             try:
                 value = float(value)
@@ -673,7 +689,7 @@ class PlannerConfig:
             raise ValueError(f"workspace: expected ((xmin, xmax), (ymin, ymax)) with min < max, "
                              f"got {self.workspace!r}")
         object.__setattr__(self, "workspace", tuple(tuple(float(v) for v in r) for r in ws))
-        for name in ("require_improvement", "two_faces"):
+        for name in ("require_improvement", "two_faces", "avoid_contradicted"):
             if not isinstance(getattr(self, name), bool | np.bool_):
                 raise ValueError(f"{name}: expected a bool, got {getattr(self, name)!r}")
             object.__setattr__(self, name, bool(getattr(self, name)))
@@ -753,6 +769,7 @@ class _Options:
     score: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
     pose: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 3)))
     travel: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    group: NDArray[np.intp] = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
 
 
 def _allowed_points(points: NDArray[np.float64], avoid: ArrayLike | None) -> NDArray[np.bool_]:
@@ -774,7 +791,7 @@ def _allowed_points(points: NDArray[np.float64], avoid: ArrayLike | None) -> NDA
 
 
 class Planner:
-    """The greedy push planner of SPEC section 2 step 5 (module docstring).
+    """The greedy push planner (module docstring).
 
     Parameters
     ----------
@@ -925,8 +942,18 @@ class Planner:
                 raise NoFeasiblePush(
                     "no outline point admits a push with its approach and end point inside the "
                     f"workspace {cfg.workspace} and an approach clear of the object")
-        cost = options.score + cfg.travel_weight * 1e3 * np.where(np.isfinite(options.travel),
-                                                                  options.travel, 0.0)
+        value = options.score
+        if cfg.horizon > 1:
+            value = lookahead.sequence_values(
+                options.score, options.pose, self._reached_ahead(outline, options.pose, goal),
+                options.group if len(options.group) == len(options.score)
+                else np.zeros(len(options.score), dtype=np.intp),  # direct: one group
+                lambda poses: self._expand(outline, com, l, m, goal, aff, poses),
+                cfg.horizon, cfg.beam, cfg.push_cost)
+            if not np.isfinite(value).any():
+                value = options.score
+        cost = value + cfg.travel_weight * 1e3 * np.where(np.isfinite(options.travel),
+                                                          options.travel, 0.0)
         best = int(np.argmin(cost))
         index, angle, length = (int(options.index[best]), float(options.angle[best]),
                                 float(options.length[best]))
@@ -993,15 +1020,79 @@ class Planner:
         # pushes); only the interpolated directions next to a candidate's best base direction
         # are then admitted, which gives the result of the sequential procedure.
         n_fine = len(_FINE_ANGLES)
-        opts = self._rollouts(outline, pose, com, l, m, goal, np.repeat(candidates, n_fine),
-                              np.tile(_FINE_ANGLES, len(candidates)))
-        score = opts.score.reshape(len(candidates), n_fine)
-        best_base = _BASE_COLUMNS[np.argmin(score[:, _BASE_COLUMNS], axis=1)]
-        col = np.arange(n_fine)
-        admitted = (col % (INTERPOLATION_STEPS + 1) == 0)[None, :] | (
-            np.abs(col[None, :] - best_base[:, None]) <= INTERPOLATION_STEPS)
-        opts.score = np.where(admitted, score, np.inf).reshape(-1)
+        idx, ang = np.repeat(candidates, n_fine), np.tile(_FINE_ANGLES, len(candidates))
+        if self.config.horizon > 1:
+            return self._first_pushes(outline, pose, com, l, m, goal, idx, ang)
+        opts = self._rollouts(outline, pose, com, l, m, goal, idx, ang)
+        opts.score = np.where(_admitted(opts.score), opts.score, np.inf)
         return opts
+
+    # -------------------------------------------------------------- lookahead (horizon > 1)
+    def _first_pushes(self, outline: Outline, pose: NDArray[np.float64],
+                      com: NDArray[np.float64], l: float, m: float,  # noqa: E741
+                      goal: NDArray[np.float64], idx: NDArray[np.intp],
+                      ang: NDArray[np.float64]) -> _Options:
+        """First pushes of the lookahead (:mod:`push_core.lookahead`, step 1): each rolled-out
+        (point, direction) at its greedy length, its best lengths for the rotation-first and
+        translation-first sub-goals and its longest feasible length; flat over
+        ``lookahead.GROUPS`` x pushes, ``score`` always against the goal."""
+        lengths, after, valid = self._trajectories(outline, pose, com, l, m, idx, ang)
+        score = self._path_scores(outline, after, valid, goal)
+        rows = np.arange(len(idx))
+        picks = [np.argmin(score, axis=1)]
+        for sub in lookahead.subgoals(pose, goal):
+            picks.append(np.argmin(self._path_scores(outline, after, valid, sub), axis=1))
+        picks.append(valid.shape[1] - 1 - np.argmax(valid[:, ::-1], axis=1))  # longest
+        admitted = _admitted(score[rows, picks[0]])
+        n = len(picks)
+        j = np.concatenate(picks)
+        rep = np.tile(rows, n)
+        best = np.where(np.tile(admitted, n), score[rep, j], np.inf)
+        return _Options(index=np.tile(idx, n), angle=np.tile(ang, n), length=lengths[j],
+                        score=best, pose=after[rep, j],
+                        group=np.repeat(np.arange(n, dtype=np.intp), len(idx)))
+
+    def _reached_ahead(self, outline: Outline, poses: NDArray[np.float64],
+                       goal: NDArray[np.float64]) -> NDArray[np.bool_]:
+        """Predicted poses (B, 3) inside the goal region shrunk to ``REACH_FRACTION``."""
+        cfg = self.config
+        f = lookahead.REACH_FRACTION
+        near = np.hypot(goal[0] - poses[:, 0], goal[1] - poses[:, 1]) <= f * cfg.tolerance_xy
+        if not outline.orientation_matters:
+            return near
+        return near & (np.abs(wrap_angle(goal[2] - poses[:, 2])) <= f * cfg.tolerance_theta)
+
+    def _expand(self, outline: Outline, com: NDArray[np.float64], l: float,  # noqa: E741
+                m: float, goal: NDArray[np.float64], aff: NDArray[np.float64],
+                poses: NDArray[np.float64]
+                ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+        """The best next push from each pose (B, 3) (``lookahead.Expand``): at the ``k``
+        best-scoring outline points by the affordances, the 5 base directions, one rollout in
+        substeps of ``lookahead.CONTINUATION_SUBSTEP``."""
+        cfg = self.config
+        c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+        dx, dy = goal[0] - poses[:, 0], goal[1] - poses[:, 1]
+        desired = np.stack([c * dx + s * dy, -s * dx + c * dy,
+                            wrap_angle(goal[2] - poses[:, 2]) if outline.orientation_matters
+                            else np.zeros(len(poses))], -1)  # (B, 3) object frames
+        lam = self._lam(outline)
+        point = motion_score(desired[:, None, None, :] - aff[None], lam).min(axis=2)  # (B, N)
+        k = min(cfg.k, point.shape[1])
+        top = np.argpartition(point, k - 1, axis=1)[:, :k]  # (B, k)
+        n_fine = len(_BASE_COLUMNS)
+        idx = np.repeat(top.reshape(-1), n_fine)
+        ang = np.tile(_FINE_ANGLES[_BASE_COLUMNS], top.size)
+        start = np.repeat(poses, k * n_fine, axis=0)
+        lengths, after, valid = self._trajectories(outline, start, com, l, m, idx, ang,
+                                                   lookahead.CONTINUATION_SUBSTEP)
+        score = self._path_scores(outline, after, valid, goal)
+        j = np.argmin(score, axis=1)
+        rows = np.arange(len(idx))
+        best, pose = score[rows, j].reshape(len(poses), -1), after[rows, j]
+        pick = np.argmin(best, axis=1)
+        chosen = np.arange(len(poses)) * k * n_fine + pick
+        nxt = pose[chosen]
+        return best[np.arange(len(poses)), pick], nxt, self._reached_ahead(outline, nxt, goal)
 
     def _pusher_points(self, outline: Outline, pose: NDArray[np.float64], idx: NDArray[np.intp],
                        angle: NDArray[np.float64], length: ArrayLike
@@ -1038,27 +1129,50 @@ class Planner:
                   l: float, m: float, goal: NDArray[np.float64],  # noqa: E741
                   idx: NDArray[np.intp], angle: NDArray[np.float64]) -> _Options:
         """Roll out each (point, direction) to ``max_push_length`` and truncate at its best."""
-        cfg = self.config
-        approach, contact, _ = self._pusher_points(outline, pose, idx, angle, 0.0)
-        direction = (contact - approach) / cfg.approach_clearance  # unit, world
-        total = cfg.approach_clearance + cfg.max_push_length
-        res = rollout_push(outline.polyline, pose, com, l, m, approach, total * direction,
-                           substep=cfg.substep, pusher_radius=cfg.pusher_radius,
-                           two_faces=cfg.two_faces)
-        n_sub = res.poses.shape[1] - 1
-        travelled = np.minimum(cfg.substep * np.arange(1, n_sub + 1), total)  # (S,)
-        lengths = travelled - cfg.approach_clearance
-        ends = approach[:, None, :] + travelled[None, :, None] * direction[:, None, :]
-        after = res.poses[:, 1:]  # (B, S, 3)
-        residual = np.concatenate([goal[:2] - after[..., :2], goal[2] - after[..., 2:]], -1)
-        score = motion_score(residual, self._lam(outline))
-        valid = ((lengths >= cfg.min_push_length - 1e-9)[None, :] & self._in_workspace(ends)
-                 & self._approach_ok(outline, pose, approach)[:, None])
-        score = np.where(valid, score, np.inf)
+        lengths, after, valid = self._trajectories(outline, pose, com, l, m, idx, angle)
+        score = self._path_scores(outline, after, valid, goal)
         j = np.argmin(score, axis=1)
         rows = np.arange(len(idx))
         return _Options(index=np.asarray(idx), angle=np.asarray(angle, dtype=np.float64),
                         length=lengths[j], score=score[rows, j], pose=after[rows, j])
+
+    def _trajectories(self, outline: Outline, pose: NDArray[np.float64],
+                      com: NDArray[np.float64], l: float, m: float,  # noqa: E741
+                      idx: NDArray[np.intp], angle: NDArray[np.float64],
+                      substep: float | None = None
+                      ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+        """One batched rollout of pushes at outline points ``idx`` (B,) and directions
+        ``angle`` (B,) from ``pose`` ((3,) or one per push, (B, 3)), to ``max_push_length``,
+        in substeps of ``substep`` (m; None: ``config.substep``).
+
+        Returns the push length after every substep (S,) (m past the contact), the predicted
+        pose after every substep (B, S, 3) and whether stopping there is feasible (B, S):
+        at least ``min_push_length``, end point in the workspace, approach clear.
+        """
+        cfg = self.config
+        approach, contact, _ = self._pusher_points(outline, pose, idx, angle, 0.0)
+        direction = (contact - approach) / cfg.approach_clearance  # unit, world
+        total = cfg.approach_clearance + cfg.max_push_length
+        substep = cfg.substep if substep is None else substep
+        res = rollout_push(outline.polyline, pose, com, l, m, approach, total * direction,
+                           substep=substep, pusher_radius=cfg.pusher_radius,
+                           two_faces=cfg.two_faces)
+        n_sub = res.poses.shape[1] - 1
+        travelled = np.minimum(substep * np.arange(1, n_sub + 1), total)  # (S,)
+        lengths = travelled - cfg.approach_clearance
+        ends = approach[:, None, :] + travelled[None, :, None] * direction[:, None, :]
+        valid = ((lengths >= cfg.min_push_length - 1e-9)[None, :] & self._in_workspace(ends)
+                 & self._approach_ok(outline, pose, approach)[:, None])
+        return lengths, res.poses[:, 1:], valid
+
+    def _path_scores(self, outline: Outline, after: NDArray[np.float64],
+                     valid: NDArray[np.bool_], goal: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Eq. (5.1) of poses ``after`` (B, S, 3) against ``goal`` ((3,) or (B, 3)); inf where
+        not ``valid``."""
+        g = goal if goal.ndim == 1 else goal[:, None, :]
+        residual = np.concatenate([g[..., :2] - after[..., :2], g[..., 2:] - after[..., 2:]], -1)
+        score = motion_score(residual, self._lam(outline))
+        return np.where(valid, score, np.inf)
 
     def _direct(self, outline: Outline, pose: NDArray[np.float64],
                 desired: NDArray[np.float64], aff: NDArray[np.float64],
@@ -1088,6 +1202,19 @@ class Planner:
         moved = np.stack([pose[0] + c * best[:, 0] - s * best[:, 1],
                           pose[1] + s * best[:, 0] + c * best[:, 1], pose[2] + best[:, 2]], -1)
         return _Options(index=idx, angle=ang, length=grid[j], score=score[rows, j], pose=moved)
+
+
+def _admitted(score: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Directions admitted after the base ones (module docstring, step 4d) for a flat batch
+    of ``len(_FINE_ANGLES)`` directions per point: every base direction and the interpolated
+    ones next to each point's best base direction."""
+    n_fine = len(_FINE_ANGLES)
+    score = score.reshape(-1, n_fine)
+    best_base = _BASE_COLUMNS[np.argmin(score[:, _BASE_COLUMNS], axis=1)]
+    col = np.arange(n_fine)
+    admitted = (col % (INTERPOLATION_STEPS + 1) == 0)[None, :] | (
+        np.abs(col[None, :] - best_base[:, None]) <= INTERPOLATION_STEPS)
+    return admitted.reshape(-1)
 
 
 def _vector(value: ArrayLike, size: int, name: str) -> NDArray[np.float64]:

@@ -1,7 +1,7 @@
 """The push EKF's process model: one straight push, with its closed-form Jacobian.
 
 ROS-free; SI units, state as in :mod:`push_core.estimator_config`. :func:`predict_push` is the
-analytical pushing model of SPEC section 3 (:mod:`push_core.model`) driven by the executed
+analytical pushing model (:mod:`push_core.model`) driven by the executed
 straight push (pusher axis from ``pusher_start`` to ``pusher_end`` in ``world``), integrated in
 substeps of at most ``substep`` (a push no longer than one substep is a single model step;
 ``max_substeps`` bounds the loop: a longer push is split into that many equal substeps).

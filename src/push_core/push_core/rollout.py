@@ -1,4 +1,6 @@
-"""Multi-step rollout of a straight-line push with a cylindrical pusher (SPEC section 2.5).
+"""Multi-step rollout of a straight-line push with a cylindrical pusher.
+
+The model and its conventions: docs/ARCHITECTURE.md, "The pushing model".
 
 The pusher, a disc of radius ``pusher_radius`` centred on its axis, moves along a straight
 line in the world frame in substeps. At every substep the contact point and normal are found
@@ -49,9 +51,9 @@ from push_core.geometry import (
 )
 from push_core.model import apply_twist, push_twist
 
-#: Radius of the source setup's steel pusher (m), SPEC section 6.
+#: Radius of the source setup's steel pusher (m; Kloss et al. 2020).
 PUSHER_RADIUS = 0.0048
-#: Rollout substep (m), SPEC section 2.5.
+#: Rollout substep (m): the model is applied every 5 mm of pusher travel.
 SUBSTEP = 0.005
 #: Contact tolerance on the pusher-outline distance (m).
 CONTACT_TOL = 5e-4
@@ -106,7 +108,7 @@ def rollout_push(
     outline: ArrayLike,
     pose0: ArrayLike,
     com: ArrayLike,
-    l: ArrayLike,  # noqa: E741 - the symbol of SPEC section 3
+    l: ArrayLike,  # noqa: E741 - the limit-surface symbol of Lynch et al.
     m: ArrayLike,
     pusher_start: ArrayLike,
     push: ArrayLike,

@@ -1,32 +1,18 @@
 """``ekf_node``: EKF over the object pose, centre of mass, limit surface and friction.
 
-Role: feeds :class:`push_core.estimator.PushEKF` the perceived poses (``perception/object_pose``)
-and the executed pushes (``pusher/executed``) in stamp order through
-:class:`push_core.replay.ReplayHistory` (a push that arrives after later observations is
-inserted and they are re-filtered: ``replayed``), builds the filter from ``perception/outline``
-(decimated above ``OUTLINE_WORKING_POINTS``; a different outline starts an episode and is
-re-published latched on ``estimator/outline``), and publishes the estimate latched
-(``estimator/object_pose``, ``estimator/center_of_mass``, ``estimator/state``; ``/tf`` world ->
-object where :mod:`push_ros.tf` can) stamped with the observation's stamp.
+Role: feeds :class:`push_core.estimator.PushEKF` the perceived poses and the executed pushes in
+stamp order through :class:`push_core.replay.ReplayHistory` (a late push is inserted and the
+later observations re-filtered), builds the filter from ``perception/outline`` (a different
+outline starts an episode) and publishes the estimate latched, stamped with the observation's
+stamp. Input rules: :mod:`push_estimator.inputs`; parameters: :mod:`push_estimator.config`.
 
-Invariants (input rules: :mod:`push_estimator.inputs`): a refused input never changes the filter
-(a failed or non-finite update restores its snapshot); no exception leaves a callback; every
-message goes through a :mod:`push_ros` codec; it never imports the simulator. Health
-(:class:`push_ros.health.NodeHealth`, on ``/diagnostics`` as ``<node>: estimator``):
-``callback_errors``, ``last_error``, ``refused`` with its classes ``refused_outline``,
-``refused_nan``, ``refused_invalid``, ``refused_out_of_range`` (``MAX_POSITION``,
-``max_push_length``), ``refused_future`` (:func:`push_ros.stamps.check_not_ahead`),
-``refused_duplicate`` (not logged: the perception re-publishes while the scene is idle),
-``refused_out_of_order`` (older than the last input, before the episode, a push that cannot be
-placed), ``refused_before_init``, ``refused_before_outline``, ``refused_filter_error``;
-``last_refusal``, ``last_problem`` (the newest refusal, gate failure or error, "" after a good
-input) and the node's own counters. ``~/reset`` starts an episode (outline kept; every "last
-applied" time cleared; parameters set since the last episode applied).
+Invariants: a refused input never changes the filter (a failed or non-finite update restores
+its snapshot); no exception leaves a callback; health, refusals and counters are
+:class:`push_ros.health.NodeHealth`'s (``/diagnostics``); every message goes through a
+:mod:`push_ros` codec; it never imports the simulator.
 
-The contract (topics, QoS, frames, the rules per field) is in docs/ARCHITECTURE.md
-("Estimator", "Node runtime") and the README topic table; the parameters are the
-:data:`PARAMETERS` table of :mod:`push_estimator.config` (defaults and units also in
-``pushbot_bringup/config/push_estimator.yaml``).
+Topics, services and parameters: docs/INTERFACES.md (generated parameter table); the filter and
+the rules: docs/ARCHITECTURE.md, "Estimator" and "Node runtime: health and stamp rules".
 """
 
 from __future__ import annotations
@@ -50,7 +36,13 @@ from push_core.estimator import STATE_LABELS, PushEKF
 from push_core.geometry import NonFiniteError
 from push_core.replay import FILTER_ERRORS, Rejected, ReplayHistory
 from push_estimator import inputs
-from push_estimator.config import PARAMETERS, EkfNodeParams, changed_values, check_parameter_set
+from push_estimator.config import (
+    NODE_NAME,
+    PARAMETERS,
+    EkfNodeParams,
+    changed_values,
+    check_parameter_set,
+)
 from push_ros.health import NodeHealth
 from push_ros.node import declare_config, parameter_values, run_node
 from push_ros.outline import decimate_outline, outline_from_cloud
@@ -63,13 +55,12 @@ from push_ros.poses import (
     transform_msg,
 )
 from push_ros.qos import LATCHED_QOS, RELIABLE_QOS
-from push_ros.stamps import check_not_ahead, clock_seconds, stamp_from_seconds
+from push_ros.stamps import check_not_ahead, clock_seconds, seconds_from_stamp, stamp_from_seconds
 from push_ros.state import state_array_msg
 from push_ros.tf import tf_publisher
 
 __all__ = ["EkfNode", "EkfNodeParams", "main"]
 
-NODE_NAME = "ekf_node"
 #: Seconds between repeated log lines of one kind (the counters count every event).
 LOG_THROTTLE_S = 2.0
 #: An outline of more points is decimated to at most this many (every k-th point): the
@@ -77,12 +68,11 @@ LOG_THROTTLE_S = 2.0
 #: A perceived outline (2 mm spacing) has a few hundred points.
 OUTLINE_WORKING_POINTS = 1000
 #: The node's own counters; refusals are ``refused_<kind>`` (NodeHealth).
-_COUNTERS = ("observations", "pushes", "replayed", "gated", "resets", "outlines",
+_COUNTERS = ("observations", "pushes", "replayed", "gated", "relearned", "resets", "outlines",
              "decimated_outlines", "replaced_covariance",
              *(f"refused_{k}" for k in ("outline", "nan", "invalid", "out_of_range", "future",
                                         "duplicate", "out_of_order", "before_init",
                                         "before_outline", "filter_error")))
-
 
 class EkfNode(Node):
     """ROS wrapper of :class:`push_core.estimator.PushEKF`; see the module docstring.
@@ -107,9 +97,8 @@ class EkfNode(Node):
         self._outline: np.ndarray | None = None
         self._normals: np.ndarray | None = None
         self._replay = ReplayHistory(None)  # the applied inputs of the episode (late pushes)
-        self._last_observation = -math.inf
+        self._inputs = inputs.EpisodeInputs()  # last observation, episode boundary
         self._episode_start = -math.inf  # stamp of the observation that initialised the filter
-        self._previous_episode = math.nan  # stamp of the last observation before ~/reset
         self._last_nis = math.nan
         self._problem = ""  # the most recent problem, "" after a good input
 
@@ -186,7 +175,7 @@ class EkfNode(Node):
 
     def _new_episode(self) -> None:
         self._replay.clear(self._ekf)
-        self._last_observation = -math.inf
+        self._inputs.last = -math.inf
         self._episode_start = -math.inf
 
     def _read_parameters(self) -> tuple[EkfNodeParams, str]:
@@ -219,6 +208,7 @@ class EkfNode(Node):
             points, normals = outline_from_cloud(msg, self.params.object_frame,
                                                  inputs.MAX_OUTLINE_CLOUD_POINTS)
             inputs.check_outline_extent(points)
+            reference = seconds_from_stamp(msg.header.stamp)  # the episode's first frame
         except ValueError as exc:  # NonFiniteError included
             self._refuse(topic, "outline", str(exc), error=True)
             return
@@ -241,15 +231,12 @@ class EkfNode(Node):
             self.get_logger().info(f"parameters applied with the new outline: {changed}")
         self._ekf, self._outline, self._normals = ekf, points, normals
         self._new_episode()
+        self._inputs.new_outline(reference)  # perception's new episode starts at its frame
         self._pub_outline.publish(msg)  # the episode's reference, latched (module docstring)
         self.health.count("outlines")
         self._problem = ""
-        o = ekf.outline
-        decimated = (f" (decimated from {n_received})" if len(points) < n_received else "")
-        self.get_logger().info(
-            f"{'new ' if replaced else ''}outline: {len(points)} points{decimated} -> "
-            f"{len(o.vertices)} contact vertices, l_0 = {1e3 * o.limit_surface:.1f} mm, "
-            f"symmetry order {o.symmetry_order}{'; new episode' if replaced else ''}")
+        self.get_logger().info(inputs.outline_summary(ekf.outline, len(points), n_received,
+                                                      replaced))
         self._publish_diagnostics()
 
     def _on_observation(self, msg: PoseWithCovarianceStamped) -> None:
@@ -263,8 +250,8 @@ class EkfNode(Node):
             return
         try:
             inputs.check_position(obs.pose[:2])
-            if obs.stamp in (self._last_observation, self._previous_episode):
-                return self._duplicate()  # normal while the scene is idle: no log
+            if self._inputs.old(obs.stamp):
+                return self._duplicate()  # a repeat, or taken before ~/reset: no log
             self._check_time(obs.stamp)
             self._replay.check_order(obs.stamp)
             cov = obs.covariance if self.params.use_message_covariance else None
@@ -276,20 +263,19 @@ class EkfNode(Node):
             self._refuse(topic, rejected.kind, str(rejected))
             return
         self._last_nis = result.nis
-        self._last_observation = obs.stamp
+        self._inputs.last = obs.stamp
         self.health.count("gated", int(result.reinitialized))
+        relearned = bool(getattr(result, "relearned", False))
+        self.health.count("relearned", int(relearned))
         self.health.count("observations")
         if result.initialized:
             self._episode_start = obs.stamp
-        if result.reinitialized:
-            self._problem = (f"observation at {obs.stamp:.3f} s failed the gate (NIS "
-                             f"{result.nis:.1f} > {self._ekf.config.gate_threshold:.1f}): pose "
-                             "re-initialised, c, l, m kept")
+        self._problem = inputs.observation_problem(obs.stamp, result, relearned,
+                                                   self._ekf.config.gate_threshold)
+        if self._problem:
             self.get_logger().warning(self._problem)
-        else:
-            self._problem = ""
-            if result.initialized:
-                self.get_logger().info(f"initialised from the observation at {obs.stamp:.3f} s")
+        elif result.initialized:
+            self.get_logger().info(f"initialised from the observation at {obs.stamp:.3f} s")
         self._publish_estimate(obs.stamp)
         self._publish_diagnostics()
 
@@ -329,7 +315,7 @@ class EkfNode(Node):
             if done.still_gated:
                 self._problem = ("after re-filtering a late pusher/executed, an observation "
                                  "still fails the gate")
-            self._publish_estimate(self._last_observation)
+            self._publish_estimate(self._inputs.last)
         self._publish_diagnostics()
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response
@@ -340,15 +326,15 @@ class EkfNode(Node):
             applied = None
             self._problem = f"~/reset: the parameters set were not applied ({exc})"
         self.health.count("resets")
-        self._previous_episode = self._last_observation
+        after = self._inputs.reset()  # inputs.EpisodeInputs: which observations are old
         self._new_episode()
         if applied is not None:
             self._problem = ""
         if self._ekf is not None:
             self._ekf.reset()
-            response.message = "new episode: waiting for the first observation"
+            response.message = f"new episode{after}: waiting for the first observation"
         else:
-            response.message = "new episode: waiting for perception/outline"
+            response.message = f"new episode{after}: waiting for perception/outline"
         if applied:
             response.message += f"; parameters applied: {applied}"
         response.success = applied is not None

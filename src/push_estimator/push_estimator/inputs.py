@@ -9,14 +9,18 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from push_core.episode import precedes_episode
 from push_core.replay import Rejected
 
 __all__ = [
     "COVARIANCE_RANGE",
+    "REFERENCE_MARGIN",
+    "EpisodeInputs",
     "MAX_OUTLINE_CLOUD_POINTS",
     "MAX_POSITION",
     "SAME_OUTLINE_TOL",
@@ -24,6 +28,8 @@ __all__ = [
     "check_position",
     "check_push_length",
     "check_stamp_order",
+    "observation_problem",
+    "outline_summary",
     "same_outline",
     "usable_covariance",
 ]
@@ -91,3 +97,59 @@ def same_outline(a: NDArray[np.float64] | None, b: NDArray[np.float64]) -> bool:
     ``SAME_OUTLINE_TOL`` m): a re-published latched outline, not a new episode."""
     return (a is not None and a.shape == b.shape
             and bool(np.allclose(a, b, rtol=0.0, atol=SAME_OUTLINE_TOL)))
+
+
+#: An observation stamped this much (s) before the episode's outline is of the previous
+#: episode (the outline's own frame, at its stamp, is the episode's first observation).
+REFERENCE_MARGIN = 1e-6
+
+
+class EpisodeInputs:
+    """Which observations belong to the current episode (``ekf_node``).
+
+    Dropped: a repeat of the last observation's stamp, and an observation taken before the
+    episode began (:func:`push_core.episode.precedes_episode`): before ``~/reset`` (the newest
+    observation then; not the clock, since perception, reset first, may start its episode with
+    a frame taken before the estimator's reset) or before the episode outline's frame
+    (perception's new episode starts at it).
+    """
+
+    def __init__(self) -> None:
+        self.last = -math.inf  # stamp of the last observation taken, s
+        self.boundary = -math.inf  # observations at or shortly before it are of the last episode
+
+    def old(self, stamp: float) -> bool:
+        """Whether the observation stamped ``stamp`` (s) is dropped."""
+        return stamp == self.last or precedes_episode(stamp, self.boundary)
+
+    def reset(self) -> str:
+        """``~/reset``: a new episode; returns ``" (inputs after T s)"`` or ""."""
+        self.boundary, self.last = self.last, -math.inf
+        return f" (inputs after {self.boundary:.9f} s)" if math.isfinite(self.boundary) else ""
+
+    def new_outline(self, reference: float) -> None:
+        """A new episode outline, of the frame stamped ``reference`` (s)."""
+        self.boundary, self.last = max(self.boundary, reference - REFERENCE_MARGIN), -math.inf
+
+
+def observation_problem(stamp: float, result: Any, relearned: bool, gate_threshold: float) -> str:
+    """What an observation update (``push_core.ekf.UpdateResult``-like: ``nis``,
+    ``reinitialized``) at ``stamp`` (s) reports on /diagnostics and as a warning; "" if
+    nothing: re-learning of c, l, m, or a failed gate (pose re-initialised, c, l, m kept)."""
+    if relearned:
+        return (f"observation at {stamp:.3f} s contradicted the last push's prediction (NIS "
+                f"{result.nis:.1f}): c, l, m re-learnt from the prior"
+                + ("; pose re-initialised" if result.reinitialized else ""))
+    if result.reinitialized:
+        return (f"observation at {stamp:.3f} s failed the gate (NIS {result.nis:.1f} > "
+                f"{gate_threshold:.1f}): pose re-initialised, c, l, m kept")
+    return ""
+
+
+def outline_summary(outline: Any, n_points: int, n_received: int, replaced: bool) -> str:
+    """The log line of an outline the filter was built on (``push_core.contact.ContactOutline``:
+    ``vertices``, ``limit_surface`` m, ``symmetry_order``)."""
+    decimated = f" (decimated from {n_received})" if n_points < n_received else ""
+    return (f"{'new ' if replaced else ''}outline: {n_points} points{decimated} -> "
+            f"{len(outline.vertices)} contact vertices, l_0 = {1e3 * outline.limit_surface:.1f} "
+            f"mm, symmetry order {outline.symmetry_order}{'; new episode' if replaced else ''}")

@@ -2,7 +2,8 @@
 parameter's default, description, bounds) and the typed, validated :class:`ExecutorParams`.
 
 Kept beside the node module so that the node stays thin; the table is the one place the
-parameter documentation is generated from.
+parameter documentation is generated from (docs/INTERFACES.md and
+``pushbot_bringup/config/push_executor.yaml``, by :mod:`push_ros.interfaces`).
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from push_executor.kinematics import ToolSpec
 from push_executor.motion import PANDA_PARK, PANDA_READY, PANDA_SIM_BASE_POSE, MotionConfig
 from push_ros.node import ParamSpec
 
-__all__ = ["PARAMETERS", "ExecutorParams"]
+__all__ = ["NODE_NAME", "PARAMETERS", "YAML_HEADER", "ExecutorParams"]
 
 _STRINGS = ParameterType.PARAMETER_STRING_ARRAY
 
@@ -84,6 +85,10 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               read_only=True),
     ParamSpec("tracking_tolerance", 0.05, "Largest joint deviation from the plan while moving "
               "before the arm is stopped, rad.", (1e-4, 3.0), read_only=True),
+    ParamSpec("start_delay", 0.5, "The trajectory's header stamp is the node's clock plus "
+              "this: the controller holds the arm until then, so the motion starts when the "
+              "tracking expects it whatever the delivery latency (below this), s.",
+              (0.0, 5.0), read_only=True),
     ParamSpec("tracking_window", 0.3, "Plan time either side of a joint state's time the "
               "tracking check may match (controller start delay and joint-state latency), s.",
               (0.0, 10.0), read_only=True),
@@ -133,19 +138,14 @@ class ExecutorParams:
         return cls(values=dict(v), tool=tool, motion=motion)
 
 
+#: The node's name: the top-level key of its parameter file.
+NODE_NAME = "push_executor_node"
 #: Comment at the top of the bundled parameter file (pushbot_bringup/config/push_executor.yaml).
 YAML_HEADER = """
 Parameters of push_executor_node (package push_executor): planner/push -> a joint trajectory of
-a ros2_control arm (docs/ROBOT.md, docs/ARCHITECTURE.md "Pushing with an arm"). Generated
-from the node's parameter table (push_executor.parameters.PARAMETERS) by
-  .venv/bin/python -m push_executor.parameters > src/pushbot_bringup/config/push_executor.yaml
-The defaults describe the simulated Panda; on your arm set at least controller_topic,
-base_frame, base_pose, tool.*, park_positions and the workspace (docs/ROBOT.md). The launch
-file sets use_sim_time and start_enabled (true in simulation, false on a robot: a dry run until
+a ros2_control arm (docs/ROBOT.md, docs/ARCHITECTURE.md "Pushing with an arm"; the table is also in
+docs/INTERFACES.md). The defaults describe the simulated Panda; on your arm set at least
+controller_topic, base_frame, base_pose, tool.*, park_positions and the workspace (docs/ROBOT.md).
+The launch file sets use_sim_time and start_enabled (true in simulation, false on a robot: a dry run
+until
 ~/enable)."""
-
-
-if __name__ == "__main__":
-    from push_ros.node import parameter_yaml
-
-    print(parameter_yaml("push_executor_node", PARAMETERS, YAML_HEADER), end="")

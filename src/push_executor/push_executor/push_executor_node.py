@@ -1,24 +1,19 @@
-"""``push_executor_node``: executes planned pushes on a ros2_control arm (issue 20).
+"""``push_executor_node``: executes planned pushes on a ros2_control arm.
 
 Role: turns each ``planner/push`` into one checked joint trajectory for the arm's
-joint_trajectory_controller (transit, descend, push, retreat, lift, park), watches its
-execution on ``/joint_states`` and reports the executed contact segment on ``pusher/executed``
-from forward kinematics of the *measured* joints, or refuses the push on ``pusher/refused``.
-The maths is the ROS-free core: :mod:`push_executor.kinematics` (pinocchio),
-:mod:`push_executor.motion` (stages and checks), :mod:`push_executor.tracking` (watchdogs,
-contact segment). Never imports pybullet or sim_bridge.
+joint_trajectory_controller (transit, descend, push, retreat, lift, park), watches it on
+``/joint_states`` and reports the executed contact segment on ``pusher/executed`` from forward
+kinematics of the *measured* joints, or refuses the push on ``pusher/refused``. The maths is the
+ROS-free core: :mod:`push_executor.kinematics`, :mod:`push_executor.motion`,
+:mod:`push_executor.tracking`; parameters: :mod:`push_executor.parameters`.
 
-The contract (topics, QoS, refusal kinds, frames) is docs/ARCHITECTURE.md, "Pushing with an
-arm"; parameters are the :data:`push_executor.parameters.PARAMETERS` table. States on
-``executor/status``: ``disabled`` (dry run: plans, publishes ``executor/path``, refuses with
-``disabled``), ``idle``, ``moving``, ``stopped`` (a watchdog, ``~/cancel`` or a disable stopped
-the arm with a one-point hold trajectory; the next push is accepted). A push ended by a stop is
-answered on ``pusher/refused`` (kind ``fault`` or ``cancelled``) so the planner re-plans at
-once.
+Invariants: one motion at a time; a push ended by a stop (watchdog, ``~/cancel``, disable: a
+one-point hold trajectory) is answered on ``pusher/refused`` so the planner re-plans at once; the
+watchdogs run on the steady clock; no exception leaves a callback; it never imports pybullet or
+sim_bridge.
 
-Time: the trajectory starts at ``t0`` = the node's clock when it is published (sim time on the
-simulated graph); the measured joint state stamped ``t`` is compared with the plan at
-``t - t0``; the watchdogs run on the steady clock.
+Topics, services and parameters: docs/INTERFACES.md; states, refusal kinds and timing:
+docs/ARCHITECTURE.md, "Pushing with an arm".
 """
 
 from __future__ import annotations
@@ -43,7 +38,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from push_executor.kinematics import ArmKinematics
 from push_executor.motion import MotionPlan, PushRefused, plan_push
-from push_executor.parameters import PARAMETERS, ExecutorParams
+from push_executor.parameters import NODE_NAME, PARAMETERS, ExecutorParams
 from push_executor.tracking import Event, Execution, chain_positions
 from push_ros.health import NodeHealth
 from push_ros.node import declare_config, run_node
@@ -70,7 +65,7 @@ class PushExecutorNode(Node):
     """The node (module docstring)."""
 
     def __init__(self, **kwargs: Any) -> None:
-        super().__init__("push_executor_node", **kwargs)
+        super().__init__(NODE_NAME, **kwargs)
         self.params = declare_config(self, PARAMETERS, ExecutorParams.from_values)
         p = self.params.values
         self.health = NodeHealth(self, "push executor", "arm", COUNTERS)
@@ -194,7 +189,8 @@ class PushExecutorNode(Node):
                                 f"{self._pub_traj.topic_name}")
         if t0 is None:
             return self._refuse(stamp, "no_state", "", "the node's clock has not started")
-        self._pub_traj.publish(self._trajectory_msg(plan))
+        t0 += self.params.values["start_delay"]  # the motion starts then, not on receipt
+        self._pub_traj.publish(self._trajectory_msg(plan, t0))
         self._run = Execution(plan, t0, time.monotonic(), self._q_stamp,
                               self.params.values["tracking_tolerance"],
                               self.params.values["state_timeout"],
@@ -274,9 +270,10 @@ class PushExecutorNode(Node):
                                               reason, stage, "arm"))
         self._publish_status()
 
-    def _trajectory_msg(self, plan: MotionPlan) -> JointTrajectory:
+    def _trajectory_msg(self, plan: MotionPlan, start: float) -> JointTrajectory:
         order = [plan.joint_names.index(j) for j in self._joints]
-        msg = JointTrajectory(joint_names=list(self._joints))  # stamp 0: start now
+        msg = JointTrajectory(joint_names=list(self._joints))
+        msg.header.stamp = stamp_from_seconds(start, clamp=True)
         msg.points = [JointTrajectoryPoint(positions=q[order].tolist(),
                                            velocities=v[order].tolist(),
                                            time_from_start=_duration(t))
@@ -312,7 +309,7 @@ def _duration(seconds: float) -> Duration:
 
 def main(args: list[str] | None = None) -> None:
     """``ros2 run push_executor push_executor_node``."""
-    run_node(lambda: PushExecutorNode(), "push_executor_node", args)
+    run_node(lambda: PushExecutorNode(), NODE_NAME, args)
 
 
 if __name__ == "__main__":

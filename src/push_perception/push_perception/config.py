@@ -3,8 +3,9 @@
 :data:`PARAMETERS` is the one declaration of every parameter (name, default, description with
 unit, bounds, read-only); the geometry ones set the :class:`~push_perception.core.PerceptionConfig`
 field of the same name. :meth:`SegmentationParams.from_values` builds the frozen configuration
-and raises ``ValueError`` naming the parameter. Defaults and units are also commented in
-``pushbot_bringup/config/push_perception.yaml`` (a test keeps the two equal).
+and raises ``ValueError`` naming the parameter. docs/INTERFACES.md and
+``pushbot_bringup/config/push_perception.yaml`` are generated from the table
+(:mod:`push_ros.interfaces`).
 """
 
 from __future__ import annotations
@@ -15,41 +16,55 @@ from dataclasses import dataclass
 from typing import Any
 
 from push_perception.core import PerceptionConfig
+from push_ros.interfaces import SIM_TIME
 from push_ros.node import ParamSpec
 
-__all__ = ["PARAMETERS", "SegmentationParams"]
+__all__ = ["NODE_NAME", "PARAMETERS", "YAML_EXTRA", "YAML_HEADER", "YAML_NOTES",
+           "SegmentationParams"]
 
 _GEOMETRY = {f.name: f.default for f in dataclasses.fields(PerceptionConfig)}
 PARAMETERS: tuple[ParamSpec, ...] = (
-    ParamSpec("weights", "", "Segmentation network weights (.pt); empty = the bundled "
-              "push_perception/models/segmentation.pt.", read_only=True),
-    ParamSpec("torch_threads", 1, "torch intra-op threads for the CNN.", (1, 16),
-              read_only=True),
-    ParamSpec("sync_queue", 5, "Stamps kept per stream while matching colour, depth and "
-              "camera_info.", (1, 100), read_only=True),
+    ParamSpec("weights", "", "Segmentation network weights (.pt) written by `pushbot train "
+              "segmentation`; empty = the bundled push_perception/models/segmentation.pt (model "
+              "card: models/segmentation.md).", read_only=True),
+    ParamSpec("torch_threads", 1, "torch intra-op threads for the CNN; 1 keeps the latency "
+              "steady on a shared CPU.", (1, 16), read_only=True),
+    ParamSpec("sync_queue", 5, "Stamps kept per camera stream while matching colour, depth and "
+              "camera_info by identical header stamps; an image pair pushed out without its "
+              "camera_info is reported.", (1, 100), read_only=True),
     ParamSpec("threshold", 0.5, "Probability above which a pixel is the object.",
               (0.01, 0.99), read_only=True),
     ParamSpec("min_coarse_cells", 3, "Smallest coarse CNN component accepted as the object, "
               "cells of 8 x 8 px at 640 x 480.", (1, 10000), read_only=True),
-    ParamSpec("publish_mask", True, "Publish perception/mask."),
-    ParamSpec("anchor_timeout", 5.0, "Seconds (steady) after start-up to wait for the "
-              "estimator's latched outline and estimate to continue a running episode after a "
-              "restart; 0 = never re-anchor.", (0.0, 60.0), read_only=True),
-    ParamSpec("resolution", _GEOMETRY["resolution"], "Cell size of the top-down view, m.",
-              (5e-4, 3e-3)),
+    ParamSpec("publish_mask", True, "Publish perception/mask (mono8) for every segmented "
+              "frame."),
+    ParamSpec("anchor_timeout", 5.0, "Restart recovery: seconds (steady clock) after start-up "
+              "to wait for the estimator's latched estimator/outline and estimator/object_pose, "
+              "so that a node restarted mid-episode matches its first frame against the "
+              "episode's outline and keeps its yaw reference (frames wait meanwhile); nothing in "
+              "time (a fresh graph) or ~/reset = a new reference; 0 = never re-anchor.",
+              (0.0, 60.0), read_only=True),
+    ParamSpec("resolution", _GEOMETRY["resolution"], "Cell size of the top-down "
+              "(orthographic, world-aligned) view of the object, m (finer: the view falls apart "
+              "between the pixels' footprints; coarser costs yaw accuracy).", (5e-4, 3e-3)),
     ParamSpec("min_height", _GEOMETRY["min_height"], "Mask points lower than this above the "
-              "table are dropped (table pixels), m.", (0.0, 0.01)),
+              "table (or than 40 % of the object's top height, whichever is larger) are table "
+              "pixels and are dropped, m (below the object's thickness).", (0.0, 0.01)),
     ParamSpec("closing_radius", _GEOMETRY["closing_radius"], "Morphological closing of the "
-              "top-down view, cells; closing_radius * resolution in [1, 10] mm.", (2, 10)),
+              "top-down view, cells; closing_radius * resolution in [1, 10] mm: fills the gaps "
+              "between the pixels' footprints (1.3-2 mm on the table at 640 x 480) without "
+              "filling concavities.", (2, 10)),
     ParamSpec("outline_spacing", _GEOMETRY["outline_spacing"], "Distance between outline "
               "points, m (at most 1000 points: a longer outline is spaced wider).",
               (5e-4, 0.01)),
     ParamSpec("outline_smoothing", _GEOMETRY["outline_smoothing"], "Gaussian smoothing "
-              "along the outline (standard deviation), m.", (0.0, 0.01)),
+              "along the outline (standard deviation), m: removes the raster's staircase "
+              "(normals) at the price of rounding corners by about this much.", (0.0, 0.01)),
     ParamSpec("outline_offset", _GEOMETRY["outline_offset"], "Extra outward offset of the "
               "outline (calibration), m.", (-0.005, 0.005)),
     ParamSpec("symmetry_tolerance", _GEOMETRY["symmetry_tolerance"], "Orientation minima "
-              "within this chamfer cost of the best are symmetric equivalents, m.",
+              "within this chamfer cost of the best are symmetric equivalents; the one closest "
+              "to the previous frame's angle is reported, m.",
               (0.0, 0.01)),
     ParamSpec("min_pixels", _GEOMETRY["min_pixels"], "Fewer mask pixels (with depth) than "
               "this: no pose.", (3, 10**7)),
@@ -58,13 +73,45 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec("max_border_pixels", _GEOMETRY["max_border_pixels"], "More mask pixels than "
               "this on the image border: object out of view, no pose.", (0, 10**7)),
     ParamSpec("sigma_position", _GEOMETRY["sigma_position"], "Base standard deviation of x "
-              "and y (5000 pixels, full depth), m.", (1e-6, 1.0)),
+              "and y at 5000 mask pixels with full depth, m; grows with fewer pixels, missing "
+              'depth and footprint mismatch (docs/ARCHITECTURE.md, "Perception").',
+              (1e-6, 1.0)),
     ParamSpec("sigma_theta", _GEOMETRY["sigma_theta"], "Base standard deviation of the "
-              "relative yaw, rad.", (1e-6, math.pi)),
+              "relative yaw, rad; grows likewise and with the residual of the rotation search "
+              "beyond match_cost_floor.", (1e-6, math.pi)),
     ParamSpec("match_cost_floor", _GEOMETRY["match_cost_floor"], "Chamfer residual of a "
-              "correct rotation match; only the excess widens the yaw's deviation, m.",
+              "correct rotation match (raster and depth noise: about 0.3 mm on clean frames, "
+              "0.6 mm with depth noise); only the excess widens the yaw's deviation, m.",
               (0.0, 0.01)),
 )
+
+#: The node's name: the top-level key of its parameter file.
+NODE_NAME = "segmentation_node"
+#: Written before the table in the parameter file (ROS declares it).
+YAML_EXTRA = (SIM_TIME,)
+#: Comment at the top of the bundled parameter file (pushbot_bringup/config/push_perception.yaml).
+YAML_HEADER = """
+Parameters of segmentation_node (package push_perception): CNN segmentation of the object,
+its pose from mask + depth, the orientation relative to the episode's first frame and the
+outline with normals (docs/ARCHITECTURE.md, "Perception"; the table is also in
+docs/INTERFACES.md). Values below are the defaults. Units SI (REP 103): metres, radians.
+
+  pushbot run segmentation_node --ros-args --params-file \\
+      src/pushbot_bringup/config/push_perception.yaml
+  ros2 run push_perception segmentation_node --ros-args --params-file \\
+      $(ros2 pkg prefix pushbot_bringup)/share/pushbot_bringup/config/push_perception.yaml
+  (`ros2 launch pushbot_bringup pushbot.launch.py` loads this file and sets use_sim_time
+  from sim:=true|false; with sim:=false it also remaps the camera topics to realsense2_camera's)
+
+Read-only parameters are read at start-up; the geometry parameters (resolution to
+match_cost_floor) are read at start-up and again by ~/reset (std_srvs/srv/Trigger), which
+starts a new episode. A bad value stops start-up with a clear message and a non-zero exit (a
+refused reset keeps the previous values). Doubles need a decimal point (0.0, not 0)."""
+#: Comment paragraphs before a parameter in the parameter file.
+YAML_NOTES = {
+    "weights": "The CNN and the node.",
+    "resolution": "From mask to state (push_perception.core.PerceptionConfig).",
+}
 _GEOMETRY_NAMES = tuple(n for n in _GEOMETRY if any(p.name == n for p in PARAMETERS))
 
 

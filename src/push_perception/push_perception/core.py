@@ -1,7 +1,8 @@
 """From an object mask and depth to the object's state: pose, relative orientation, outline.
 
 ROS-free (numpy, OpenCV, scipy); the node (``segmentation_node``) and the evaluation wrap it.
-SPEC section 2, steps 1 and 2; the frames are those of ``docs/ARCHITECTURE.md``.
+The pipeline's segmentation and pose steps (docs/ARCHITECTURE.md, "Perception"); the frames
+are those of ``docs/ARCHITECTURE.md``.
 
 Pipeline for one frame (:class:`EpisodeTracker.update`)
 -------------------------------------------------------

@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from push_core.episode import precedes_episode
 from push_perception.core import PerceptionError
 
 __all__ = [
@@ -245,7 +246,8 @@ class AnchorWait:
     Until the first ``~/reset`` (:meth:`reset`), a node that starts waits at most ``timeout``
     seconds (from ``now``, a steady clock) for the estimator's outline and an estimate stamped
     no earlier than it; :meth:`decide` says what a frame does meanwhile. After a reset, frames
-    stamped like the newest frame before it are of the previous episode (:meth:`admit`).
+    stamped at or before the newest frame before it (or the reset's sim time) are of the
+    previous episode (:meth:`admit`).
 
     Parameters
     ----------
@@ -311,18 +313,20 @@ class AnchorWait:
         return "go"
 
     def admit(self, stamp: float, has_reference: bool, now: float) -> str:
-        """What the frame stamped ``stamp`` (s) does: ``"previous"`` (it repeats the newest
-        frame before ``~/reset``: skipped), else :meth:`decide`'s answer; a frame that is not
+        """What the frame stamped ``stamp`` (s) does: ``"previous"`` (taken before the last
+        ``~/reset``: skipped), else :meth:`decide`'s answer; a frame that is not
         skipped becomes the newest frame processed."""
-        if stamp == self.episode_after:
+        if precedes_episode(stamp, self.episode_after):
             return "previous"
         action = self.decide(has_reference, now)
         if action != "wait":
             self.last_frame = stamp
         return action
 
-    def reset(self) -> None:
-        """``~/reset``: an explicit new episode ends the wait; the newest frame so far marks
-        the previous episode."""
+    def reset(self, boundary: float = -math.inf) -> None:
+        """``~/reset``: an explicit new episode ends the wait; frames stamped at or shortly
+        before the newest frame so far or ``boundary`` (s;
+        :func:`push_ros.stamps.episode_boundary`, :func:`push_core.episode.precedes_episode`)
+        are of the previous episode."""
         self.until = None
-        self.episode_after = self.last_frame
+        self.episode_after = max(self.last_frame, float(boundary))

@@ -1,35 +1,27 @@
 """``segmentation_node``: object mask, pose and outline from the RGB-D camera.
 
 Role: pairs colour, depth and camera_info by stamp (:class:`push_perception.inputs.FrameSync`),
-checks each message with its :mod:`push_ros` codec and each frame with the rules of
-:mod:`push_perception.inputs`, segments with :class:`push_perception.model.Segmenter` and
-measures with :class:`push_perception.core.EpisodeTracker`; publishes ``perception/mask``,
-``perception/object_pose`` (stamped with the frame) and, once per episode, the latched
-``perception/outline``. The extrinsics come from :class:`push_ros.extrinsics.CameraExtrinsics`
-(tf2, else the latched ``camera/color/extrinsics``). After a restart it re-anchors to the
-estimator's latched ``estimator/outline`` and ``estimator/object_pose``
-(:class:`push_perception.inputs.AnchorWait`; ``anchored`` counts it); ``~/reset`` starts an
-episode (frames stamped like the last one before it are skipped: ``previous_episode``).
+segments with :class:`push_perception.model.Segmenter` and measures with
+:class:`push_perception.core.EpisodeTracker`; publishes the mask, the pose (stamped with the
+frame) and, once per episode, the latched outline. Extrinsics:
+:class:`push_ros.extrinsics.CameraExtrinsics`. After a restart it re-anchors to the estimator's
+latched outline and estimate (:class:`push_perception.inputs.AnchorWait`); ``~/reset`` starts
+an episode, skipping frames taken before it. Input rules:
+:mod:`push_perception.inputs`; parameters: :mod:`push_perception.config`.
 
 Invariants: a refused message never enters the stamp matching and never replaces the latched
-extrinsics; a frame without a pose publishes no pose; work per frame is bounded
-(:mod:`push_perception.core`); no exception leaves a callback; it never imports the simulator.
-Health (:class:`push_ros.health.NodeHealth`, ``<node>: perception`` on ``/diagnostics``, at 1 Hz
-and on every change of level): ``callback_errors``, ``last_error``, ``refused`` with its classes
-``refused_<kind>`` (:data:`push_perception.inputs.REFUSAL_KINDS`), ``last_refusal``, the
-measurement outcomes (``empty_mask``, ``out_of_view``, ``few_pixels``, ``no_depth``,
-``fragmented``, ``too_large``, ``bad_input``), the events (``frames``, ``poses``, ``resets``,
-``previous_episode``, ``waiting_for_anchor``, ``anchored``), ``last_problem``,
-``latency_ms_median``, ``has_reference``, ``last_stamp``.
+extrinsics; a frame without a pose publishes no pose; work per frame is bounded; no exception
+leaves a callback (:class:`push_ros.health.NodeHealth` on ``/diagnostics``); it never imports the
+simulator.
 
-The contract (topics, QoS, frames, the bad-input rules, re-anchoring) is in docs/ARCHITECTURE.md
-("Perception", "Faults and recovery", "Node runtime") and the README topic table; the
-parameters are the :data:`PARAMETERS` table of :mod:`push_perception.config` (defaults and units
-also in ``pushbot_bringup/config/push_perception.yaml``; geometry values apply on ``~/reset``).
+Topics, services and parameters: docs/INTERFACES.md; the pipeline and re-anchoring:
+docs/ARCHITECTURE.md, "Perception", "Faults and recovery" and "Node runtime: health and stamp
+rules".
 """
 
 from __future__ import annotations
 
+import math
 import statistics
 import time
 from collections import deque
@@ -44,7 +36,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image, PointCloud2
 from std_srvs.srv import Trigger
 
-from push_perception.config import PARAMETERS, SegmentationParams
+from push_perception.config import NODE_NAME, PARAMETERS, SegmentationParams
 from push_perception.core import MAX_OUTLINE_POINTS, EpisodeTracker, Measurement, PerceptionError
 from push_perception.inputs import (
     COLOR_ENCODINGS,
@@ -73,11 +65,10 @@ from push_ros.node import declare_config, parameter_values, run_node
 from push_ros.outline import outline_cloud_msg, outline_from_cloud
 from push_ros.poses import check_frame, pose_with_covariance_msg, xytheta_from_pose
 from push_ros.qos import LATCHED_QOS, RELIABLE_QOS, SENSOR_QOS
-from push_ros.stamps import seconds_from_stamp
+from push_ros.stamps import episode_boundary, seconds_from_stamp
 
 __all__ = ["PARAMETERS", "SegmentationNode", "SegmentationParams", "main"]
 
-NODE_NAME = "segmentation_node"
 #: Seconds between two log lines of the same kind (every event is counted on /diagnostics).
 LOG_THROTTLE_S = 1.0
 #: Period of the regular /diagnostics message, seconds of steady time.
@@ -324,7 +315,8 @@ class SegmentationNode(Node):
             return response
         self._params = params
         self._tracker = EpisodeTracker(params.geometry)
-        self._anchor.reset()  # an explicit new episode: no re-anchoring
+        # an explicit new episode: no re-anchoring; frames taken before it are skipped
+        self._anchor.reset(episode_boundary(-math.inf, self.get_clock()))
         self._anchor_msg = None
         self.health.count("resets")
         response.success = True

@@ -24,7 +24,25 @@ from push_ros.frames import WORLD_FRAME
 from push_ros.poses import check_frame, xytheta_from_pose
 from push_ros.stamps import seconds_from_stamp
 
-__all__ = ["affordance_markers", "executed_end", "goal_from_msg"]
+__all__ = ["GOAL_HINT", "affordance_markers", "executed_end", "goal_from_msg", "status_message"]
+
+
+#: What ``planner/status`` adds while no goal is set: where goals come from and how to send
+#: one that a (re)started planner still gets. A volatile sender (RViz's "2D Goal Pose",
+#: ``ros2 topic pub``'s default QoS) reaches only a planner that is running when it publishes.
+GOAL_HINT = ("goal_pose (geometry_msgs/PoseStamped, frame world); a goal sent before this node "
+             "started arrives only from a latched sender: pushbot goal X Y YAW, or ros2 topic pub "
+             "--once --qos-durability transient_local --qos-reliability reliable /goal_pose "
+             "geometry_msgs/msg/PoseStamped '{header: {frame_id: world}, pose: ...}' (keep it "
+             "running: the latched sample lives in the sender)")
+
+
+def status_message(engine_text: str, note: str, has_goal: bool) -> str:
+    """``planner/status``'s message: the episode in words (``EpisodeEngine.status_text``),
+    the node's note, and while no goal is set, what a goal is and how to send one
+    (:data:`GOAL_HINT`)."""
+    text = engine_text + (f" - {note}" if note else "")
+    return text if has_goal else f"{text} on {GOAL_HINT}"
 
 
 def _color(r: float, g: float, b: float, a: float = 1.0) -> ColorRGBA:

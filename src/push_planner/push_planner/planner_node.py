@@ -1,27 +1,20 @@
 """``planner_node``: the greedy affordance-based push planner behind ROS 2 topics.
 
 Role: feeds :class:`push_core.episode.EpisodeEngine` (the closed-loop rules, shared with the
-in-process loops) with its inputs and acts on its decisions; planning is
-:class:`push_core.planner.Planner`. Estimates are ``estimator/object_pose`` +
-``estimator/state`` paired by :class:`push_core.pairing.EstimatePairing`; ``goal_pose`` is read
-twice (volatile and transient local) and de-duplicated by
-:class:`push_ros.message_info.GoalSources`; a ``pusher/refused`` for the push in flight
-(:mod:`push_ros.refusal`) is a lost push at once, as is a push not reported on
-``pusher/executed`` within ``push_timeout`` (steady time); the node then re-plans, avoiding the
-lost push's contact region (after a refusal of a kind in ``push_ros.refusal.MOVING_KINDS`` the
-robot may still move: from a newer estimate).
+in-process loops) and acts on its decisions; planning is :class:`push_core.planner.Planner`.
+Estimates are paired by :class:`push_core.pairing.EstimatePairing`, goals de-duplicated by
+:class:`push_ros.message_info.GoalSources`; a matching ``pusher/refused`` (:mod:`push_ros.refusal`)
+or a push not executed within ``push_timeout`` is a lost push, and the node re-plans.
+Parameters: :mod:`push_planner.config`.
 
-Invariants: it plans at most once per usable estimate and has at most one push in flight; push
-header stamps strictly increase (a refusal names one push); a refused input changes nothing;
-no exception leaves a callback (:class:`push_ros.health.NodeHealth`: ``callback_errors``,
-``refused`` / ``refused_<kind>``, ``last_refusal``, ``last_error``); every message is converted by
-a :mod:`push_ros` codec; it never imports the simulator.
+Invariants: at most one plan per usable estimate and one push in flight; push header stamps
+strictly increase; a refused input changes nothing; no exception leaves a callback
+(:class:`push_ros.health.NodeHealth`); every message goes through a :mod:`push_ros` codec; it
+never imports the simulator.
 
-The contract (topics, QoS, frames, status values, the stale-estimate and goal rules, refusal
-rules per field) is in docs/ARCHITECTURE.md ("Episode engine", "Node runtime", "Pushing with an
-arm") and the README topic table; the parameters are the :data:`PARAMETERS` table of
-:mod:`push_planner.config` (defaults and units also in
-``pushbot_bringup/config/push_planner.yaml``); episode parameters apply on ``~/reset``.
+Topics, services, status values and parameters: docs/INTERFACES.md; the rules:
+docs/ARCHITECTURE.md, "Episode engine", "Node runtime: health and stamp rules" and "Pushing with
+an arm".
 """
 
 from __future__ import annotations
@@ -44,8 +37,8 @@ from visualization_msgs.msg import MarkerArray
 from push_core.episode import EpisodeEngine
 from push_core.pairing import Estimate, EstimatePairing
 from push_core.planner import Planner, PushPlan, check_state, prepare_outline
-from push_planner.config import PARAMETERS, PlannerNodeParams, load_learned_model
-from push_planner.conversions import affordance_markers, executed_end, goal_from_msg
+from push_planner.config import NODE_NAME, PARAMETERS, PlannerNodeParams, load_learned_model
+from push_planner.conversions import affordance_markers, executed_end, goal_from_msg, status_message
 from push_ros.health import NodeHealth
 from push_ros.message_info import GoalSources, publishers_text
 from push_ros.node import declare_config, parameter_values, run_node
@@ -85,7 +78,7 @@ class PlannerNode(Node):
         At construction, if a parameter is invalid (the message names it).
     """
 
-    def __init__(self, node_name: str = "planner_node", **kwargs: Any) -> None:
+    def __init__(self, node_name: str = NODE_NAME, **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
         self.health = NodeHealth(self, counters=COUNTERS, log_period=LOG_THROTTLE_S,
                                  on_error=self._on_callback_error)
@@ -208,7 +201,8 @@ class PlannerNode(Node):
         except ValueError as exc:
             self._refuse("goal_pose", str(exc))
             return
-        switched = self._goals.take(self._engine.goal is not None)
+        # a goal after the last one finished (reached, failed) is a new request, not a rival
+        switched = self._goals.take(self._engine.goal is not None and not self._engine.finished)
         self._engine.new_goal(goal)
         self._set_note("")
         text = (f"new goal (x {goal[0]:.4f} m, y {goal[1]:.4f} m, theta {goal[2]:.4f} rad)"
@@ -371,7 +365,7 @@ class PlannerNode(Node):
     def _status_text(self) -> tuple[str, dict[str, object]]:
         """``planner/status``'s message and values besides the health counters."""
         engine = self._engine
-        message = engine.status_text() + (f" - {self._note}" if self._note else "")
+        message = status_message(engine.status_text(), self._note, engine.goal is not None)
         counts = {k: v for k, v in engine.counts.items() if k != "left"}
         return message, {
             "state": engine.phase, "step": engine.steps, "max_steps": self.params.max_steps,
@@ -393,7 +387,7 @@ class PlannerNode(Node):
 def main(args: list[str] | None = None) -> None:
     """Entry point of ``planner_node`` (``ros2 run push_planner planner_node`` / ``pushbot run
     planner_node``)."""
-    run_node(PlannerNode, "planner_node", args)
+    run_node(PlannerNode, NODE_NAME, args)
 
 
 if __name__ == "__main__":

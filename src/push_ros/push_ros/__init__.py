@@ -5,7 +5,7 @@ Layering: ``push_core`` (ROS-free science) <- ``push_ros`` <- the node packages
 
 - :mod:`push_ros.frames`: the frame names (``world``, the camera optical frame, ``object``,
   ``pusher``), defined once;
-- :mod:`push_ros.qos`: the QoS profiles of the README topic table ("sensor", "reliable",
+- :mod:`push_ros.qos`: the QoS profiles of the topic table ("sensor", "reliable",
   "latched", the ``/clock`` profile);
 - message codecs, one per message, each writer with its checked reader:
   :mod:`push_ros.stamps` (``builtin_interfaces/Time``), :mod:`push_ros.poses` (quaternion,
@@ -16,7 +16,9 @@ Layering: ``push_core`` (ROS-free science) <- ``push_ros`` <- the node packages
   :mod:`push_ros.state` (the ``estimator/state`` Float64MultiArray),
   :mod:`push_ros.diagnostics` (DiagnosticStatus / DiagnosticArray);
 - :mod:`push_ros.node`: parameter table -> descriptors -> typed frozen config (validated at
-  start-up and on every set), the one ``main()`` runner, throttled logging.
+  start-up and on every set), the one ``main()`` runner, throttled logging;
+- :mod:`push_ros.interfaces`: docs/INTERFACES.md's parameter tables and the bundled parameter
+  files, generated from the nodes' parameter tables.
 
 Every reader raises ``ValueError`` whose message names the offending field, and
 :class:`NonFiniteError` (a ``ValueError``) when the problem is a NaN or infinite value, so a node

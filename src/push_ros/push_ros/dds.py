@@ -42,35 +42,35 @@ __all__ = ["BUILTIN_ENV", "CLOSED_PROFILE", "CLOSED_RANGE", "NETWORK_ENV", "NETW
            "NETWORK_WARNING", "PROFILE_ENV", "RANGE_ENV", "apply_default_profile", "describe",
            "dds_environment", "network_reason", "profile_path"]
 
-PROFILE_ENV = 'FASTRTPS_DEFAULT_PROFILES_FILE'
-RANGE_ENV = 'ROS_AUTOMATIC_DISCOVERY_RANGE'
-NETWORK_ENV = 'PUSHBOT_DDS_NETWORK'
+PROFILE_ENV = "FASTRTPS_DEFAULT_PROFILES_FILE"
+RANGE_ENV = "ROS_AUTOMATIC_DISCOVERY_RANGE"
+NETWORK_ENV = "PUSHBOT_DDS_NETWORK"
 #: The range pushbot sets with its closed profile: the profile alone decides discovery.
-CLOSED_RANGE = 'SYSTEM_DEFAULT'
-CLOSED_PROFILE = 'fastdds.xml'
-NETWORK_PROFILE = 'fastdds_network.xml'
+CLOSED_RANGE = "SYSTEM_DEFAULT"
+CLOSED_PROFILE = "fastdds.xml"
+NETWORK_PROFILE = "fastdds_network.xml"
 NETWORK_WARNING = (
     'pushbot: the DDS graph is OPEN TO THE NETWORK ({reason}). DDS without security lets any '
     'peer that reaches this machine discover the nodes and command the robot (goals, pushes, '
     'parameters); see README, "Security". Unset it for a loopback-only graph.'
 )
-_TRUE = ('1', 'true', 'yes', 'on')
+_TRUE = ("1", "true", "yes", "on")
 _warned = False
 
 
 def profile_path(network: bool = False) -> Path:
     """Path of a bundled Fast DDS profile: loopback only (default) or open to the network."""
     name = NETWORK_PROFILE if network else CLOSED_PROFILE
-    return Path(str(resources.files('push_ros').joinpath('data', name)))
+    return Path(str(resources.files("push_ros").joinpath("data", name)))
 
 
 def network_reason(environ: Mapping[str, str] | None = None) -> str | None:
     """Why the graph is opened to the network (the explicit setting), or None: closed."""
     environ = os.environ if environ is None else environ
-    if environ.get(NETWORK_ENV, '').strip().lower() in _TRUE:
-        return f'{NETWORK_ENV}={environ[NETWORK_ENV]}'
-    if environ.get(RANGE_ENV) == 'SUBNET':
-        return f'{RANGE_ENV}=SUBNET'
+    if environ.get(NETWORK_ENV, "").strip().lower() in _TRUE:
+        return f"{NETWORK_ENV}={environ[NETWORK_ENV]}"
+    if environ.get(RANGE_ENV) == "SUBNET":
+        return f"{RANGE_ENV}=SUBNET"
     return None
 
 
@@ -113,22 +113,22 @@ def apply_default_profile(env: MutableMapping[str, str] | None = None) -> str:
     return env[PROFILE_ENV]
 
 
-BUILTIN_ENV = 'FASTDDS_BUILTIN_TRANSPORTS'
+BUILTIN_ENV = "FASTDDS_BUILTIN_TRANSPORTS"
 
 
 def describe(environ: Mapping[str, str] | None = None) -> str:
     """One line: the DDS profile in effect and what it means for the user's own settings."""
     environ = os.environ if environ is None else environ
-    path = environ.get(PROFILE_ENV, '')
+    path = environ.get(PROFILE_ENV, "")
     if not path:
-        text = ('DDS: no profile (Fast DDS defaults: large camera frames may be lost between '
-                'processes)')
+        text = ("DDS: no profile (Fast DDS defaults: large camera frames may be lost between "
+                "processes)")
     elif path in (str(profile_path()), str(profile_path(network=True))):
-        kind = 'open to the network' if path == str(profile_path(network=True)) else 'loopback only'
-        text = f'DDS: bundled profile {path} ({kind})'
+        kind = "open to the network" if path == str(profile_path(network=True)) else "loopback only"
+        text = f"DDS: bundled profile {path} ({kind})"
         if environ.get(BUILTIN_ENV):
-            text += (f'; {BUILTIN_ENV}={environ[BUILTIN_ENV]} has no effect under it (the profile '
-                     'declares its own transports)')
+            text += (f"; {BUILTIN_ENV}={environ[BUILTIN_ENV]} has no effect under it (the profile "
+                     "declares its own transports)")
     else:
         text = f"DDS: the user's profile {path}"
     return text + f', {RANGE_ENV}={environ.get(RANGE_ENV, "(unset)")}'

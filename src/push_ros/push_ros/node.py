@@ -35,7 +35,7 @@ from __future__ import annotations
 import math
 import threading
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
@@ -48,7 +48,7 @@ from rcl_interfaces.msg import (
 )
 
 __all__ = ["ParamSpec", "ThrottledLog", "declare_config", "descriptor", "guarded",
-           "parameter_values", "parameter_yaml", "run_node"]
+           "parameter_values", "parameter_yaml", "run_node", "spec_note"]
 
 T = TypeVar("T")
 
@@ -303,8 +303,10 @@ def _yaml_value(value: Any) -> str:
 
     if isinstance(value, bool):
         return "true" if value else "false"
-    if isinstance(value, float):
-        return repr(value)
+    if isinstance(value, float):  # YAML 1.1 reads 1e-05 as a string: write 1.0e-05
+        text = repr(value)
+        mantissa, e, exponent = text.partition("e")
+        return f"{mantissa}.0e{exponent}" if e and "." not in mantissa else text
     if isinstance(value, list | tuple):
         return "[" + ", ".join(_yaml_value(v) for v in value) + "]"
     if isinstance(value, str):
@@ -312,7 +314,21 @@ def _yaml_value(value: Any) -> str:
     return str(value)
 
 
-def parameter_yaml(node_name: str, specs: Sequence[ParamSpec], header: str = "") -> str:
+def spec_note(spec: ParamSpec) -> str:
+    """The documentation of one parameter: its description, then its range, constraints and
+    "Read-only." (the text of the parameter files and of docs/INTERFACES.md)."""
+    note = spec.description
+    if spec.bounds is not None:
+        note += f" Range [{spec.bounds[0]:g}, {spec.bounds[1]:g}]."
+    if spec.constraints:
+        note += f" Constraint: {spec.constraints}."
+    if spec.read_only:
+        note += " Read-only."
+    return note
+
+
+def parameter_yaml(node_name: str, specs: Sequence[ParamSpec], header: str = "",
+                   notes: Mapping[str, str] | None = None) -> str:
     """A node's parameter file generated from its table: every parameter at its default, its
     description (and bounds, read-only) as the comment above it; dotted names nested.
 
@@ -323,6 +339,9 @@ def parameter_yaml(node_name: str, specs: Sequence[ParamSpec], header: str = "")
     specs : sequence of ParamSpec
     header : str
         Comment lines for the top of the file (without ``#``).
+    notes : mapping, optional
+        ``{parameter name: text}``: a comment paragraph (a blank line, then the wrapped text)
+        written before that parameter (and before its group's key when it opens a group).
 
     Returns
     -------
@@ -332,8 +351,8 @@ def parameter_yaml(node_name: str, specs: Sequence[ParamSpec], header: str = "")
     Raises
     ------
     ValueError
-        A name nested deeper than ``group.name``, or a group whose parameters are not listed
-        together (YAML would get the group twice).
+        A name nested deeper than ``group.name``, a group whose parameters are not listed
+        together (YAML would get the group twice), or a note naming no parameter.
     """
     import textwrap
 
@@ -342,8 +361,18 @@ def parameter_yaml(node_name: str, specs: Sequence[ParamSpec], header: str = "")
     out = [f"# {line}".rstrip() for line in header.strip().splitlines()] if header else []
     out += [f"{node_name}:", "  ros__parameters:"]
     group = ""
+    notes = dict(notes or {})
+    unknown = set(notes) - {spec.name for spec in specs}
+    if unknown:
+        raise ValueError(f"notes for unknown parameters: {sorted(unknown)}")
     for spec in specs:
         prefix, _, leaf = spec.name.rpartition(".")
+        if spec.name in notes:
+            indent = "      " if prefix and prefix == group else "    "
+            if not out[-1].endswith("ros__parameters:"):
+                out.append("")
+            out += textwrap.wrap(notes[spec.name], 96 - len(indent),
+                                 initial_indent=f"{indent}# ", subsequent_indent=f"{indent}# ")
         if "." in prefix:
             raise ValueError(f"parameter {spec.name!r}: only one level of nesting is written")
         if prefix != group:
@@ -354,12 +383,7 @@ def parameter_yaml(node_name: str, specs: Sequence[ParamSpec], header: str = "")
                 seen.add(prefix)
             group = prefix
         indent = "      " if prefix else "    "
-        note = spec.description
-        if spec.bounds is not None:
-            note += f" Range [{spec.bounds[0]:g}, {spec.bounds[1]:g}]."
-        if spec.read_only:
-            note += " Read-only."
-        out += textwrap.wrap(note, 96 - len(indent), initial_indent=f"{indent}# ",
+        out += textwrap.wrap(spec_note(spec), 96 - len(indent), initial_indent=f"{indent}# ",
                              subsequent_indent=f"{indent}# ")
         if spec.default is None:
             out.append(f"{indent}# {leaf}: (no default)")

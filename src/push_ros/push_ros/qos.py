@@ -1,4 +1,4 @@
-"""The QoS profiles of the README topic table, defined once and used on both ends.
+"""The QoS profiles of the topic table (docs/INTERFACES.md), defined once and used on both ends.
 
 - :data:`SENSOR_QOS` ("sensor"): ``qos_profile_sensor_data``, best effort, volatile, depth 5:
   camera images (a lost frame is replaced by the next one);

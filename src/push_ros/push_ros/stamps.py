@@ -17,7 +17,9 @@ The clock rule, also stated once (:func:`clock_seconds`, :func:`check_not_ahead`
 clock is *not valid* while it is a sim-time clock that has not received ``/clock`` yet (it reads
 0); an input stamped more than ``max_ahead`` seconds ahead of a valid clock is refused, and no
 future check is made while the clock is not valid (the simulator publishes ``/clock`` before any
-frame, so nothing valid is lost). Whether a stamp may precede the episode is the node's rule.
+frame, so nothing valid is lost). Whether a stamp may precede the episode is the node's rule;
+the boundary an explicit ``~/reset`` draws is :func:`episode_boundary`'s (which inputs fall
+before it: :func:`push_core.episode.precedes_episode`).
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ from typing import Any
 from builtin_interfaces.msg import Time
 
 __all__ = ["MAX_SECONDS", "MAX_STAMP_SECONDS", "check_not_ahead", "clock_seconds",
-           "seconds_from_stamp", "stamp_from_seconds"]
+           "episode_boundary", "seconds_from_stamp", "stamp_from_seconds"]
 
 _NS = 1_000_000_000
 #: Exclusive upper bound of the int32 ``sec`` field, s.
@@ -89,6 +91,27 @@ def clock_seconds(clock: Any) -> float | None:
     if getattr(clock, "ros_time_is_active", False) and ns <= 0:
         return None
     return ns * 1e-9
+
+
+def episode_boundary(newest_input: float, clock: Any) -> float:
+    """The time (s) at or before which inputs belong to the episode a ``~/reset`` ends.
+
+    The newest input stamp seen before the reset, or the node's clock if that is a started
+    sim-time clock and later: a frame stamped before the reset was taken of the scene before
+    it (a camera streams, so the next frame comes soon). A node on wall time compares only
+    stamps (its clock and the simulator's stamps are different time lines).
+
+    Parameters
+    ----------
+    newest_input : float
+        s (``-inf``: none seen).
+    clock : rclpy.clock.Clock
+    """
+    if getattr(clock, "ros_time_is_active", False):
+        now = clock_seconds(clock)
+        if now is not None:
+            return max(float(newest_input), now)
+    return float(newest_input)
 
 
 def check_not_ahead(stamp: float, now: float | None, max_ahead: float, what: str = "stamp"

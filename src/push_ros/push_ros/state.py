@@ -1,6 +1,6 @@
 """The ``estimator/state`` std_msgs/Float64MultiArray: its one writer and its checked reader.
 
-Layout (also in the README topic table): two blocks concatenated, not a 2-D array.
+Layout (also in the topic table, docs/INTERFACES.md): two blocks concatenated, not a 2-D array.
 ``layout.dim[0]``: label ``state``, size 7, stride 7 = ``x, y, theta, c_x, c_y, l, m``
 (:data:`push_core.estimator.STATE_LABELS`: pose in ``world`` in m and rad, ``theta``
 continuous, not wrapped; COM in ``object``, m; limit-surface parameter ``l``, m; pusher-object

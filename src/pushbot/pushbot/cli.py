@@ -12,13 +12,16 @@ Subcommands:
 - ``data <target>``, ``train <target>``, ``eval <target>``: data generation, training and
   evaluation of the learned and estimated parts (targets in :data:`TARGETS`).
 
-Every subcommand runs with the project's Fast DDS profile (``pushbot.dds``) unless
+Every subcommand runs with the project's Fast DDS profile (``push_ros.dds``) unless
 ``FASTRTPS_DEFAULT_PROFILES_FILE`` is already set.
 
-Heavy imports (rclpy, torch) happen inside the subcommands, so ``pushbot --help`` always works
-and missing dependencies are reported by ``pushbot doctor`` instead of a traceback. Help texts
-come from the modules' docstrings through :func:`plain_help` (reStructuredText markup
-removed); every option's default is shown (:class:`HelpFormatter`). A closed output pipe
+Commands are loaded on demand: :data:`COMMANDS` and :data:`TARGETS` name each command's module
+and hold its one-line help, and :func:`main` imports only the module of the command it runs
+(also for that command's ``--help``), so ``pushbot --help`` imports no command module; heavy
+imports (rclpy, torch) happen inside the commands, so ``pushbot --help`` always works and missing
+dependencies are reported by ``pushbot doctor`` instead of a traceback. Help texts come from the
+modules' docstrings through :func:`plain_help` (reStructuredText markup removed); every
+option's default is shown (:class:`HelpFormatter`). A closed output pipe
 (``pushbot topic echo X | head -3``) ends the command quietly with status 141, handled once
 here.
 
@@ -39,23 +42,7 @@ import re
 import signal
 import sys
 import typing
-from collections.abc import Sequence
-
-from pushbot import (
-    bag,
-    dds,
-    demo,
-    doctor,
-    goal,
-    nodes,
-    param,
-    replay,
-    rosnode,
-    service,
-    topic,
-    up,
-    view,
-)
+from collections.abc import Collection, Sequence
 
 #: Exit status after a closed output pipe: 128 + SIGPIPE, what a shell reports for a command
 #: killed by it.
@@ -76,17 +63,17 @@ class HelpFormatter(argparse.RawDescriptionHelpFormatter):
     """
 
     def _get_help_string(self, action: argparse.Action) -> str:
-        text = action.help or ''
+        text = action.help or ""
         default = action.default
-        if ('default' in text.lower() or default is None or action.nargs == 0
+        if ("default" in text.lower() or default is None or action.nargs == 0
                 or default is argparse.SUPPRESS or action.required
-                or (not action.option_strings and action.nargs not in ('?', '*'))):
+                or (not action.option_strings and action.nargs not in ("?", "*"))):
             return text
         if isinstance(default, (list, tuple)):
-            shown = ' '.join(str(d) for d in default)
-            shown = shown.replace('%', '%%')
-            return f'{text} (default: {shown})' if text else f'default: {shown}'
-        return f'{text} (default: %(default)s)' if text else 'default: %(default)s'
+            shown = " ".join(str(d) for d in default)
+            shown = shown.replace("%", "%%")
+            return f"{text} (default: {shown})" if text else f"default: {shown}"
+        return f"{text} (default: %(default)s)" if text else "default: %(default)s"
 
 
 class Parser(argparse.ArgumentParser):
@@ -95,62 +82,92 @@ class Parser(argparse.ArgumentParser):
     --help)``) with exit status 2 instead of argparse's usage block."""
 
     def __init__(self, *args: object, **kwargs: object) -> None:
-        kwargs.setdefault('formatter_class', HelpFormatter)
+        kwargs.setdefault("formatter_class", HelpFormatter)
         super().__init__(*args, **kwargs)  # type: ignore[arg-type]
 
     def error(self, message: str) -> typing.NoReturn:  # noqa: D102 - argparse's contract
-        self.exit(EXIT_BAD_INPUT, f'{self.prog}: error: {message} (see {self.prog} --help)\n')
+        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
 def _version() -> str:
     try:
-        return importlib.metadata.version('pushbot')
+        return importlib.metadata.version("pushbot")
     except importlib.metadata.PackageNotFoundError:
-        return 'unknown'
+        return "unknown"
 
 
-#: Subcommand groups whose targets live in :mod:`pushbot.experiments` (and
-#: :mod:`pushbot.evaluate`), not in the node packages: group -> (summary, {target:
-#: (module, summary)}). Each module defines ``add_arguments(parser)`` and ``run(args) -> int``
-#: and keeps heavy imports (torch, pybullet, rclpy) inside ``run``, so ``pushbot --help`` stays
-#: fast and works even when those are broken.
+#: The commands: name -> (module, handler, one-line help, extra ``add_parser`` arguments), in
+#: the order ``pushbot --help`` lists them. Each module defines ``add_arguments(parser)`` and
+#: the handler ``(args) -> int``; it is imported only when its command runs (:func:`main`).
+COMMANDS: dict[str, tuple[str, str, str, dict[str, str]]] = {
+    "doctor": ("pushbot.runner.doctor", "run_doctor",
+               "check the install: versions, RMW, DDS settings, pub/sub round trip", {}),
+    "run": ("pushbot.runner.run", "run_node",
+            "start a node like `ros2 run` (arguments, --ros-args included, pass through)",
+            {"usage": "pushbot run [-h] [--list] [<pkg>] <node> [args ...]"}),
+    "up": ("pushbot.runner.up", "run_up",
+           "start the whole graph as separate processes until Ctrl-C (like `ros2 launch`)", {}),
+    "topic": ("pushbot.ros2cli.topic", "run_topic",
+              "inspect and publish topics: list, echo, hz, info, pub (like `ros2 topic`)", {}),
+    "node": ("pushbot.ros2cli.node", "run_rosnode",
+             "list the nodes, show their endpoints (like `ros2 node`)", {}),
+    "param": ("pushbot.ros2cli.param", "run_param",
+              "list, get, set and dump a node's parameters (like `ros2 param`)", {}),
+    "service": ("pushbot.ros2cli.service", "run_service",
+                "list and call services (like `ros2 service`)", {}),
+    "goal": ("pushbot.runner.goal", "run_goal",
+             "send a goal pose to planner_node; --wait follows it to the end", {}),
+    "bag": ("pushbot.ros2cli.bag", "run_bag",
+            "record, inspect and play rosbag2 (MCAP) folders (like `ros2 bag`)", {}),
+    "replay": ("pushbot.experiments.replay", "run_replay",
+               "render a recorded episode bag to an MP4 (and GIF) with overlays and a legend", {}),
+    "view": ("pushbot.viz.view", "run_view",
+             "serve the live topics to Foxglove over its WebSocket protocol", {}),
+    "demo": ("pushbot.runner.demo", "run_demo",
+             "what `make demo` runs: doctor, then one pushing episode through the ROS graph", {}),
+}
+
+#: Subcommand groups whose targets live in :mod:`pushbot.experiments`, not in the node
+#: packages: group -> (summary, {target: (module, summary)}). Each module defines
+#: ``add_arguments(parser)`` and ``run(args) -> int``, is imported only when its target runs,
+#: and keeps heavy imports (torch, pybullet, rclpy) inside ``run``.
 TARGETS: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
-    'data': ('generate training data sets', {
-        'perception': ('pushbot.experiments.perception_data',
-                       'render RGB-D frames with masks, poses and outlines (segmentation CNN)'),
-        'affordances': ('pushbot.experiments.affordance_data',
-                        'pybullet pushes: 20 contact points x 10 representative pushes per '
-                        'object sample (learned affordances)'),
+    "data": ("generate training data sets", {
+        "perception": ("pushbot.experiments.perception_data",
+                       "render RGB-D frames with masks, poses and outlines (segmentation CNN)"),
+        "affordances": ("pushbot.experiments.affordance_data",
+                        "pybullet pushes: 20 contact points x 10 representative pushes per "
+                        "object sample (learned affordances)"),
     }),
-    'train': ('train learned models', {
-        'segmentation': ('pushbot.experiments.perception_training',
-                         'train the two-stage segmentation CNN on `pushbot data perception` data'),
-        'affordances': ('pushbot.experiments.affordance_training',
-                        'train the learned affordance CNN on `pushbot data affordances` data'),
+    "train": ("train learned models", {
+        "segmentation": ("pushbot.experiments.perception_training",
+                         "train the two-stage segmentation CNN on `pushbot data perception` data"),
+        "affordances": ("pushbot.experiments.affordance_training",
+                        "train the learned affordance CNN on `pushbot data affordances` data"),
     }),
-    'eval': ('evaluate components on held-out objects', {
-        'perception': ('pushbot.experiments.perception_evaluation',
-                       'mask IoU, pose, orientation, outline accuracy and latency (tri1, butter, '
-                       'hex)'),
-        'estimator': ('pushbot.experiments.estimator_evaluation',
-                      'COM, l and m estimation and NEES/NIS of the EKF on pybullet (butter, '
-                      'tri1, hex)'),
-        'push': ('pushbot.evaluate',
-                 'the closed-loop experiments of SPEC section 5 in-process (success, steps, end '
-                 'error; Figs. 5.5-5.7, Tables 5.1-5.2; --ray, --graph)'),
-        'pusht': ('pushbot.experiments.pusht', 'the planner on gym-pusht Push-T (issue 16)'),
+    "eval": ("evaluate components on held-out objects", {
+        "perception": ("pushbot.experiments.perception_evaluation",
+                       "mask IoU, pose, orientation, outline accuracy and latency (tri1, butter, "
+                       "hex)"),
+        "estimator": ("pushbot.experiments.estimator_evaluation",
+                      "COM, l and m estimation and NEES/NIS of the EKF on pybullet (butter, "
+                      "tri1, hex)"),
+        "push": ("pushbot.experiments.evaluate",
+                 "the closed-loop experiments of the source in-process (success, steps, end "
+                 "error; Figs. 5.5-5.7, Tables 5.1-5.2; --ray, --graph)"),
+        "pusht": ("pushbot.experiments.pusht", "the planner on gym-pusht Push-T (issue 16)"),
     }),
 }
 
 
-_ROLE = re.compile(r':[a-z]+:`~?([^`<]*?)(?:\s*<[^>]*>)?`')
-_LITERAL = re.compile(r'``([^`]+)``')
+_ROLE = re.compile(r":[a-z]+:`~?([^`<]*?)(?:\s*<[^>]*>)?`")
+_LITERAL = re.compile(r"``([^`]+)``")
 
 
 def plain_help(docstring: str | None) -> str | None:
     """A module docstring as plain help text: reStructuredText roles and literals unmarked.
 
-    ``:mod:`pushbot.dds``` -> ``pushbot.dds``, ``:func:`~a.b``` -> ``b``, double backquotes
+    ``:mod:`push_ros.dds``` -> ``push_ros.dds``, ``:func:`~a.b``` -> ``b``, double backquotes
     removed; everything else (paragraphs, lists, indentation) is kept for
     ``RawDescriptionHelpFormatter``.
     """
@@ -159,91 +176,101 @@ def plain_help(docstring: str | None) -> str | None:
 
     def role(match: re.Match[str]) -> str:
         text = match.group(1)
-        return text.rsplit('.', 1)[-1] if match.group(0).split('`')[1].startswith('~') else text
+        return text.rsplit(".", 1)[-1] if match.group(0).split("`")[1].startswith("~") else text
 
-    return _LITERAL.sub(r'\1', _ROLE.sub(role, docstring)).strip()
+    return _LITERAL.sub(r"\1", _ROLE.sub(role, docstring)).strip()
 
 
 def _group_doctor_options(parser: argparse.ArgumentParser) -> None:
-    """Show the doctor's options (added first by ``pushbot.demo``) after the demo's own, in a
-    group of their own; parsing is unchanged."""
+    """Show the doctor's options (added first by ``pushbot.runner.demo``) after the demo's own,
+    in a group of their own; parsing is unchanged."""
     probe = argparse.ArgumentParser(add_help=False)
-    doctor.add_arguments(probe)
+    importlib.import_module(COMMANDS["doctor"][0]).add_arguments(probe)
     doctor_dests = {action.dest for action in probe._actions}
-    group = parser.add_argument_group('doctor options (the check before the episode)')
+    group = parser.add_argument_group("doctor options (the check before the episode)")
     optionals = parser._optionals._group_actions
-    for action in [a for a in optionals if a.dest in doctor_dests and a.dest != 'help']:
+    for action in [a for a in optionals if a.dest in doctor_dests and a.dest != "help"]:
         optionals.remove(action)
         group._group_actions.append(action)
         parser._actions.remove(action)  # the usage line lists them last too
         parser._actions.append(action)
 
 
-def _add_targets(sub: argparse._SubParsersAction) -> None:
+def _load(parser: argparse.ArgumentParser, module_name: str, handler: str) -> None:
+    """Import a command's module and give ``parser`` its description, arguments and handler."""
+    module = importlib.import_module(module_name)
+    parser.description = plain_help(module.__doc__)
+    module.add_arguments(parser)
+    parser.set_defaults(handler=getattr(module, handler))
+
+
+def _add_targets(sub: argparse._SubParsersAction, load: Collection[str] | None) -> None:
     for group, (summary, targets) in TARGETS.items():
         parser = sub.add_parser(group, help=summary, description=summary)
-        group_sub = parser.add_subparsers(dest='target', metavar='<target>')
+        group_sub = parser.add_subparsers(dest="target", metavar="<target>")
         group_sub.required = True
         for target, (module_name, help_text) in targets.items():
-            module = importlib.import_module(module_name)
-            p = group_sub.add_parser(target, help=help_text,
-                                     description=plain_help(module.__doc__))
-            module.add_arguments(p)
-            p.set_defaults(handler=module.run)
+            p = group_sub.add_parser(target, help=help_text)
+            if load is None or f"{group} {target}" in load:
+                _load(p, module_name, "run")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The full argument parser with every subcommand."""
+def selected_commands(argv: Sequence[str]) -> set[str]:
+    """The command a command line names, as :func:`build_parser` takes it.
+
+    The first argument that is not an option is the command (``pushbot`` itself takes only
+    ``-h`` and ``--version``); for a group (``data``, ``train``, ``eval``) the next such argument
+    is its target, named ``'<group> <target>'``. Empty when there is none (``pushbot --help``).
+    """
+    words = [a for a in argv if not a.startswith("-")]
+    if not words:
+        return set()
+    if words[0] in TARGETS and len(words) > 1:
+        return {words[0], f"{words[0]} {words[1]}"}
+    return {words[0]}
+
+
+def build_parser(load: Collection[str] | None = None) -> argparse.ArgumentParser:
+    """The argument parser of every command.
+
+    Parameters
+    ----------
+    load : collection of str, optional
+        The commands whose modules are imported for their arguments and handler (names as
+        :func:`selected_commands` returns them); the others get a parser with their one-line
+        help only. ``None`` (default): every command, as the CLI reference and the tests read
+        them.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The ``pushbot`` parser; a loaded command's parser sets ``handler`` in the namespace.
+    """
     parser = Parser(
-        prog='pushbot',
-        description='Vision-based planar pushing on ROS 2 Jazzy: tools for the pip install.',
+        prog="pushbot",
+        description="Vision-based planar pushing on ROS 2 Jazzy: tools for the pip install.",
     )
-    parser.add_argument('--version', action='version', version=f'pushbot {_version()}')
-    sub = parser.add_subparsers(dest='command', metavar='<command>')
+    parser.add_argument("--version", action="version", version=f"pushbot {_version()}")
+    sub = parser.add_subparsers(dest="command", metavar="<command>")
     sub.required = True
 
-    for name, module, handler, summary, extra in (
-        ('doctor', doctor, doctor.run_doctor,
-         'check the install: versions, RMW, DDS settings, pub/sub round trip', {}),
-        ('run', nodes, nodes.run_node,
-         'start a node like `ros2 run` (arguments, --ros-args included, pass through)',
-         {'usage': 'pushbot run [-h] [--list] [<pkg>] <node> [args ...]'}),
-        ('up', up, up.run_up,
-         'start the whole graph as separate processes until Ctrl-C (like `ros2 launch`)', {}),
-        ('topic', topic, topic.run_topic,
-         'inspect and publish topics: list, echo, hz, info, pub (like `ros2 topic`)', {}),
-        ('node', rosnode, rosnode.run_rosnode,
-         'list the nodes, show their endpoints (like `ros2 node`)', {}),
-        ('param', param, param.run_param,
-         "list, get, set and dump a node's parameters (like `ros2 param`)", {}),
-        ('service', service, service.run_service,
-         'list and call services (like `ros2 service`)', {}),
-        ('goal', goal, goal.run_goal,
-         'send a goal pose to planner_node; --wait follows it to the end', {}),
-        ('bag', bag, bag.run_bag,
-         'record, inspect and play rosbag2 (MCAP) folders (like `ros2 bag`)', {}),
-        ('replay', replay, replay.run_replay,
-         'render a recorded episode bag to an MP4 (and GIF) with overlays and a legend', {}),
-        ('view', view, view.run_view,
-         'serve the live topics to Foxglove over its WebSocket protocol', {}),
-        ('demo', demo, demo.run_demo,
-         'what `make demo` runs: doctor, then one pushing episode through the ROS graph',
-         {}),
-    ):
-        p = sub.add_parser(name, help=summary, description=plain_help(module.__doc__), **extra)
-        module.add_arguments(p)
-        p.set_defaults(handler=handler)
-        if name == 'demo':
-            _group_doctor_options(p)
-    _add_targets(sub)
+    for name, (module_name, handler, summary, extra) in COMMANDS.items():
+        p = sub.add_parser(name, help=summary, **extra)
+        if load is None or name in load:
+            _load(p, module_name, handler)
+            if name == "demo":
+                _group_doctor_options(p)
+    _add_targets(sub, load)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse ``argv`` (default: ``sys.argv[1:]``) and run the subcommand; returns the exit code."""
-    args = build_parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = build_parser(selected_commands(argv)).parse_args(argv)
+    from push_ros import dds  # after parsing: --help and --version need neither numpy nor ROS
     # Every process pushbot starts (nodes, doctor probes, topic tools) uses the project's DDS
-    # profile unless the user configured one (see pushbot.dds).
+    # profile unless the user configured one (see push_ros.dds).
     dds.apply_default_profile()
     # A shell starts background jobs (`cmd &` in a script) with SIGINT ignored, and Python then
     # installs no Ctrl-C handler: take SIGINT explicitly, once for every subcommand, so that
@@ -257,26 +284,26 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:
         return _closed_pipe()
     except KeyboardInterrupt:
-        print('interrupted', file=sys.stderr)
+        print("interrupted", file=sys.stderr)
         return 130
     except BAD_INPUT_ERRORS as exc:
-        if os.environ.get('PUSHBOT_TRACEBACK'):
+        if os.environ.get("PUSHBOT_TRACEBACK"):
             raise
         return _bad_input(args, exc)
     except Exception as exc:
         # rclpy's SIGINT handler shuts the context down; spinning then raises this.
-        if type(exc).__name__ != 'ExternalShutdownException':
+        if type(exc).__name__ != "ExternalShutdownException":
             raise
-        print('interrupted', file=sys.stderr)
+        print("interrupted", file=sys.stderr)
         return 130
 
 
 def _bad_input(args: argparse.Namespace, exc: BaseException) -> int:
     """One line on stderr naming the command and the reason; the exit status of bad input."""
-    command = ' '.join(str(part) for part in (args.command, getattr(args, 'target', None))
+    command = " ".join(str(part) for part in (args.command, getattr(args, "target", None))
                        if part)
-    reason = ' '.join(str(exc).split()) or type(exc).__name__
-    print(f'pushbot {command}: {reason}', file=sys.stderr)
+    reason = " ".join(str(exc).split()) or type(exc).__name__
+    print(f"pushbot {command}: {reason}", file=sys.stderr)
     return EXIT_BAD_INPUT
 
 
@@ -292,5 +319,5 @@ def _closed_pipe() -> int:
     return EXIT_BROKEN_PIPE
 
 
-if __name__ == '__main__':
+if __name__ == "__main__":
     sys.exit(main())

@@ -17,8 +17,8 @@ import sys
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
-BEGIN = '<!-- BEGIN cli-reference -->'
-END = '<!-- END cli-reference -->'
+BEGIN = "<!-- BEGIN cli-reference -->"
+END = "<!-- END cli-reference -->"
 
 
 def _leaf_parsers(parser: argparse.ArgumentParser, path: tuple[str, ...]
@@ -35,19 +35,19 @@ def _leaf_parsers(parser: argparse.ArgumentParser, path: tuple[str, ...]
 
 def _help(parser: argparse.ArgumentParser, action: argparse.Action) -> str:
     formatter = parser._get_formatter()
-    text = formatter._expand_help(action) if action.help else ''
-    return re.sub(r'\s+', ' ', text).strip()
+    text = formatter._expand_help(action) if action.help else ""
+    return re.sub(r"\s+", " ", text).strip()
 
 
 def _signature(action: argparse.Action, parser: argparse.ArgumentParser) -> str:
     formatter = parser._get_formatter()
     if not action.option_strings:
         return formatter._get_default_metavar_for_positional(action) if action.metavar is None \
-            else (action.metavar if isinstance(action.metavar, str) else ' '.join(action.metavar))
+            else (action.metavar if isinstance(action.metavar, str) else " ".join(action.metavar))
     if action.nargs == 0:
-        return ', '.join(action.option_strings)
+        return ", ".join(action.option_strings)
     args = formatter._format_args(action, formatter._get_default_metavar_for_optional(action))
-    return ', '.join(f'{o} {args}' for o in action.option_strings)
+    return ", ".join(f"{o} {args}" for o in action.option_strings)
 
 
 def reference_markdown() -> str:
@@ -63,7 +63,7 @@ def reference_markdown() -> str:
     from pushbot.cli import build_parser
 
     lines: list[str] = []
-    for path, parser in _leaf_parsers(build_parser(), ('pushbot',)):
+    for path, parser in _leaf_parsers(build_parser(), ("pushbot",)):
         actions = [a for a in parser._actions
                    if not isinstance(a, (argparse._HelpAction, argparse._SubParsersAction,
                                          argparse._VersionAction))]
@@ -72,14 +72,14 @@ def reference_markdown() -> str:
         lines.append(f'- `{" ".join(path)}`')
         for action in actions:
             help_text = _help(parser, action)
-            entry = f'  - `{_signature(action, parser)}`'
-            lines.append(f'{entry}: {help_text}' if help_text else entry)
-    return '\n'.join(lines) + '\n'
+            entry = f"  - `{_signature(action, parser)}`"
+            lines.append(f"{entry}: {help_text}" if help_text else entry)
+    return "\n".join(lines) + "\n"
 
 
 def readme_section(text: str) -> str | None:
     """The text between the markers in ``text`` (None without them)."""
-    match = re.search(re.escape(BEGIN) + r'\n(.*?)' + re.escape(END), text, flags=re.S)
+    match = re.search(re.escape(BEGIN) + r"\n(.*?)" + re.escape(END), text, flags=re.S)
     return match.group(1) if match else None
 
 
@@ -87,18 +87,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Rewrite the reference section of docs/CLI.md given as the only argument."""
     args = list(sys.argv[1:] if argv is None else argv)
     if len(args) != 1:
-        print('usage: python -m pushbot.cli_reference docs/CLI.md', file=sys.stderr)
+        print("usage: python -m pushbot.cli_reference docs/CLI.md", file=sys.stderr)
         return 2
     path = Path(args[0])
-    text = path.read_text(encoding='utf-8')
+    text = path.read_text(encoding="utf-8")
     if readme_section(text) is None:
-        print(f'{path}: no {BEGIN} ... {END} section', file=sys.stderr)
+        print(f"{path}: no {BEGIN} ... {END} section", file=sys.stderr)
         return 2
-    new = re.sub(re.escape(BEGIN) + r'\n.*?' + re.escape(END),
-                 lambda _: f'{BEGIN}\n{reference_markdown()}{END}', text, flags=re.S)
-    path.write_text(new, encoding='utf-8')
+    new = re.sub(re.escape(BEGIN) + r"\n.*?" + re.escape(END),
+                 lambda _: f"{BEGIN}\n{reference_markdown()}{END}", text, flags=re.S)
+    path.write_text(new, encoding="utf-8")
     return 0
 
 
-if __name__ == '__main__':
+if __name__ == "__main__":
     sys.exit(main())

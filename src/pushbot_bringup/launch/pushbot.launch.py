@@ -53,23 +53,23 @@ from launch_ros.actions import Node
 try:
     from pushbot_bringup.graph import dds_environment, graph_nodes, parse_bool
 except ImportError:  # started from the source tree without a build: the package is next door
-    sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), '..'))
+    sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
     from pushbot_bringup.graph import dds_environment, graph_nodes, parse_bool
 
 #: Installed: share/pushbot_bringup/config; source tree: src/pushbot_bringup/config.
 DEFAULT_CONFIG_DIR = os.path.normpath(
-    os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', 'config'))
+    os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "config"))
 
 
 def _nodes(context: LaunchContext, *args: object, **kwargs: object) -> list[Node]:
     """The Node actions of :func:`graph_nodes`, once the launch arguments are known."""
-    sim = parse_bool('sim', LaunchConfiguration('sim').perform(context))
+    sim = parse_bool("sim", LaunchConfiguration("sim").perform(context))
     nodes = graph_nodes(
         sim,
-        object_name=LaunchConfiguration('object').perform(context),
-        config_dir=LaunchConfiguration('config_dir').perform(context) or None,
+        object_name=LaunchConfiguration("object").perform(context),
+        config_dir=LaunchConfiguration("config_dir").perform(context) or None,
         default_config_dir=DEFAULT_CONFIG_DIR,
-        robot=LaunchConfiguration('robot').perform(context),
+        robot=LaunchConfiguration("robot").perform(context),
     )
     env = dds_environment()
     return [
@@ -77,7 +77,7 @@ def _nodes(context: LaunchContext, *args: object, **kwargs: object) -> list[Node
             package=node.package,
             executable=node.executable,
             name=node.name,
-            output='screen',
+            output="screen",
             emulate_tty=True,
             parameters=list(node.parameters),
             remappings=list(node.remappings),
@@ -91,21 +91,21 @@ def generate_launch_description() -> LaunchDescription:
     """The pushbot graph: [sim_bridge,] perception, estimator, planner [, push executor]."""
     return LaunchDescription([
         DeclareLaunchArgument(
-            'sim', default_value='true',
-            description='true: start sim_bridge_node and use its /clock; false: a real robot '
-                        '(no simulator, wall time, RealSense topics)'),
+            "sim", default_value="true",
+            description="true: start sim_bridge_node and use its /clock; false: a real robot "
+                        "(no simulator, wall time, RealSense topics)"),
         DeclareLaunchArgument(
-            'object', default_value='',
-            description='object library name or spec file for the simulator (sim:=true); '
-                        'empty = the one in sim_bridge.yaml'),
+            "object", default_value="",
+            description="object library name or spec file for the simulator (sim:=true); "
+                        "empty = the one in sim_bridge.yaml"),
         DeclareLaunchArgument(
-            'robot', default_value='',
-            description='pusher (the simulated finger) or arm (push_executor_node and a '
-                        'ros2_control arm; simulated with sim:=true); empty = pusher with '
-                        'sim:=true, arm with sim:=false'),
+            "robot", default_value="",
+            description="pusher (the simulated finger) or arm (push_executor_node and a "
+                        "ros2_control arm; simulated with sim:=true); empty = pusher with "
+                        "sim:=true, arm with sim:=false"),
         DeclareLaunchArgument(
-            'config_dir', default_value=DEFAULT_CONFIG_DIR,
-            description='directory holding <package>.yaml parameter files that replace the '
-                        'bundled ones'),
+            "config_dir", default_value=DEFAULT_CONFIG_DIR,
+            description="directory holding <package>.yaml parameter files that replace the "
+                        "bundled ones"),
         OpaqueFunction(function=_nodes),
     ])

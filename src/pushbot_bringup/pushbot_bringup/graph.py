@@ -41,6 +41,7 @@ from pathlib import Path
 
 __all__ = [
     "CLOCK_SOURCE",
+    "unused_parameter_files",
     "DEFAULT_CONFIG_DIR",
     "EXECUTOR",
     "PIPELINE",
@@ -134,6 +135,17 @@ def parameter_file(package: str, config_dir: str | os.PathLike[str] | None,
             if candidate.is_file():
                 return os.path.normpath(candidate)
     return None
+
+
+def unused_parameter_files(config_dir: str | os.PathLike[str],
+                           launches: list[NodeLaunch]) -> list[str]:
+    """The YAML files of ``config_dir`` that no node of ``launches`` reads (a parameter file
+    is read only as ``<package>.yaml``), sorted by name: a user's ``my_planner.yaml`` there is
+    otherwise ignored without a word."""
+    packages = {launch.package for launch in launches}
+    return sorted(f.name for f in Path(config_dir).iterdir()
+                  if f.suffix in (".yaml", ".yml") and f.is_file()
+                  and not (f.suffix == ".yaml" and f.stem in packages))
 
 
 def graph_nodes(sim: bool, object_name: str = "", config_dir: str | None = None,

@@ -5,7 +5,8 @@ Endpoints (only with ``robot: arm``; docs/ARCHITECTURE.md, "Arm mode of the simu
 - ``/joint_states`` (sensor_msgs/JointState; reliable, depth 10): the 7 Panda joints
   (positions rad, velocities rad/s, efforts N m), stamp = sim time. At ``arm.joint_state_rate``
   Hz of sim time while a trajectory runs (from the physics thread), and at
-  ``IDLE_JOINT_STATE_RATE`` Hz of wall time while idle (same stamp: sim time stands still).
+  ``IDLE_JOINT_STATE_RATE`` Hz of wall time while idle (at the current time: it runs while the
+  world rests).
 - ``/robot_description`` (std_msgs/String; reliable, transient local): the URDF the arm was
   loaded from (Panda + pusher rod, absolute mesh paths).
 - ``sim/tool_tip`` (nav_msgs/Path; reliable): ground truth for benchmarks, after every run of
@@ -182,9 +183,11 @@ class ArmEndpoints:
         self.pub_joint_states.publish(msg)
 
     def _on_idle_timer(self) -> None:
+        """The resting arm's state again, at the current time (the clock runs while the world
+        rests)."""
         last = self._last
         if last is not None and not self.follower.running:
-            self.publish_state(*last)
+            self.publish_state(max(last[0], self._timeline.last), last[1])
 
     def publish_description(self, urdf: str) -> None:
         """Latch the URDF on ``/robot_description``."""

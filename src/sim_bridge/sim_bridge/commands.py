@@ -8,11 +8,21 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["MAX_KNOCK_SHIFT", "check_knock", "knocked_pose", "push_report", "scene_summary",
-           "unused_com_warning"]
+__all__ = ["COUNTERS", "MAX_KNOCK_SHIFT", "PUSH_COUNTER", "check_knock", "knocked_pose",
+           "push_report", "scene_summary", "startup_warnings", "unused_com_warning"]
 
 #: Largest displacement of the object one ``sim/knock`` may ask for, m.
 MAX_KNOCK_SHIFT = 0.1
+
+
+#: The node's own event counters (refusals are also ``refused`` / ``refused_<kind>``).
+COUNTERS = ("pushes_executed", "pushes_rejected_busy", "pushes_rejected_invalid",
+            "pushes_failed", "pushes_refused_fault", "pushes_ignored_arm_mode", "resets",
+            "knocks", "knocks_rejected", "frames_dropped", "frames_delayed", "frames_reordered",
+            "trajectories_accepted", "trajectories_rejected", "trajectory_runs",
+            "trajectory_runs_failed", "resets_refused")
+#: A refused push's counter by its refusal kind (the world's refusals carry their own kind).
+PUSH_COUNTER = {"busy": "pushes_rejected_busy", "fault": "pushes_refused_fault"}
 
 
 def check_knock(delta: Any) -> np.ndarray:
@@ -49,8 +59,8 @@ def knocked_pose(pose: Any, delta: np.ndarray,
     return after
 
 
-def scene_summary(spec: Any, pose: Any, width: int, height: int) -> str:
-    """The one line ``~/reset`` answers with (``pushbot`` reads the COM from it).
+def scene_summary(spec: Any, pose: Any, width: int, height: int, time: float) -> str:
+    """The one line ``~/reset`` answers with (``pushbot`` reads the COM and time from it).
 
     Parameters
     ----------
@@ -60,11 +70,13 @@ def scene_summary(spec: Any, pose: Any, width: int, height: int) -> str:
         Its pose in world (x, y m, yaw rad).
     width, height : int
         Camera image size, px.
+    time : float
+        Stamp of the new scene's first frame, s (frames before it show the old scene).
     """
     return (f"built {spec.name!r} (mass {spec.mass:.4g} kg, COM ({spec.com[0]:.4f}, "
             f"{spec.com[1]:.4f}) m, friction table {spec.friction_table:.3g}, pusher "
             f"{spec.friction_pusher:.3g}) at pose {np.round(pose, 4) + 0.0} (world, m/rad); "
-            f"camera {width}x{height}")
+            f"camera {width}x{height}; first frame at {time:.9f} s")
 
 
 def push_report(seq: int, result: Any, t_start: float, t_end: float) -> str:
@@ -82,3 +94,13 @@ def unused_com_warning(values: dict[str, Any]) -> str:
         return ""
     return (f"com_offset {com} is not used: use_com_offset is false (the object spec's COM "
             "is built)")
+
+
+def startup_warnings(values: dict[str, Any], use_sim_time: bool) -> str:
+    """What the node warns about at start: an unused ``com_offset``
+    (:func:`unused_com_warning`) and ``use_sim_time`` set on the node that owns ``/clock``."""
+    notes = [unused_com_warning(values)]
+    if use_sim_time:
+        notes.append("use_sim_time is true, but the sim bridge is the /clock source; its "
+                     "timers run on the steady clock")
+    return "; ".join(n for n in notes if n)

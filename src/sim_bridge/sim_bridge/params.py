@@ -1,8 +1,8 @@
 """The parameters of ``sim_bridge_node``: declarations, the typed set and its checks.
 
 ROS-free apart from the :class:`push_ros.node.ParamSpec` table (declared by the node with
-:func:`push_ros.node.declare_config`). Documented with defaults and units in
-``pushbot_bringup/config/sim_bridge.yaml`` and the node's module docstring.
+:func:`push_ros.node.declare_config`); docs/INTERFACES.md and
+``pushbot_bringup/config/sim_bridge.yaml`` are generated from it (:mod:`push_ros.interfaces`).
 """
 
 from __future__ import annotations
@@ -22,7 +22,8 @@ from sim_bridge.arm_robot import DEFAULT_BASE_POSE, DEFAULT_PARK
 from sim_bridge.faults import FaultConfig
 from sim_bridge.world import CameraConfig, MonitorConfig, WorldConfig
 
-__all__ = ["PARAMETERS", "FaultConfig", "SimBridgeParams", "check_object_parameter"]
+__all__ = ["NODE_NAME", "PARAMETERS", "YAML_EXTRA", "YAML_HEADER", "YAML_NOTES", "FaultConfig",
+           "SimBridgeParams", "check_object_parameter"]
 
 #: Suffixes of the object specification files the ``object`` parameter accepts.
 SPEC_SUFFIXES = (".json", ".yaml", ".yml")
@@ -35,35 +36,47 @@ MAX_SPEC_BYTES = 1 << 20
 # --------------------------------------------------------------------------------------------
 _UNSET_OR_NEGATIVE = "negative = the object spec's value"
 PARAMETERS: tuple[ParamSpec, ...] = (
-    ParamSpec("object", "butter", "Object library name (e.g. butter, rect1) or path to a "
-              ".json/.yaml object specification file."),
-    ParamSpec("initial_pose.x", 0.0, "Initial x of the object frame in world, m.", (-1.0, 1.0)),
-    ParamSpec("initial_pose.y", 0.0, "Initial y of the object frame in world, m.", (-1.0, 1.0)),
+    ParamSpec("object", "butter", "Object library name (the MIT pushing dataset objects, e.g. "
+              "butter, rect1, tri1, ellip1, hex) or a path to a .json/.yaml/.yml object "
+              "specification file of at most 1 MiB (docs/ARCHITECTURE.md); nothing else is "
+              "read, and errors never quote the file."),
+    ParamSpec("initial_pose.x", 0.0, "Initial x of the object frame (area centroid) in world, "
+              "m; must lie in the workspace.", (-1.0, 1.0)),
+    ParamSpec("initial_pose.y", 0.0, "Initial y of the object frame in world, m; must lie in "
+              "the workspace.", (-1.0, 1.0)),
     ParamSpec("initial_pose.theta", 0.0, "Initial yaw of the object frame in world, rad.",
               (-math.pi, math.pi)),
     ParamSpec("use_com_offset", False, "Build the object with its centre of mass at "
               "com_offset; false: the object spec's COM (random from the seed with randomize)."),
     ParamSpec("com_offset", [0.0, 0.0], "Centre of mass (x, y) in the object frame, m; used "
               "only with use_com_offset true.", constraints="2 finite values"),
-    ParamSpec("mass", -1.0, "Object mass, kg.", (-1.0, 100.0), constraints=_UNSET_OR_NEGATIVE),
-    ParamSpec("friction_table", -1.0, "Object-table Coulomb friction coefficient.",
+    ParamSpec("mass", -1.0, "Object mass, kg; > 0 to override (0 is an error).", (-1.0, 100.0),
+              constraints=_UNSET_OR_NEGATIVE),
+    ParamSpec("friction_table", -1.0, "Object-table Coulomb friction coefficient, >= 0 to "
+              "override (spec default 0.25).",
               (-1.0, 10.0), constraints=_UNSET_OR_NEGATIVE),
-    ParamSpec("friction_pusher", -1.0, "Pusher-object Coulomb friction coefficient.",
+    ParamSpec("friction_pusher", -1.0, "Pusher-object Coulomb friction coefficient, >= 0 to "
+              "override (spec default 0.25).",
               (-1.0, 10.0), constraints=_UNSET_OR_NEGATIVE),
     ParamSpec("seed", 0, "Seed of the randomisation (physics and appearance).", (0, 2**31 - 1)),
     ParamSpec("randomize", False, "Randomise mass, COM and frictions from the seed."),
-    ParamSpec("image_width", 640, "Camera image width, px.", (32, 1920)),
+    ParamSpec("image_width", 640, "Camera image width, px (D415-like colour stream, depth "
+              "aligned to colour; the focal length scales with the size).", (32, 1920)),
     ParamSpec("image_height", 480, "Camera image height, px.", (24, 1080)),
-    ParamSpec("depth_noise", False, "Add D415-like depth noise and dropouts."),
+    ParamSpec("depth_noise", False, "Add D415-like depth noise, quantisation and dropouts "
+              "(NaN)."),
     ParamSpec("randomize_appearance", False, "Randomise lighting, table and object colours "
               "from the seed."),
     ParamSpec("randomize_camera", False, "Jitter the camera pose from the seed (the published "
               "extrinsics are the true, jittered pose)."),
-    ParamSpec("idle_frame_rate", 2.0, "Rate of repeated camera frames, object pose and /clock "
-              "while idle, Hz (wall time).", (0.1, 30.0), read_only=True),
+    ParamSpec("idle_frame_rate", 2.0, "Rate of camera frames while the world rests, Hz (wall "
+              "time): still frames (fresh sensor noise) of the resting scene with its object "
+              "pose, at the current time (the clock runs while the world rests), as a streaming "
+              "camera.", (0.1, 30.0), read_only=True),
     ParamSpec("clock_rate", 50.0, "Rate of /clock messages while the physics runs, Hz (wall "
-              "time).", (1.0, 1000.0), read_only=True),
-    ParamSpec("push_speed", 0.02, "Pusher speed along the push, m/s.", (0.001, 0.2)),
+              "time): during a push and its settling.", (1.0, 1000.0), read_only=True),
+    ParamSpec("push_speed", 0.02, "Pusher speed along the push, m/s (the planner's push_speed "
+              "should be equal).", (0.001, 0.2)),
     ParamSpec("pusher_radius", 0.0048, "Radius of the cylindrical pusher, m.", (0.001, 0.05)),
     ParamSpec("faults.frame_drop", 0.0, "Fault injection: probability that a camera frame "
               "publication (colour, depth, camera_info together) is dropped.", (0.0, 0.9)),
@@ -75,14 +88,20 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec("faults.seed", 0, "Seed of the fault injection draws (re-seeded on ~/reset).",
               (0, 2**31 - 1)),
     ParamSpec("monitor.rate", 0.0, "Monitor stream (sim/monitor/*): frames per second of sim "
-              "time rendered while a push executes; 0 = off.", (0.0, 60.0)),
+              "time rendered while a push executes (rounded to whole 1/240 s physics steps); "
+              "0 = off. pushbot demo uses 10 Hz.", (0.0, 60.0)),
     ParamSpec("monitor.width", 320, "Monitor image width, px.", (32, 1920)),
     ParamSpec("monitor.height", 240, "Monitor image height, px.", (24, 1080)),
     ParamSpec("robot", "pusher", "What pushes: 'pusher' (a free cylinder executing "
               "planner/push) or 'arm' (a Franka Panda with the pusher rod following joint "
-              "trajectories).", read_only=True, constraints="pusher or arm"),
+              "trajectories on arm.controller_topic with the Jazzy joint_trajectory_controller's "
+              "acceptance rules; it publishes /joint_states, /robot_description and "
+              "sim/tool_tip and ignores planner/push).", read_only=True,
+              constraints="pusher or arm"),
     ParamSpec("arm.base_pose", list(DEFAULT_BASE_POSE), "Arm mode: x, y, z (m) and yaw (rad) "
-              "of the arm's base panda_link0 in world.", constraints="4 finite values"),
+              "of the arm's base panda_link0 in world, read on start-up and ~/reset; on a "
+              "0.15 m pedestal the whole workspace is reachable with the rod vertical "
+              "(bench_arm_reach).", constraints="4 finite values"),
     ParamSpec("arm.park_positions", list(DEFAULT_PARK), "Arm mode: the 7 joint positions "
               "after a reset (out of the camera's view), rad.", constraints="7 finite values"),
     ParamSpec("arm.controller_topic", "/joint_trajectory_controller/joint_trajectory",
@@ -93,8 +112,49 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               "its end), s of sim time.", (1.0, 3600.0), read_only=True),
     ParamSpec("arm.real_time_factor", 0.0, "Arm mode: sim time runs at most this many times "
               "faster than wall time while the arm moves (1 = like a real robot, for timing "
-              "the executor's reactions); 0 = as fast as the CPU allows.", (0.0, 1000.0)),
+              "the executor's reactions); 0 = as fast as the CPU allows. The launch file "
+              "(robot:=arm) sets 1; evaluations use 5.", (0.0, 1000.0)),
 )
+
+#: The node's name: the top-level key of its parameter file.
+NODE_NAME = "sim_bridge_node"
+#: Written before the table in the parameter file (ROS declares it): the bridge is the clock.
+YAML_EXTRA = (ParamSpec("use_sim_time", False, "The bridge is the /clock source: it publishes "
+                        "simulated time and must not wait for it. Keep false (its timers use "
+                        "the steady clock anyway; true only earns a warning)."),)
+#: Comment at the top of the bundled parameter file (pushbot_bringup/config/sim_bridge.yaml).
+YAML_HEADER = """
+Parameters of sim_bridge_node (package sim_bridge): the pybullet table, object, pusher and
+RGB-D camera (the table is also in docs/INTERFACES.md). Values below are the defaults. Units SI
+(REP 103): metres, radians, seconds, kg.
+
+  pushbot run sim_bridge_node --ros-args --params-file src/pushbot_bringup/config/sim_bridge.yaml
+  ros2 run sim_bridge sim_bridge_node --ros-args --params-file \\
+      $(ros2 pkg prefix pushbot_bringup)/share/pushbot_bringup/config/sim_bridge.yaml
+  (`ros2 launch pushbot_bringup pushbot.launch.py` loads this file, with object:=... on top)
+
+All scene parameters are read at start-up and again by the ~/reset service
+(std_srvs/srv/Trigger), so `ros2 param set` (or a test's set_parameters) followed by
+~/reset rebuilds the scene with the new values. A bad value stops start-up with a clear
+message and a non-zero exit (a refused reset keeps the previous scene).
+Doubles must be written with a decimal point (0.0, not 0): ROS rejects an integer for a
+double parameter."""
+#: Comment paragraphs before a parameter in the parameter file.
+YAML_NOTES = {
+    "mass": "Physical overrides; a negative value (default -1.0) keeps the object spec's value.",
+    "seed": "Randomisation (perception training, robustness tests); everything derives from the "
+            "seed.",
+    "faults.frame_drop": "Fault injection (fault scenarios, benchmarks/bench_faults.py); all off "
+                         "by default, read on start-up and ~/reset, draws re-seeded from "
+                         "faults.seed on every reset. A camera frame publication includes idle "
+                         "re-publications; ground truth (sim/object_pose) is never dropped; a "
+                         "refused push is reported on pusher/refused. The object can also be "
+                         "displaced on sim/knock (docs/INTERFACES.md).",
+    "monitor.rate": "Monitor stream: a visualisation of the simulator, not an input of the "
+                    "pipeline (docs/INTERFACES.md, sim/monitor/*). Its cost: docs/RESULTS.md, "
+                    '"record".',
+    "robot": 'Arm mode: docs/ARCHITECTURE.md, "Pushing with an arm".',
+}
 
 
 @dataclass(frozen=True)

@@ -39,7 +39,7 @@ from sim_bridge.camera import (
 )
 
 __all__ = ["Appearance", "CameraView", "Frame", "MonitorConfig", "camera_view", "monitor_view",
-           "random_appearance", "render"]
+           "random_appearance", "render", "sensor_noise", "still_frame"]
 
 DEFAULT_TABLE_RGB = (0.78, 0.74, 0.66)
 DEFAULT_OBJECT_RGB = (0.50, 0.52, 0.56)
@@ -64,6 +64,9 @@ class Frame:
         world <- optical frame at the time of the frame (addition).
     object_pose : (3,) ndarray
         Ground-truth object pose at the time of the frame (addition).
+    clean_rgb, clean_depth : ndarray or None
+        The images before sensor noise (None where the frame was not rendered by
+        :func:`render`): :func:`still_frame` draws fresh noise on them.
     """
 
     rgb: NDArray[np.uint8]
@@ -73,6 +76,8 @@ class Frame:
     camera_matrix: NDArray[np.float64] = field(default_factory=lambda: np.eye(3))
     T_world_camera: NDArray[np.float64] = field(default_factory=lambda: np.eye(4))  # noqa: N815
     object_pose: NDArray[np.float64] = field(default_factory=lambda: np.zeros(3))
+    clean_rgb: NDArray[np.uint8] | None = None
+    clean_depth: NDArray[np.float32] | None = None
 
 
 @dataclass(frozen=True)
@@ -219,13 +224,55 @@ def render(client: BulletClient, camera: CameraConfig, view: CameraView, look: A
     seg = np.asarray(seg).reshape(h, w)
     depth = depth_from_zbuffer(np.asarray(zbuf).reshape(h, w), camera.near, camera.far)
     depth[seg < 0] = np.nan
-    if depth_noise:
-        depth = add_depth_noise(depth, rng_noise)
-    if look.rgb_noise > 0:
-        noisy = rgb + look.rgb_noise * rng_noise.standard_normal(rgb.shape)
+    clean_rgb = np.ascontiguousarray(rgb)
+    noisy_rgb, noisy_depth = sensor_noise(clean_rgb, depth, depth_noise, look.rgb_noise, rng_noise)
+    return Frame(rgb=noisy_rgb, depth=noisy_depth, mask=seg == object_id, stamp=stamp,
+                 camera_matrix=view.camera_matrix.copy(),
+                 T_world_camera=view.T_world_camera.copy(), object_pose=object_pose(),
+                 clean_rgb=clean_rgb, clean_depth=depth)
+
+
+def sensor_noise(rgb: NDArray[np.uint8], depth: NDArray[np.float32], depth_noise: bool,
+                 rgb_noise: float, rng: np.random.Generator
+                 ) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
+    """The camera's per-frame noise on clean images (new arrays; the inputs are unchanged).
+
+    Parameters
+    ----------
+    rgb : (H, W, 3) uint8
+    depth : (H, W) float32
+        z-depth, m (NaN: no return).
+    depth_noise : bool
+        RealSense-like depth noise and dropouts (:func:`sim_bridge.camera.add_depth_noise`).
+    rgb_noise : float
+        Sigma of the Gaussian colour noise, grey levels (0: none).
+    rng : numpy.random.Generator
+        Drawn from in this order: depth noise, then colour noise.
+
+    Returns
+    -------
+    rgb, depth : ndarray
+    """
+    depth = add_depth_noise(depth, rng) if depth_noise else depth.copy()
+    if rgb_noise > 0:
+        noisy = rgb + rgb_noise * rng.standard_normal(rgb.shape)
         rgb = np.clip(np.round(noisy), 0, 255).astype(np.uint8)
     else:
-        rgb = np.ascontiguousarray(rgb)
-    return Frame(rgb=rgb, depth=depth, mask=seg == object_id, stamp=stamp,
-                 camera_matrix=view.camera_matrix.copy(),
-                 T_world_camera=view.T_world_camera.copy(), object_pose=object_pose())
+        rgb = rgb.copy()
+    return rgb, depth
+
+
+def still_frame(frame: Frame, depth_noise: bool, rgb_noise: float,
+                rng: np.random.Generator) -> Frame:
+    """Another frame of an unchanged scene: ``frame``'s clean images with fresh sensor noise
+    (what a camera streaming at a resting scene delivers), same ``stamp`` field.
+
+    Raises
+    ------
+    ValueError
+        ``frame`` has no clean images (it was not made by :func:`render`).
+    """
+    if frame.clean_rgb is None or frame.clean_depth is None:
+        raise ValueError("still_frame needs a frame with its clean images (made by render)")
+    rgb, depth = sensor_noise(frame.clean_rgb, frame.clean_depth, depth_noise, rgb_noise, rng)
+    return replace(frame, rgb=rgb, depth=depth)

@@ -1,7 +1,7 @@
 """The scene's ROS endpoints of ``sim_bridge_node`` (composed by the node; no physics here):
 camera frames, extrinsics, ``/clock``, ground truth, ``pusher/executed`` / ``pusher/refused``,
-the monitor stream and the optional tf. Topics and QoS: docs/ARCHITECTURE.md and the README's
-topic table. Every method may be called from any thread (rclpy publishers are thread-safe)
+the monitor stream and the optional tf. Topics and QoS: the topic table in
+docs/INTERFACES.md. Every method may be called from any thread (rclpy publishers are thread-safe)
 and publishes nothing once the node is closing."""
 
 from __future__ import annotations
@@ -42,6 +42,7 @@ class Capture:
     object_pose: PoseStamped
     pusher_xy: np.ndarray
     time: float
+    frame: Frame | None = None  # the rendered frame (its clean images make still frames)
 
 
 class SceneEndpoints:
@@ -87,14 +88,28 @@ class SceneEndpoints:
     def capture(self, world: PushWorld) -> Capture:
         """Render and convert one frame with the ground truth at its time (worker thread)."""
         frame = world.render()
+        return self._convert(frame, world.camera_matrix, world.object_pose(),
+                             np.asarray(world.pusher_position(), dtype=float))
+
+    def still(self, previous: Capture, world: PushWorld) -> Capture:
+        """A still frame of the resting scene (:meth:`PushWorld.still_frame` of
+        ``previous.frame``) at the timeline's current time, and ``/clock`` at it; no pybullet
+        call, so only while no job runs."""
+        frame = world.still_frame(previous.frame)
+        capture = self._convert(frame, frame.camera_matrix, frame.object_pose, previous.pusher_xy)
+        self.clock(capture.time)
+        return capture
+
+    def _convert(self, frame: Frame, camera_matrix: np.ndarray, object_pose: np.ndarray,
+                 pusher_xy: np.ndarray) -> Capture:
         t = self.timeline.at(frame.stamp)
         stamp = stamp_from_seconds(t)
         height, width = frame.depth.shape
         return Capture(
             rgb=rgb_image_msg(frame.rgb, stamp), depth=depth_image_msg(frame.depth, stamp),
-            info=camera_info_msg(world.camera_matrix, width, height, stamp),
-            object_pose=pose_stamped_msg(world.object_pose(), stamp),
-            pusher_xy=np.asarray(world.pusher_position(), dtype=float), time=t)
+            info=camera_info_msg(camera_matrix, width, height, stamp),
+            object_pose=pose_stamped_msg(object_pose, stamp), pusher_xy=pusher_xy, time=t,
+            frame=frame)
 
     def executed(self, start: Any, end: Any, t_start: float, t_end: float) -> Path:
         """``pusher/executed``: the pusher at the push's start and end (world, m; times s)."""
@@ -106,11 +121,6 @@ class SceneEndpoints:
         """``/clock`` at ``time`` (s) if it is later than the last one."""
         if not self._closing():
             self.timeline.advance(time, self._publish_clock)
-
-    def repeat_clock(self) -> None:
-        """``/clock`` at the last published time again (idle)."""
-        if not self._closing():
-            self.timeline.repeat(self._publish_clock)
 
     def _publish_clock(self, time: float) -> None:
         self.pub_clock.publish(ClockMsg(clock=stamp_from_seconds(time)))

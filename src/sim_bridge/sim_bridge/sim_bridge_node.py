@@ -1,22 +1,22 @@
 """``sim_bridge_node``: the simulated robot and RGB-D camera behind standard ROS 2 topics.
 
-A thin ROS wrapper around :class:`sim_bridge.world.PushWorld` (pybullet, DIRECT mode): a table,
-one flat object, a pusher (or a Panda arm, :mod:`sim_bridge.arm_ros`) and a D415-like camera.
-Its topics, services, QoS, frames and fault injection are specified in docs/ARCHITECTURE.md
-(the simulator sections, "Node runtime: health and stamp rules" and the arm mode) and the
-README's topic table; its parameters in :mod:`sim_bridge.params` and
-``pushbot_bringup/config/sim_bridge.yaml``.
+Role: a thin ROS wrapper around :class:`sim_bridge.world.PushWorld` (pybullet, DIRECT mode): a
+table, one flat object, a pusher (or a Panda arm, :mod:`sim_bridge.arm_ros`) and a D415-like
+camera. Parameters: :mod:`sim_bridge.params`.
 
 Invariants:
 
 - The node owns ``/clock`` (published time = ``epoch + world.sim_time``, never going back,
   also across resets; :class:`sim_bridge.worker.Timeline`); it never runs on sim time itself.
-- Every pybullet call runs in one worker thread, one job (build, push, knock, reset, arm run)
-  at a time; a command arriving while it is busy is refused, never queued
-  (:class:`sim_bridge.worker.Worker`). After a job the worker is idle *before* its results go
-  out: ``/clock``, the fresh frame, ``sim/object_pose``, ``pusher/executed``, ``/diagnostics``.
+- Every pybullet call runs in one worker thread, one job at a time; a command arriving while it
+  is busy is refused, never queued (:class:`sim_bridge.worker.Worker`). After a job the worker
+  is idle *before* its results go out.
 - No exception leaves a callback; health, refusals and counters are
   :class:`push_ros.health.NodeHealth`'s (``/diagnostics``).
+
+Topics, services, fault injection and parameters: docs/INTERFACES.md; the simulator:
+docs/ARCHITECTURE.md, "sim_bridge internals", "Node runtime: health and stamp rules" and
+"Pushing with an arm".
 """
 
 from __future__ import annotations
@@ -42,7 +42,8 @@ from push_ros.stamps import stamp_from_seconds
 from sim_bridge import commands
 from sim_bridge.arm_ros import ArmEndpoints
 from sim_bridge.faults import FaultInjector
-from sim_bridge.params import PARAMETERS, SimBridgeParams
+from sim_bridge.params import NODE_NAME, PARAMETERS, SimBridgeParams
+from sim_bridge.resting import Rest
 from sim_bridge.scene_ros import Capture, SceneEndpoints
 from sim_bridge.worker import Timeline, Worker
 from sim_bridge.world import PushWorld, WorldConfig
@@ -53,16 +54,6 @@ __all__ = ["SimBridgeNode", "main"]
 LOG_THROTTLE_S = 1.0
 #: Period of the regular /diagnostics message, seconds of wall time.
 DIAGNOSTICS_PERIOD_S = 1.0
-#: The node's own event counters (refusals are also ``refused`` / ``refused_<kind>``).
-COUNTERS = ("pushes_executed", "pushes_rejected_busy", "pushes_rejected_invalid",
-            "pushes_failed", "pushes_refused_fault", "pushes_ignored_arm_mode", "resets",
-            "knocks", "knocks_rejected", "frames_dropped", "frames_delayed", "frames_reordered",
-            "trajectories_accepted", "trajectories_rejected", "trajectory_runs",
-            "trajectory_runs_failed", "resets_refused")
-#: A refused push's counter by its refusal kind (the world's refusals carry their own kind).
-_PUSH_COUNTER = {"busy": "pushes_rejected_busy", "fault": "pushes_refused_fault"}
-
-
 class SimBridgeNode(Node):
     """ROS wrapper of :class:`~sim_bridge.world.PushWorld`; see the module docstring.
 
@@ -72,16 +63,14 @@ class SimBridgeNode(Node):
         At construction, if a parameter is invalid or the world cannot be built.
     """
 
-    def __init__(self, node_name: str = "sim_bridge_node", **kwargs: Any) -> None:
+    def __init__(self, node_name: str = NODE_NAME, **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
-        self.health = NodeHealth(self, "simulation", "pybullet", COUNTERS, LOG_THROTTLE_S,
+        self.health = NodeHealth(self, "simulation", "pybullet", commands.COUNTERS, LOG_THROTTLE_S,
                                  on_error=self._on_callback_error)
         self._params = declare_config(self, PARAMETERS, SimBridgeParams.from_values)
-        self._warn("use_sim_time is true, but the sim bridge is the /clock source; its timers "
-                   "run on the steady clock" if self.get_parameter("use_sim_time").value else "")
         self._problem = ""  # the last command's refusal or failure; "" after a success
-        self._pushing = False  # the physics runs a push or an arm run: /clock follows it
-        self._closing = False
+        # _pushing: the physics runs a push or an arm run (/clock follows it)
+        self._pushing, self._closing = False, False
         self.faults: FaultInjector[Capture] = FaultInjector(self._params.faults,
                                                             self.health.count)
         self.scene = SceneEndpoints(self, Timeline(), lambda: self._closing,
@@ -89,6 +78,7 @@ class SimBridgeNode(Node):
         self.timeline = self.scene.timeline
         self._capture: Capture | None = None
         self.worker = Worker()  # every pybullet call happens in its one thread
+        self.rest = Rest(self.worker)  # time and still frames while no job runs
         try:
             self._world = self.worker.call(PushWorld, self._params.world_config()).result()
         except BaseException:
@@ -115,7 +105,8 @@ class SimBridgeNode(Node):
                                  (1.0 / self._params.idle_frame_rate, self._on_idle_timer),
                                  (DIAGNOSTICS_PERIOD_S, self._publish_diagnostics)):
             self.create_timer(period, guard(callback), clock=steady)
-        self._warn(commands.unused_com_warning(parameter_values(self, PARAMETERS)))
+        self._warn(commands.startup_warnings(parameter_values(self, PARAMETERS),
+                                             bool(self.get_parameter("use_sim_time").value)))
         self.worker.call(self._after_build).result()
         self.get_logger().info(f"sim bridge ready: {self._params.summary()}")
 
@@ -175,17 +166,25 @@ class SimBridgeNode(Node):
 
     # ---- executor callbacks ----------------------------------------------------------------
     def _on_clock_timer(self) -> None:
-        """While the physics runs, publish its sim time (``sim_time`` is plain arithmetic on a
-        step counter: safe to read while the worker steps; /clock never goes back)."""
+        """``/clock`` at ``clock_rate``: the physics' time while it runs (``sim_time`` is plain
+        arithmetic on a step counter, safe to read while the worker steps); while the world
+        rests, time passes as wall time does (:mod:`sim_bridge.resting`). Never goes back."""
+        rested = self.rest.elapsed()
         if self._pushing:
             self.scene.clock(self.timeline.at(self._world.sim_time))
+        elif self._capture is not None and not self._closing:
+            self.rest.run(lambda: self.scene.clock(self.timeline.idle(rested,
+                                                                      self._world.sim_time)))
 
     def _on_idle_timer(self) -> None:
-        """Re-publish the last frame, pose and time so late subscribers get data."""
-        capture = self._capture
-        if not (self.worker.busy or capture is None or self._closing):
-            self.scene.repeat_clock()
-            self.scene.frame(capture)
+        """The camera streams while the world rests: a still frame (fresh sensor noise) with
+        its pose, so a reset or restarted node gets a new observation at once."""
+        if self._capture is not None and self._capture.frame is not None and not self._closing:
+            self.rest.run(self._still_frame)
+
+    def _still_frame(self) -> None:
+        capture = self._capture = self.scene.still(self._capture, self._world)
+        self.scene.frame(capture)
 
     def _on_push(self, msg: Path) -> None:
         if self._arm is not None:  # the arm is driven by push_executor_node's trajectories
@@ -256,7 +255,7 @@ class SimBridgeNode(Node):
         self.scene.frame(capture)
         self.scene.camera_pose(self._world.T_world_camera, capture.time)
         return commands.scene_summary(self._world.object_spec, self._world.object_pose(),
-                             capture.info.width, capture.info.height)
+                                      capture.info.width, capture.info.height, capture.time)
 
     def _run_push(self, seq: int, points: tuple[np.ndarray, np.ndarray, np.ndarray],
                   stamp: Any) -> None:
@@ -270,7 +269,7 @@ class SimBridgeNode(Node):
             self.worker.finish()
             kind = getattr(exc, "kind", "invalid")
             self._refuse("planner/push", str(exc), kind,
-                         _PUSH_COUNTER.get(kind, "pushes_rejected_invalid"), stamp)
+                         commands.PUSH_COUNTER.get(kind, "pushes_rejected_invalid"), stamp)
             return
         except Exception as exc:  # keep the node alive; report everything else loudly
             self._fail(f"push {seq}", exc, "pushes_failed")
@@ -363,16 +362,17 @@ class SimBridgeNode(Node):
               tool_tip: Any = None) -> None:
         """A job succeeded: idle *before* the results go out (a client answering them at once
         must not find the bridge busy), then in order: /clock, ``sim/tool_tip``, the fresh
-        frame, ground truth, ``pusher/executed``, /diagnostics."""
-        self._capture = capture
-        self._finish(counter, publish=False)
-        self.scene.clock(capture.time)
-        if tool_tip is not None:
-            self._arm.publish_tool_tip(tool_tip)
-        self.scene.frame(capture)
-        if executed is not None:
-            self.scene.publish(self.scene.pub_executed, executed)
-        self._publish_diagnostics()
+        frame, ground truth, ``pusher/executed``, /diagnostics (no still frame in between)."""
+        with self.rest.lock:
+            self._capture = capture
+            self._finish(counter, publish=False)
+            self.scene.clock(capture.time)
+            if tool_tip is not None:
+                self._arm.publish_tool_tip(tool_tip)
+            self.scene.frame(capture)
+            if executed is not None:
+                self.scene.publish(self.scene.pub_executed, executed)
+            self._publish_diagnostics()
 
     def _warn(self, warning: str) -> None:
         if warning:
@@ -387,7 +387,7 @@ class SimBridgeNode(Node):
 
 def main(args: list[str] | None = None) -> None:
     """Entry point of ``sim_bridge_node`` (``ros2 run`` / ``pushbot run``)."""
-    run_node(SimBridgeNode, "sim_bridge_node", args)
+    run_node(SimBridgeNode, NODE_NAME, args)
 
 
 if __name__ == "__main__":

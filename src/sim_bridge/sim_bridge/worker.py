@@ -127,10 +127,12 @@ class Timeline:
             publish(self.last)
         return True
 
-    def repeat(self, publish: Callable[[float], Any]) -> bool:
-        """``publish(newest time)`` again (idle re-publication), if there is one."""
+    def idle(self, seconds: float, sim_time: float) -> float:
+        """Time passes while the world rests (no physics step): later published times move
+        ``seconds`` (s, >= 0) further on; the world's own ``sim_time`` (s) is unchanged.
+        Returns the published time of ``sim_time`` now."""
+        if not seconds >= 0.0:
+            raise ValueError(f"idle time must be >= 0 s, got {seconds!r}")
         with self._lock:
-            if self.last < 0.0:
-                return False
-            publish(self.last)
-        return True
+            self.epoch += float(seconds)
+            return self.epoch + float(sim_time)

@@ -98,6 +98,7 @@ from sim_bridge.rendering import (
     monitor_view,
     random_appearance,
     render,
+    still_frame,
 )
 from sim_bridge.scene import (
     COLLISION_TOLERANCE,
@@ -331,8 +332,11 @@ class PushWorld:
         cfg = self._config if config is None else config
         if not isinstance(cfg, WorldConfig):
             raise ValueError(f"config: expected a WorldConfig, got {type(cfg).__name__}")
-        streams = np.random.SeedSequence(cfg.seed).spawn(4)
-        rng_phys, rng_look, rng_cam, rng_noise = (np.random.default_rng(s) for s in streams)
+        # A fifth stream for the frames of a resting scene (still_frame): spawn(5)'s first four
+        # children are spawn(4)'s, so worlds and push frames are those without it.
+        streams = np.random.SeedSequence(cfg.seed).spawn(5)
+        rng_phys, rng_look, rng_cam, rng_noise, rng_still = (
+            np.random.default_rng(s) for s in streams)
         spec = simulated_spec(cfg, rng_phys)
         look = random_appearance(rng_look) if cfg.randomize_appearance else Appearance()
         t_cam = look_at_pose(cfg.camera)
@@ -347,6 +351,7 @@ class PushWorld:
         self._spec = spec
         self._look = look
         self._rng_noise = rng_noise
+        self._rng_still = rng_still
         self._view = camera_view(cfg.camera, t_cam)
         scene = build_scene(self._client, cfg, spec, look)
         self._scene = scene
@@ -595,6 +600,16 @@ class PushWorld:
         return check_push(self._config, self.object_outline, approach, contact, end)
 
     # ---------------------------------------------------------------- camera
+    def still_frame(self, frame: Frame) -> Frame:
+        """Another camera frame of the resting scene: ``frame``'s clean images with fresh
+        sensor noise from the world's own still-frame stream (never the push frames' stream,
+        so push results and push frames are unchanged by how many still frames were made).
+
+        No pybullet call: safe from another thread while no job steps the world.
+        """
+        cfg = self._config
+        return still_frame(frame, cfg.depth_noise, self._look.rgb_noise, self._rng_still)
+
     def render(self) -> Frame:
         """Render one RGB-D frame with pybullet's TinyRenderer (CPU).
 

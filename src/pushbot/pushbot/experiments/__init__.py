@@ -1,4 +1,4 @@
-"""Simulation-driven experiments: data generation, training and evaluation (no ROS).
+"""Simulation-driven experiments: data generation, training and evaluation.
 
 The modules behind ``pushbot data|train|eval <target>`` (:data:`pushbot.cli.TARGETS`) and the
 benchmarks. They drive the pybullet world (``sim_bridge.world``) in-process, train the learned
@@ -11,5 +11,9 @@ the node packages imports them, so the nodes run without the simulator.
   training (``push_core.learned``, weights in ``push_planner/models``);
 - :mod:`.estimator_episodes`, :mod:`.estimator_evaluation`: own-model and pybullet episodes of
   the EKF (``push_core.estimator``) and ``pushbot eval estimator``;
-- :mod:`.planner_loop`: the planner's closed loop on ground-truth state in pybullet.
+- :mod:`.planner_loop`: the planner's closed loop on ground-truth state in pybullet;
+- :mod:`.protocol` (the trial definition), :mod:`.inprocess` (one trial in-process),
+  :mod:`.evaluate` (``pushbot eval push``: the closed-loop experiments, in-process, on Ray or
+  through the graph runner :mod:`pushbot.runner.episode`);
+- :mod:`.replay`: ``pushbot replay``, a recorded episode bag to video (:mod:`pushbot.viz.render`).
 """

@@ -1,4 +1,4 @@
-"""Train the learned affordance model (``pushbot train affordances``; SPEC section 2 step 4).
+"""Train the learned affordance model (``pushbot train affordances``).
 
 Reads a data set of ``pushbot data affordances`` (:mod:`pushbot.experiments.affordance_data`),
 trains :class:`push_core.learned.AffordanceNet` on the CPU (one intra-op thread, seeded),

@@ -467,7 +467,7 @@ def report(episodes: dict[str, list[EpisodeResult]], n_pushes: int, position_noi
         f"COM error in mm, median (mean +- std) over episodes, after k pushes; target after "
         f"{n_pushes}: median <= {1e3 * TARGET_COM_ERROR:g} mm on butter and tri1 (source: 17.7 "
         f"+- 8.5 mm on butter and triangle, about 1 cm worse on hexagon; 37.4 +- 12.3 mm "
-        f"without estimation). \"Without estimation\" = |true COM| (COM assumed at the "
+        f'without estimation). "Without estimation" = |true COM| (COM assumed at the '
         f"centroid).",
         "",
         "| object | episodes | without estimation | "

@@ -6,7 +6,9 @@ observation of Diffusion Policy) and writes ``OUT/results.json`` (top-level ``su
 ``success_wilson_95``, ``avg_max_reward``, ``mean_max_coverage``, ``steps_mean``, ...,
 ``episodes``) and videos of the first K episodes (``OUT/videos``). The adapter, frames and
 units: :mod:`pushbot.experiments.pusht_adapter`; pose from pixels:
-:mod:`pushbot.experiments.pusht_vision`. Needs ``pip install 'pushbot[pusht]'``.
+:mod:`pushbot.experiments.pusht_vision`; ``--object-model estimated`` (the T unknown: outline
+from the image, COM, limit surface and friction estimated online):
+:mod:`pushbot.experiments.pusht_estimated`. Needs ``pip install 'pushbot[pusht]'``.
 """
 
 from __future__ import annotations
@@ -31,6 +33,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="write videos of the first K episodes (default 0)")
     parser.add_argument("--workers", type=int, default=1,
                         help="worker processes (default 1)")
+    parser.add_argument("--object-model", choices=("env", "estimated"), default="env",
+                        help="the T's model: 'env' reads outline, COM, mass and moment from the "
+                             "env's body (default); 'estimated' perceives the outline in the "
+                             "image and estimates COM, limit surface and friction online (the "
+                             "env's bodies and shapes sealed)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -39,12 +46,14 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         result = pusht_adapter.evaluate(args.episodes, args.seed0, args.max_steps, args.obs,
-                                        args.out, args.video, args.workers, progress=True)
+                                        args.out, args.video, args.workers, progress=True,
+                                        object_model=args.object_model)
     except ImportError as exc:
         print(f"pushbot eval pusht: {exc}", file=sys.stderr)
         return 1
     lo, hi = result["success_wilson_95"]
-    print(f"Push-T ({args.obs}): success {result['success_rate']:.3f} (95 % Wilson "
+    model = "" if args.object_model == "env" else ", estimated object model"
+    print(f"Push-T ({args.obs}{model}): success {result['success_rate']:.3f} (95 % Wilson "
           f"[{lo:.3f}, {hi:.3f}]) over {result['n_episodes']} episodes, avg max reward "
           f"{result['avg_max_reward']:.3f}, mean max coverage {result['mean_max_coverage']:.3f},"
           f" steps {result['steps_mean']:.1f}; {args.out / 'results.json'}")

@@ -29,9 +29,11 @@ Frames: env units (render pixels), the env's body frame of the T (see
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.ndimage import map_coordinates
 from scipy.optimize import least_squares
 
 #: Colours of the render (pygame named colours), RGB. gym-pusht draws each box of the T filled
@@ -53,17 +55,86 @@ AGENT_MARGIN = 3.0
 RESTART_ANGLES = 72
 
 
-def block_fraction(image: ArrayLike) -> NDArray[np.float64]:
-    """Block fraction (H, W) in [0, 1] of every pixel of an RGB image (H, W, 3) uint8:
-    unmixing of the four colours (block edge, block fill, background, goal; fractions summing
-    to one: three unknowns from three channels), the two block fractions added."""
+def colour_fractions(image: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Block and goal fractions (H, W) in [0, 1] of every pixel of an RGB image (H, W, 3)
+    uint8: unmixing of the four colours (block edge, block fill, background, goal; fractions
+    summing to one: three unknowns from three channels), the two block fractions added."""
     img = np.asarray(image, dtype=np.float64)
     if img.ndim != 3 or img.shape[2] != 3:
         raise ValueError(f"image: expected (H, W, 3), got shape {img.shape}")
     w = np.array(BACKGROUND_RGB, dtype=np.float64)
     basis = np.stack([np.array(c, float) - w for c in (BLOCK_RGB, BLOCK_FILL_RGB, GOAL_RGB)], 1)
     coef = (img.reshape(-1, 3) - w) @ np.linalg.inv(basis).T  # (N, 3)
-    return np.clip(coef[:, 0] + coef[:, 1], 0.0, 1.0).reshape(img.shape[:2])
+    block = np.clip(coef[:, 0] + coef[:, 1], 0.0, 1.0).reshape(img.shape[:2])
+    return block, np.clip(coef[:, 2], 0.0, 1.0).reshape(img.shape[:2])
+
+
+def block_fraction(image: ArrayLike) -> NDArray[np.float64]:
+    """Block fraction (H, W) in [0, 1] of every pixel of an RGB image (H, W, 3) uint8
+    (:func:`colour_fractions`)."""
+    return colour_fractions(image)[0]
+
+def signed_distance(outline: NDArray[np.float64], local: NDArray[np.float64]
+                    ) -> NDArray[np.float64]:
+    """Signed distance (Q,) of points (Q, 2) from a closed polygon outline (P, 2), negative
+    inside (same frame and unit for both)."""
+    a = outline
+    ab = np.roll(outline, -1, axis=0) - a
+    ab2 = np.sum(ab ** 2, axis=1)
+    rel = local[:, None, :] - a[None]
+    t = np.clip(np.sum(rel * ab[None], axis=-1) / ab2[None], 0.0, 1.0)
+    d = rel - t[..., None] * ab[None]
+    dist = np.sqrt(np.min(np.sum(d * d, axis=-1), axis=1))
+    y = local[:, 1:2]
+    a, b = a[None], (a + ab)[None]
+    crosses = (a[..., 1] > y) != (b[..., 1] > y)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xi = a[..., 0] + (y - a[..., 1]) * (b[..., 0] - a[..., 0]) / (b[..., 1] - a[..., 1])
+    inside = (np.count_nonzero(crosses & (local[:, 0:1] < xi), axis=1) % 2) == 1
+    return np.where(inside, -dist, dist)
+
+
+def render_fraction(outline: NDArray[np.float64] | Callable[[NDArray[np.float64]],
+                                                             NDArray[np.float64]],
+                    pose: ArrayLike, sx: NDArray[np.float64], sy: NDArray[np.float64],
+                    width: float, dilation: float) -> NDArray[np.float64]:
+    """The rendering model (module docstring, step 2): the predicted fraction (Q,) of the
+    region ``outline`` (P, 2; its own frame, env units; or its signed distance function of
+    points (Q, 2) in that frame) placed at ``pose`` (env units, rad) grown by ``dilation``, at
+    output pixels sampling the render at ``(sx, sy)`` (Q,) (env units), with a signed-distance
+    ramp of ``width`` render pixels."""
+    p = np.asarray(pose, dtype=np.float64)
+    x0, y0 = np.floor(sx), np.floor(sy)
+    fx, fy = sx - x0, sy - y0
+    corners = np.stack([np.stack([x0 + dx, y0 + dy], -1) for dy in (0, 1) for dx in (0, 1)],
+                       1)  # (Q, 4, 2)
+    weights = np.stack([(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy], 1)
+    c, s = math.cos(p[2]), math.sin(p[2])
+    rel = corners.reshape(-1, 2) - p[:2]
+    local = np.stack([c * rel[:, 0] + s * rel[:, 1], -s * rel[:, 0] + c * rel[:, 1]], -1)
+    sd = (outline(local) if callable(outline) else signed_distance(outline, local)).reshape(-1, 4)
+    inside = np.clip(0.5 - (sd - dilation) / width, 0.0, 1.0)
+    return np.sum(weights * inside, axis=1)
+
+
+def sdf_grid(outline: NDArray[np.float64], cell: float, margin: float = 60.0
+             ) -> Callable[[NDArray[np.float64]], NDArray[np.float64]]:
+    """The signed distance (negative inside) of a polygon (P, 2), as a function of points
+    (Q, 2): exact on a grid of ``cell`` spacing over the polygon's bounds grown by ``margin``
+    (computed once, :func:`signed_distance`), bilinear between grid points, the border value
+    beyond (at least ``margin``: far outside for any rendering ramp)."""
+    lo = outline.min(axis=0) - margin
+    n = np.ceil((outline.max(axis=0) + margin - lo) / cell).astype(int) + 1
+    gx, gy = np.meshgrid(lo[0] + cell * np.arange(n[0]), lo[1] + cell * np.arange(n[1]))
+    pts = np.column_stack([gx.ravel(), gy.ravel()])
+    grid = np.concatenate([signed_distance(outline, pts[i:i + 20000])
+                           for i in range(0, len(pts), 20000)]).reshape(gx.shape)
+
+    def distance(q: NDArray[np.float64]) -> NDArray[np.float64]:
+        ij = (np.asarray(q, dtype=np.float64) - lo) / cell
+        return map_coordinates(grid, [ij[:, 1], ij[:, 0]], order=1, mode="nearest")
+
+    return distance
 
 
 class TeeFitter:
@@ -79,53 +150,37 @@ class TeeFitter:
         Side of the observation, pixels.
     dilation : float
         Offset of the drawn region beyond the outline, render pixels: the fat edges' radius.
+    sdf_cell : float, optional
+        None (default): the exact signed distance of the outline, per evaluation. A cell size
+        (env units): the signed distance read bilinearly from a grid computed once
+        (:func:`sdf_grid`; about 0.1 unit off, a few times faster), for outlines fitted
+        afresh in every episode (``--object-model estimated``).
     """
 
     def __init__(self, outline: ArrayLike, agent_radius: float = 15.0, image_size: int = 96,
-                 dilation: float = EDGE_RADIUS) -> None:
+                 dilation: float = EDGE_RADIUS, sdf_cell: float | None = None) -> None:
         self.outline = np.asarray(outline, dtype=np.float64)
+        self._distance = sdf_grid(self.outline, sdf_cell) if sdf_cell is not None else \
+            (lambda q: signed_distance(self.outline, q))
         self.agent_radius = float(agent_radius)
         self.size = int(image_size)
         self.dilation = float(dilation)
         self.scale = RENDER_SIZE / self.size
         c = (np.arange(self.size) + 0.5) * self.scale - 0.5  # sample coordinate per pixel
         self._sample = c
-        a, b = self.outline, np.roll(self.outline, -1, axis=0)
-        self._a, self._ab = a, b - a
-        self._ab2 = np.sum(self._ab ** 2, axis=1)
         self.radius = float(np.max(np.linalg.norm(self.outline, axis=1)))
 
-    # ---- model -------------------------------------------------------------------------------
-    def _signed_distance(self, local: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Signed distance (Q,) of body-frame points (Q, 2) from the outline, negative inside."""
-        rel = local[:, None, :] - self._a[None]
-        t = np.clip(np.sum(rel * self._ab[None], axis=-1) / self._ab2[None], 0.0, 1.0)
-        d = rel - t[..., None] * self._ab[None]
-        dist = np.sqrt(np.min(np.sum(d * d, axis=-1), axis=1))
-        y = local[:, 1:2]
-        a, b = self._a[None], (self._a + self._ab)[None]
-        crosses = (a[..., 1] > y) != (b[..., 1] > y)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            xi = a[..., 0] + (y - a[..., 1]) * (b[..., 0] - a[..., 0]) / (b[..., 1] - a[..., 1])
-        inside = (np.count_nonzero(crosses & (local[:, 0:1] < xi), axis=1) % 2) == 1
-        return np.where(inside, -dist, dist)
+    @property
+    def sample(self) -> NDArray[np.float64]:
+        """Render coordinate (env units) each output pixel row or column samples (size,)."""
+        return self._sample
 
+    # ---- model -------------------------------------------------------------------------------
     def predict(self, pose: ArrayLike, rows: NDArray[np.intp], cols: NDArray[np.intp],
                 width: float = 1.0) -> NDArray[np.float64]:
         """Predicted block fraction of pixels (rows, cols) for a body pose (env units)."""
-        p = np.asarray(pose, dtype=np.float64)
-        sx, sy = self._sample[cols], self._sample[rows]
-        x0, y0 = np.floor(sx), np.floor(sy)
-        fx, fy = sx - x0, sy - y0
-        corners = np.stack([np.stack([x0 + dx, y0 + dy], -1) for dy in (0, 1) for dx in (0, 1)],
-                           1)  # (Q, 4, 2)
-        weights = np.stack([(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy], 1)
-        c, s = math.cos(p[2]), math.sin(p[2])
-        rel = corners.reshape(-1, 2) - p[:2]
-        local = np.stack([c * rel[:, 0] + s * rel[:, 1], -s * rel[:, 0] + c * rel[:, 1]], -1)
-        sd = self._signed_distance(local).reshape(-1, 4)
-        inside = np.clip(0.5 - (sd - self.dilation) / width, 0.0, 1.0)
-        return np.sum(weights * inside, axis=1)
+        return render_fraction(self._distance, pose, self._sample[cols], self._sample[rows],
+                               width, self.dilation)
 
     # ---- fit ---------------------------------------------------------------------------------
     def _mask(self, agent: NDArray[np.float64]) -> NDArray[np.bool_]:
@@ -151,7 +206,7 @@ class TeeFitter:
         c, s = math.cos(pose[2]), math.sin(pose[2])
         rel = np.stack([self._sample[cols] - pose[0], self._sample[rows] - pose[1]], -1)
         local = np.stack([c * rel[:, 0] + s * rel[:, 1], -s * rel[:, 0] + c * rel[:, 1]], -1)
-        band = np.abs(self._signed_distance(local)) <= pad
+        band = np.abs(self._distance(local)) <= pad
         return rows[band], cols[band]
 
     def _stage(self, frac: NDArray[np.float64], usable: NDArray[np.bool_],
@@ -188,8 +243,17 @@ class TeeFitter:
     def fit_with_error(self, image: ArrayLike, agent: ArrayLike,
                        guess: ArrayLike | None = None) -> tuple[NDArray[np.float64], float]:
         """:meth:`fit` and its mean absolute fraction residual."""
-        frac = block_fraction(image)
-        usable = self._mask(np.asarray(agent, dtype=np.float64))
+        return self.fit_fraction(block_fraction(image), self.usable(agent), guess)
+
+    def usable(self, agent: ArrayLike) -> NDArray[np.bool_]:
+        """Pixels (96, 96) usable for a fit: away from the agent disc at ``agent`` (env
+        units) and the walls."""
+        return self._mask(np.asarray(agent, dtype=np.float64))
+
+    def fit_fraction(self, frac: NDArray[np.float64], usable: NDArray[np.bool_],
+                     guess: ArrayLike | None = None) -> tuple[NDArray[np.float64], float]:
+        """The pose (env units, rad) of the region whose fraction image (96, 96) is ``frac``,
+        fitted over the ``usable`` pixels, and its mean absolute fraction residual."""
         best, err = None, math.inf
         if guess is not None:
             best, err = self._refine(frac, usable, np.asarray(guess, dtype=np.float64).copy())
@@ -201,7 +265,6 @@ class TeeFitter:
             gy, gx = np.meshgrid(self._sample, self._sample, indexing="ij")
             centroid = np.array([np.sum(w * gx), np.sum(w * gy)]) / total
             area_centroid = _area_centroid(self.outline)
-            gy, gx = np.meshgrid(self._sample, self._sample, indexing="ij")
             near = usable & (np.hypot(gx - centroid[0], gy - centroid[1]) <= self.radius + 10.0)
             rows, cols = np.nonzero(near)
             obs = frac[rows, cols]
@@ -222,9 +285,132 @@ class TeeFitter:
         assert best is not None
         return best, err
 
-
 def _area_centroid(v: NDArray[np.float64]) -> NDArray[np.float64]:
     w = np.roll(v, -1, axis=0)
     cr = v[:, 0] * w[:, 1] - v[:, 1] * w[:, 0]
     area = 0.5 * np.sum(cr)
     return np.sum((v + w) * cr[:, None], axis=0) / (6.0 * area)
+
+
+# ------------------------------------------------------------------------------ outline
+#: Douglas-Peucker tolerance of the coarse outline, output pixels.
+COARSE_TOLERANCE = 1.0
+#: Cells per pixel side of the coarse footprint (its closing then fills concave corners by
+#: about half a pixel only).
+SUBCELLS = 4
+#: After the fit, a vertex whose outline turns by less than this (degrees) or that lies closer
+#: than ``MIN_EDGE`` (env units) to its neighbour is dropped and the polygon fitted again.
+MIN_TURN_DEG = 12.0
+MIN_EDGE = 3.0
+#: Farthest a vertex may move from the coarse outline in the fit, env units (1.5 pixels).
+MAX_VERTEX_MOVE = 8.0
+
+
+def coarse_outline(frac: NDArray[np.float64], usable: NDArray[np.bool_], size: int = 96
+                   ) -> NDArray[np.float64]:
+    """A first polygon (P, 2) (env units, counter-clockwise in the env's axes) of the region
+    whose fraction image is ``frac``: the perception core's mask -> footprint step
+    (:func:`push_perception.core.top_down_view` on the pixel centres with fraction above 0.5,
+    one cell per pixel), its boundary simplified by Douglas-Peucker (``cv2.approxPolyDP``,
+    :data:`COARSE_TOLERANCE` pixels) and moved half a pixel outward to the pixels' edges."""
+    import cv2
+
+    from push_perception.core import PerceptionConfig, top_down_view
+
+    rows, cols = np.nonzero((frac > 0.5) & usable)
+    if len(rows) < 9:
+        raise ValueError(f"image: only {len(rows)} block pixels found (need 9)")
+    cell = 1e-3  # the perception core works in metres: a pixel is SUB x SUB cells of 1 mm
+    su, sv = np.meshgrid((np.arange(SUBCELLS) + 0.5) / SUBCELLS,
+                         (np.arange(SUBCELLS) + 0.5) / SUBCELLS)
+    u = (cols[:, None] + su.ravel()[None]).ravel()  # pixel units: pixel k spans [k, k + 1)
+    v = (rows[:, None] + sv.ravel()[None]).ravel()
+    points = np.column_stack([u * SUBCELLS * cell, v * SUBCELLS * cell, np.full(len(u), 0.01)])
+    view = top_down_view(points, PerceptionConfig(resolution=cell, closing_radius=2,
+                                                  min_height=0.0))
+    boundary = view.boundary / (SUBCELLS * cell)  # pixel units, counter-clockwise
+    poly = cv2.approxPolyDP(boundary.astype(np.float32).reshape(-1, 1, 2), COARSE_TOLERANCE,
+                            True)[:, 0, :].astype(np.float64)
+    scale = RENDER_SIZE / size
+    return poly * scale - 0.5  # pixel k's centre k + 0.5 samples (k + 0.5) * scale - 0.5
+
+
+def _prune(poly: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Drop vertices of a closed polygon that barely turn or sit on their neighbour."""
+    while len(poly) > 3:
+        prev, nxt = np.roll(poly, 1, axis=0), np.roll(poly, -1, axis=0)
+        u, v = poly - prev, nxt - poly
+        turn = np.abs(np.arctan2(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0], np.sum(u * v, axis=1)))
+        short = np.linalg.norm(u, axis=1) < MIN_EDGE
+        bad = np.flatnonzero((turn < math.radians(MIN_TURN_DEG)) | short)
+        if len(bad) == 0:
+            break
+        poly = np.delete(poly, bad[np.argmin(turn[bad])], axis=0)
+    return poly
+
+
+def fit_outline(image: ArrayLike, agent: ArrayLike, agent_radius: float = 15.0,
+                size: int = 96) -> tuple[NDArray[np.float64], float]:
+    """The block's outline from one image: a polygon (P, 2) in the env's frame (env units,
+    counter-clockwise in the env's axes) and its mean absolute fraction residual.
+
+    Sub-pixel refinement: :func:`coarse_outline` gives the start; every vertex is then moved
+    by least squares so that the rendering model (:func:`render_fraction`, the block drawn
+    :data:`EDGE_RADIUS` beyond its outline) reproduces the observed block fractions of the
+    pixels near the outline (ramp widths 6 then 1 render pixels, as the pose fit); vertices
+    that turn by less than :data:`MIN_TURN_DEG` are dropped (:func:`_prune`) and the polygon
+    fitted again (fine stage). Pixels near the agent disc and the walls are left out.
+    """
+    fitter = TeeFitter(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]), agent_radius, size)
+    frac = block_fraction(image)
+    usable = fitter.usable(agent)
+    poly = coarse_outline(frac, usable, size)
+    sample = fitter.sample
+    err = math.inf
+    stages = ((6.0, 12.0, 20), (1.0, 5.0, 20))
+    for _ in range(2):
+        start = poly.copy()
+        for width, pad, nfev in stages:
+            rows, cols = _band(poly, sample, usable, pad)
+            obs = frac[rows, cols]
+            sx, sy, n = sample[cols], sample[rows], len(poly)
+
+            def residual(v: NDArray[np.float64], w: float = width, n: int = n,
+                         sx: NDArray[np.float64] = sx, sy: NDArray[np.float64] = sy,
+                         obs: NDArray[np.float64] = obs) -> NDArray[np.float64]:
+                return render_fraction(v.reshape(n, 2), (0.0, 0.0, 0.0), sx, sy, w,
+                                       EDGE_RADIUS) - obs
+
+            res = least_squares(residual, poly.ravel(), diff_step=1e-3, max_nfev=nfev,
+                                jac_sparsity=_sparsity(poly, sx, sy, pad + 2.0 * width),
+                                bounds=((start - MAX_VERTEX_MOVE).ravel(),
+                                        (start + MAX_VERTEX_MOVE).ravel()))
+            poly, err = res.x.reshape(n, 2), float(np.mean(np.abs(res.fun)))
+        pruned = _prune(poly)
+        if len(pruned) == len(poly):
+            break
+        poly, stages = pruned, stages[1:]  # near the outline already: the fine stage again
+    return poly, err
+
+
+def _sparsity(poly: NDArray[np.float64], sx: NDArray[np.float64], sy: NDArray[np.float64],
+              reach: float) -> NDArray[np.bool_]:
+    """Which residual (pixel sampling ``(sx, sy)``) a vertex coordinate can change: those
+    within ``reach`` (env units, beyond the drawn edge) of one of the vertex's two edges."""
+    q = np.column_stack([sx, sy])[:, None, :]
+    a, b = poly[None], np.roll(poly, -1, axis=0)[None]
+    ab = b - a
+    t = np.clip(np.sum((q - a) * ab, axis=-1) / np.sum(ab * ab, axis=-1), 0.0, 1.0)
+    near = np.linalg.norm(q - a - t[..., None] * ab, axis=-1) <= reach + EDGE_RADIUS + 2.0
+    touches = near | np.roll(near, 1, axis=1)  # vertex j ends edges j - 1 and j
+    return np.repeat(touches, 2, axis=1)
+
+
+def _band(poly: NDArray[np.float64], sample: NDArray[np.float64], usable: NDArray[np.bool_],
+          pad: float) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """Usable pixels whose sample point lies within ``pad`` (env units) of ``poly``."""
+    gy, gx = np.meshgrid(sample, sample, indexing="ij")
+    pts = np.column_stack([gx.ravel(), gy.ravel()])
+    near = np.abs(signed_distance(poly, pts)) <= pad + EDGE_RADIUS
+    rows, cols = np.nonzero(near.reshape(gx.shape) & usable)
+    return rows, cols

@@ -1,0 +1,251 @@
+"""The source's evaluation protocol (Kloss et al. 2020, thesis ch. 5; docs/ARCHITECTURE.md,
+"Closed loop and evaluation") as data: tasks, goal regions, methods and trials.
+
+One :class:`Trial` is one episode: an object at the workspace centre with an initial
+orientation, a goal relative to the initial pose, a method, a state source and the physics
+seed. The in-process evaluation (``pushbot eval``), the ROS-graph runs (``--graph``) and the
+demo all build their episodes from it, so the same trial means the same scene, goal and planner
+seed everywhere.
+
+Definitions (docs/ARCHITECTURE.md, "Closed loop and evaluation"):
+
+- Tasks: ``translation`` moves 20 cm and keeps the orientation, ``rotation`` turns by
+  0.5 rad and keeps the position, ``mixed`` moves 10 cm and turns by 0.35 rad. The direction of
+  the translation is uniform over the circle and the sign of the rotation is +-1 with equal
+  probability, both drawn from the trial's seed.
+- Trials: index ``i`` in ``0 .. n-1``; the initial orientation is ``2 pi (i mod 20) / 20``
+  (20 steps over 0-360 deg), ``i // 20`` is the run; 60 trials = 20 orientations x 3 runs.
+- Goals are relative to the initial pose: position in ``world``, orientation as a rotation since
+  the start. That is the frame the perception reports yaw in (its first frame has yaw 0), so
+  the same offset applies to ground truth and to the perceived pose.
+- Goal regions: ``small`` 0.75 cm / 5 deg (the default success criterion),
+  ``medium`` 2.5 cm / 7.5 deg, ``large`` 5 cm / 10 deg.
+- Physics: every trial randomises mass and frictions from its seed (``WorldConfig.randomize``);
+  ``com="centre"`` overrides the COM with the geometric centre, ``com="random"`` keeps the
+  randomised COM (uniform over the outline shrunk by 30 %), ``com="spec"`` overrides it with the
+  object specification's ``com_offset`` (objects whose COM is part of their definition, such as
+  the shape benchmark's ``com_edge`` class; mass and frictions stay randomised).
+- Methods: ``ana``, ``lrn``, ``geo``, ``rdn`` (planner contact selection), ``ana-direct``,
+  ``lrn-direct`` (affordances with linear length rescaling instead of rollouts) and
+  ``pushnet`` (the Push-Net-style sampling baseline).
+- State sources: ``gt`` (true pose, COM, friction; ``l`` from the uniform-pressure guess) or
+  ``filter`` (rendered RGB-D -> segmentation -> EKF). ``estimate_com = False`` (``filter``
+  only) pins the EKF's COM at the geometric centre: the "without COM estimation" rows of the
+  source's Table 5.2.
+"""
+
+from __future__ import annotations
+
+import math
+import zlib
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = [
+    "METHODS",
+    "REGIONS",
+    "STATE_SOURCES",
+    "TASKS",
+    "Trial",
+    "make_trials",
+    "planner_episode_params",
+]
+
+#: task -> (translation distance m, rotation magnitude rad)
+TASKS: dict[str, tuple[float, float]] = {
+    "translation": (0.20, 0.0),
+    "rotation": (0.0, 0.5),
+    "mixed": (0.10, 0.35),
+}
+
+#: goal region -> (position tolerance m, orientation tolerance rad)
+REGIONS: dict[str, tuple[float, float]] = {
+    "small": (0.0075, math.radians(5.0)),
+    "medium": (0.025, math.radians(7.5)),
+    "large": (0.05, math.radians(10.0)),
+}
+
+#: method -> (planner method or "pushnet", direct)
+METHODS: dict[str, tuple[str, bool]] = {
+    "ana": ("ana", False),
+    "lrn": ("lrn", False),
+    "geo": ("geo", False),
+    "rdn": ("rdn", False),
+    "ana-direct": ("ana", True),
+    "lrn-direct": ("lrn", True),
+    "pushnet": ("pushnet", False),
+}
+
+STATE_SOURCES = ("gt", "filter")
+COM_MODES = ("centre", "random", "spec")
+
+#: initial orientations per run (the source's protocol: 20 steps over 0-360 deg)
+ORIENTATIONS = 20
+
+
+def _check(name: str, value: str, allowed: Any) -> None:
+    if value not in allowed:
+        raise ValueError(f"{name} must be one of {', '.join(sorted(allowed))}, got {value!r}")
+
+
+@dataclass(frozen=True)
+class Trial:
+    """One episode of the protocol (module docstring).
+
+    Attributes
+    ----------
+    object : str
+        Library object name or object specification file path.
+    task : str
+        ``translation`` | ``rotation`` | ``mixed``.
+    method : str
+        A key of :data:`METHODS`.
+    k : int
+        Contact points sampled per step (ignored by ``pushnet``).
+    state : str
+        ``gt`` | ``filter``.
+    com : str
+        ``centre`` | ``random`` | ``spec`` (module docstring).
+    region : str
+        ``small`` | ``medium`` | ``large``.
+    index : int
+        Trial index, >= 0 (orientation ``index mod 20``, run ``index // 20``).
+    seed : int
+        Base seed of the evaluation, >= 0.
+    max_steps : int
+        Pushes allowed (30).
+    estimate_com : bool
+        ``filter``: the EKF estimates the COM (True) or keeps it at the geometric centre.
+        Ignored by ``gt``.
+    """
+
+    object: str
+    task: str = "mixed"
+    method: str = "ana"
+    k: int = 3
+    state: str = "gt"
+    com: str = "centre"
+    region: str = "small"
+    index: int = 0
+    seed: int = 0
+    max_steps: int = 30
+    estimate_com: bool = True
+
+    def __post_init__(self) -> None:
+        _check("task", self.task, TASKS)
+        _check("method", self.method, METHODS)
+        _check("state", self.state, STATE_SOURCES)
+        _check("com", self.com, COM_MODES)
+        _check("region", self.region, REGIONS)
+        if int(self.k) < 1:
+            raise ValueError(f"k must be >= 1, got {self.k}")
+        if int(self.index) < 0 or int(self.seed) < 0:
+            raise ValueError(f"index and seed must be >= 0, got {self.index}, {self.seed}")
+        if int(self.max_steps) < 1:
+            raise ValueError(f"max_steps must be >= 1, got {self.max_steps}")
+        if not isinstance(self.estimate_com, bool | np.bool_):
+            raise ValueError(f"estimate_com must be a bool, got {self.estimate_com!r}")
+        object.__setattr__(self, "estimate_com", bool(self.estimate_com))
+
+    # -- derived quantities -------------------------------------------------------------------
+    @property
+    def object_name(self) -> str:
+        """The object's short name (the file stem for a specification file)."""
+        return Path(self.object).stem if Path(self.object).suffix else self.object
+
+    @property
+    def trial_seed(self) -> int:
+        """Seed of everything random in this trial (physics, goal, planner), stable across
+        Python processes (``zlib.crc32``, not ``hash``) and independent of the method and state
+        source, so different methods face the same scenes and goals."""
+        key = f"{self.object_name}|{self.task}|{self.com}|{self.index}".encode()
+        return int(np.random.SeedSequence([int(self.seed), zlib.crc32(key)])
+                   .generate_state(1)[0])
+
+    @property
+    def initial_yaw(self) -> float:
+        """Initial orientation of the object in ``world``, radians."""
+        return 2.0 * math.pi * (self.index % ORIENTATIONS) / ORIENTATIONS
+
+    @property
+    def tolerances(self) -> tuple[float, float]:
+        """(position m, orientation rad) of the goal region."""
+        return REGIONS[self.region]
+
+    def goal_offset(self) -> NDArray[np.float64]:
+        """(dx, dy, dtheta): goal minus initial pose (position in ``world``, rotation since the
+        start), drawn from :attr:`trial_seed`."""
+        distance, rotation = TASKS[self.task]
+        rng = np.random.default_rng([self.trial_seed, 1])
+        direction = rng.uniform(0.0, 2.0 * math.pi)
+        sign = 1.0 if rng.random() < 0.5 else -1.0
+        return np.array([distance * math.cos(direction), distance * math.sin(direction),
+                         sign * rotation])
+
+    def goal(self, initial_pose: NDArray[np.float64] | Any) -> NDArray[np.float64]:
+        """The goal pose for an episode that starts at ``initial_pose`` (x, y, theta)."""
+        return np.asarray(initial_pose, dtype=np.float64)[:3] + self.goal_offset()
+
+    @property
+    def planner_method(self) -> str:
+        return METHODS[self.method][0]
+
+    @property
+    def direct(self) -> bool:
+        return METHODS[self.method][1]
+
+    @property
+    def planner_seed(self) -> int:
+        return int(np.random.default_rng([self.trial_seed, 2]).integers(0, 2**31 - 1))
+
+    def world_kwargs(self) -> dict[str, Any]:
+        """Keyword arguments of ``sim_bridge.world.WorldConfig`` for this trial (the caller adds
+        camera and rendering options)."""
+        kwargs: dict[str, Any] = {
+            "object": self.object,
+            "object_pose": (0.0, 0.0, self.initial_yaw),
+            "randomize": True,
+            "seed": int(self.trial_seed % (2**31 - 1)),
+        }
+        if self.com == "centre":
+            kwargs["com_offset"] = (0.0, 0.0)
+        elif self.com == "spec":
+            from push_core.objects import load_object
+
+            kwargs["com_offset"] = tuple(float(v) for v in load_object(self.object).com)
+        return kwargs
+
+    def planner_kwargs(self) -> dict[str, Any]:
+        """Keyword arguments of ``push_core.planner.PlannerConfig`` (not for ``pushnet``)."""
+        tol_xy, tol_theta = self.tolerances
+        return {"method": self.planner_method, "direct": self.direct, "k": int(self.k),
+                "tolerance_xy": tol_xy, "tolerance_theta": tol_theta,
+                "seed": self.planner_seed}
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def make_trials(objects: list[str], tasks: list[str], methods: list[str], ks: list[int],
+                n: int, *, state: str = "gt", com: str = "centre", region: str = "small",
+                seed: int = 0, max_steps: int = 30, estimate_com: bool = True) -> list[Trial]:
+    """The cross product objects x tasks x methods x ks x ``n`` trial indices, in that order."""
+    if n < 1:
+        raise ValueError(f"the number of trials must be >= 1, got {n}")
+    return [Trial(object=o, task=t, method=mth, k=k, state=state, com=com, region=region,
+                  index=i, seed=seed, max_steps=max_steps, estimate_com=estimate_com)
+            for o in objects for t in tasks for mth in methods for k in ks for i in range(n)]
+
+
+def planner_episode_params(trial: Trial) -> dict[str, Any]:
+    """``planner_node``'s episode parameters for ``trial`` (set before every episode; also
+    the start-up parameters of a planner restarted mid-episode)."""
+    kw = trial.planner_kwargs()
+    return {"method": kw["method"], "direct": bool(kw["direct"]), "k": int(kw["k"]),
+            "goal_tolerance.xy": float(kw["tolerance_xy"]),
+            "goal_tolerance.theta": float(kw["tolerance_theta"]),
+            "max_steps": int(trial.max_steps), "seed": int(kw["seed"])}

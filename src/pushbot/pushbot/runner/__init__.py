@@ -1,0 +1,3 @@
+"""The graph runner: ``pushbot run``, ``up``, ``goal``, ``demo`` and ``doctor`` (one module per
+command), the one node launcher (:mod:`.graph_nodes`) and the graph episodes (:mod:`.episode`,
+:mod:`.client`, :mod:`.faults`) that ``pushbot demo`` and ``pushbot eval push --graph`` run."""

@@ -1,0 +1,585 @@
+"""Protocol trials through the real ROS graph: four node processes over DDS (issue 7).
+
+:func:`run_graph_trials` (``pushbot eval push --graph``) and the demo (``pushbot demo``) start
+``sim_bridge_node``, ``segmentation_node``, ``ekf_node`` and ``planner_node`` as separate
+processes (``pushbot run <node>``, simulated time from the bridge's ``/clock``, the bundled DDS
+profile of :mod:`push_ros.dds`) once, and run every trial through them. A hidden client node in
+this process drives the episodes only through the nodes' public interfaces:
+
+1. **Episode parameters.** ``planner_node``: ``method``, ``direct``, ``k``,
+   ``goal_tolerance.{xy,theta}``, ``max_steps``, ``seed`` (:meth:`Trial.planner_kwargs`), via
+   its ``set_parameters`` service; then ``/segmentation_node/reset`` (the next *new* frame
+   becomes the episode's reference; repeated frames of the old scene are skipped),
+   ``/ekf_node/reset`` (repeated observations of the old scene are dropped) and
+   ``/planner_node/reset`` (applies the parameters, forgets the goal and estimates).
+2. **Scene.** ``sim_bridge_node``: ``object``, ``initial_pose.{x,y,theta}``, ``com_offset``
+   (``[0, 0]`` for COM at the centre, empty = the randomised COM), ``seed``, ``randomize``
+   (:meth:`Trial.world_kwargs`), then ``/sim_bridge_node/reset``, which rebuilds the scene and
+   publishes its first frame (stamps strictly later than the previous scene's).
+3. **Goal.** The first ``estimator/object_pose`` of the new scene plus
+   :meth:`Trial.goal_offset` (ARCHITECTURE "Goal frame": yaw in the episode frame) on
+   ``goal_pose``.
+4. **Run** until ``planner/status`` (with this goal) says ``goal reached`` or ``failed``.
+5. **Record** (ARCHITECTURE "Episode record"): ground truth from ``sim/object_pose`` (the
+   pose at the stamp of each frame the pipeline saw), estimates from
+   ``estimator/object_pose``, pushes from ``planner/push``; success from the *true* pose
+   against the true initial pose plus the offset, orientation modulo the object's symmetry
+   (:func:`pushbot.experiments.inprocess.end_score`); ``com_error`` from
+   ``estimator/center_of_mass`` against the true COM (parsed from the bridge's reset message, 0.1 mm
+   resolution) turned into the episode frame. ``planning_ms`` is empty (planning happens inside
+   ``planner_node``); ``step_latency_ms`` holds, per step, the wall time from ``pusher/executed`` to
+   the next ``planner/push`` as seen here (perception + estimation + planning + DDS).
+
+Fault scenarios (issue 15): ``GraphRunner.run(trial, fault)`` with a
+:class:`pushbot.runner.faults.Fault` adds its episode parameters (the bridge's ``faults.*``,
+the planner's ``after_goal``), lets it act on every spin of the end wait (kill and restart a
+node, knock the object, send a push or a second goal) and ends the episode only at an end
+status it accepts; the record is scored against the episode's last goal and carries the fault's
+fields. ``benchmarks/bench_faults.py`` repeats every scenario.
+
+Every wait has a deadline and names what it waited for; a node process that exits is reported
+with the tail of its log. Node processes run in their own process groups with a parent-death
+signal (SIGTERM); :meth:`GraphNodes.stop` sends SIGINT (what rclpy shuts down cleanly on),
+then SIGTERM, then SIGKILL to each group, so Ctrl-C leaves no process behind.
+
+Only ``state="filter"`` trials with ``estimate_com`` and planner methods (``ana``, ``lrn``,
+``geo``, ``rdn`` and the ``-direct`` variants) can run in the graph: it has no ground-truth
+state source, no COM pinning and no Push-Net node.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import sys
+import tempfile
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from push_core.episode import new_record
+from pushbot.experiments.protocol import Trial, planner_episode_params
+from pushbot.ros2cli.discovery import sigterm_as_keyboard_interrupt
+from pushbot.runner.client import GraphClient, Recorded
+from pushbot.runner.faults import Episode, Fault
+from pushbot.runner.graph_nodes import NODES, GraphError, GraphNodes
+
+__all__ = ["NODES", "GraphError", "GraphNodes", "GraphRunner", "Recorded", "check_trial",
+           "line_deviation", "run_graph_trials"]
+
+#: Seconds from the scene reset to the first estimate (segmentation of the first frame), and
+#: how often the episode set-up is repeated when none arrives.
+FIRST_ESTIMATE_TIMEOUT, FIRST_ESTIMATE_ATTEMPTS = 30.0, 3
+#: Seconds without any progress (push, executed push, status change) before an episode fails.
+STEP_TIMEOUT = 90.0
+#: Scenes and seconds per scene to wait for the first estimate at the planner at start-up.
+WARM_UP_ATTEMPTS, WARM_UP_TIMEOUT = 24, 5.0
+#: The bridge's fault injection, off (every episode sets it; a fault scenario overrides it).
+NO_BRIDGE_FAULTS = {"faults.frame_drop": 0.0, "faults.frame_delay": 0.0,
+                    "faults.push_refusal": 0.0, "faults.seed": 0}
+_COM_RE = re.compile(r"COM \((-?[0-9.]+), (-?[0-9.]+)\) m")
+_FIRST_FRAME_RE = re.compile(r"first frame at ([0-9.]+) s")
+_INPUTS_AFTER_RE = re.compile(r"inputs after ([0-9.]+) s")
+
+
+class GraphRunner:
+    """The graph (processes + client node); a context manager. See the module docstring.
+
+    Parameters
+    ----------
+    log_dir : Path, optional
+        Node logs (default: a temporary directory).
+    record_frames : bool
+        Also keep every new camera frame and perception mask (the demo's video).
+    node_args : dict, optional
+        Extra start-up parameters per node (``"name:=value"`` strings).
+    robot : str
+        ``pusher`` (the simulator's finger) or ``arm`` (``push_executor_node`` and the
+        simulated Panda; :class:`pushbot.runner.graph_nodes.GraphNodes`).
+    """
+
+    def __init__(self, log_dir: Path | None = None, record_frames: bool = False,
+                 node_args: dict[str, Sequence[str]] | None = None, robot: str = "pusher"
+                 ) -> None:
+        self._tmp = None
+        if log_dir is None:
+            self._tmp = tempfile.TemporaryDirectory(prefix="pushbot_graph_")
+            log_dir = Path(self._tmp.name)
+        self.log_dir = Path(log_dir)
+        self.record_frames = record_frames
+        self.robot = robot
+        self.nodes = GraphNodes(self.log_dir, node_args, robot=robot)
+        self.rec = Recorded()
+        self.client: GraphClient | None = None
+        self._com_true: np.ndarray | None = None
+        self._c_true_episode: np.ndarray | None = None
+
+    # ---- lifecycle ---------------------------------------------------------------------------
+    def __enter__(self) -> GraphRunner:
+        try:
+            self.start()
+        except BaseException:
+            self.close()
+            raise
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    def start(self) -> None:
+        """Start the processes and the client; wait until every endpoint is discovered and an
+        estimate has gone all the way from the bridge's camera to the planner."""
+        self.nodes.start()
+        self.client = GraphClient(self.rec, self.nodes.check_alive, self.log_dir,
+                                  self.record_frames, robot=self.robot)
+        self.client.start()
+        self.client.wait_ready()
+        self._warm_up()
+
+    def close(self) -> None:
+        """Stop the client and every node process (idempotent)."""
+        try:
+            if self.client is not None:
+                self.client.close()
+        finally:
+            self.client = None
+            self.nodes.stop()
+            if self._tmp is not None:
+                self._tmp.cleanup()
+                self._tmp = None
+
+    def restart(self) -> None:
+        """Stop everything and start again (after a failed episode)."""
+        self.close()
+        self.rec = Recorded()
+        self.nodes = GraphNodes(self.log_dir, self.nodes.node_args, robot=self.robot)
+        self.start()
+
+    # ---- the client's waits and calls -----------------------------------------------------------
+    def wait(self, predicate: Callable[[], Any], timeout: float, what: str) -> Any:
+        """:meth:`GraphClient.wait` (spin until ``predicate()`` is not None/False)."""
+        return self._client().wait(predicate, timeout, what)
+
+    def reset(self, node_name: str) -> str:
+        """Call ``/<node_name>/reset``; its message (:class:`GraphError` if refused)."""
+        return self._client().reset(node_name)
+
+    def set_parameters(self, node_name: str, values: dict[str, Any]) -> None:
+        """Set parameters of ``node_name`` (:class:`GraphError` if one is refused)."""
+        self._client().set_parameters(node_name, values)
+
+    def _client(self) -> GraphClient:
+        if self.client is None:
+            raise GraphError("the graph is not running (start() it, or use it as a context "
+                             "manager)")
+        return self.client
+
+    def knock(self, delta: np.ndarray) -> None:
+        """Displace the object by ``delta`` (dx, dy m, dyaw rad) on ``sim/knock``."""
+        self._client().publish_knock(delta)
+
+    def foreign_push(self, points: np.ndarray) -> None:
+        """Send a push (approach, contact, end; (3, 2) m) on ``planner/push`` as another
+        client."""
+        self._client().publish_push(points)
+
+    def send_goal(self, goal: np.ndarray, other: bool = False) -> str:
+        """Send a goal (``other``: from the second, volatile sender); its status text."""
+        return self._client().publish_goal(goal, other=other)
+
+    def client_matched(self) -> bool:
+        """Whether the client's fault publishers (second goal sender, knock) are matched."""
+        return self._client().matched()
+
+    def _planner_estimates(self) -> int:
+        return self._client().planner_estimates()
+
+    def _warm_up(self) -> None:
+        """Wait until planner_node counts an estimate and this client received one: the whole
+        chain bridge -> perception -> estimator -> planner (and this client) is matched.
+
+        Seeing an endpoint in the graph does not mean every other participant has matched it
+        yet, and a reliable, volatile sample published before the match is lost (found on a
+        loaded machine: the planner never got the first estimate of the first episode, and
+        the estimator publishes one estimate per new frame). If no estimate arrives, the
+        scene is rebuilt (new frames, so a new estimate) and the wait repeated.
+        """
+        for _ in range(WARM_UP_ATTEMPTS):
+            before, n_est = self._planner_estimates(), len(self.rec.est)
+            for name in ("segmentation_node", "ekf_node", "planner_node", "sim_bridge_node"):
+                self.reset(name)
+            try:
+                self.wait(lambda b=before, n=n_est: (self._planner_estimates() > b
+                                                     and len(self.rec.est) > n) or None,
+                          WARM_UP_TIMEOUT, "an estimate at planner_node and at this client")
+                return
+            except GraphError:
+                self.nodes.check_alive()
+        raise GraphError(f"planner_node received no estimate in {WARM_UP_ATTEMPTS} scenes of "
+                         f"{WARM_UP_TIMEOUT:.0f} s; node logs in {self.log_dir}")
+
+    # ---- one episode -------------------------------------------------------------------------
+    def run(self, trial: Trial, fault: Fault | None = None) -> dict[str, Any]:
+        """Run ``trial`` through the graph; returns its episode record (module docstring).
+
+        ``fault``: a fault scenario (:mod:`pushbot.runner.faults`) injected during the episode;
+        the record then also has its fields (``fault``, ``fault_injected``, ``pushes_sent``,
+        ``goal_switches``, ``left_goal``, ...) and is scored against the episode's last goal.
+        """
+        check_trial(trial)
+        scenario, fault = fault is not None, fault if fault is not None else Fault()
+        t_start = time.perf_counter()
+        rec = new_record(trial.as_dict(), step_latency_ms=[], engine="graph")
+        first_stamp, first_est = self._first_estimate(trial, fault)
+        # The planner must hold this scene's outline (stamped with its reference frame, the
+        # frame of the first estimate) before the goal: with the previous scene's outline it
+        # would plan, or declare the goal reached, for the wrong object.
+        self.wait(lambda: any(_status_seconds(s, "outline_stamp") >= first_stamp - 1e-6
+                                for s in self.rec.status),
+                  STEP_TIMEOUT, f"planner_node to hold the outline of the frame at "
+                  f"{first_stamp:.3f} s")
+        pose0_true = self._true_at(first_stamp)
+        goal = trial.goal(first_est)
+        n_push, n_exec, n_status = (len(self.rec.pushes), len(self.rec.executed),
+                                    len(self.rec.status))
+        goal_text = self._client().publish_goal(goal)
+        episode = Episode(trial, n_push, n_exec, n_status, np.asarray(goal, dtype=float),
+                          np.asarray(trial.goal_offset(), dtype=float), goal_text)
+        status = self._wait_end(episode, fault)
+        self._wait_recorded(status, n_push, n_exec)
+        pushes = self.rec.pushes[n_push:]
+        executed = [e for e in self.rec.executed[n_exec:] if e[1] >= first_stamp]
+        rec["steps"] = int(status.get("step", len(pushes)))
+        rec["refused"] = max(0, rec["steps"] - len(executed))
+        rec["reason"] = _reason(status["_message"])
+        if executed:  # the truth after the last push has arrived too
+            t_last = executed[-1][2]
+            self.wait(lambda: any(s >= t_last for s, _ in self.rec.true), STEP_TIMEOUT,
+                      "sim/object_pose after the last push")
+        rec["pushes"] = [p.tolist() for _, p in pushes]
+        rec["poses_true"] = [pose0_true.tolist()] + [
+            self._true_after(t1).tolist() for _, _, t1 in executed]
+        rec["poses_est"] = [first_est.tolist()] + [
+            self._est_after(t1, first_est).tolist() for _, _, t1 in executed]
+        # Stamps of the camera frames the estimates came from (before the first push, after each).
+        rec["frame_stamps"] = [first_stamp] + [
+            next((st for st, _ in self.rec.est if st >= t1), t1) for _, _, t1 in executed]
+        rec["step_latency_ms"] = _latencies(executed, pushes)
+        if self.robot == "arm":
+            rec["contact_line_error_mm"] = self._line_errors(executed, pushes)
+        end_true = self._true_after(executed[-1][2]) if executed else pose0_true
+        from push_core.episode import end_score
+        from push_core.objects import load_object
+        from push_core.symmetry import symmetry_order_of_polygon
+
+        polyline = load_object(trial.object).polyline()
+        order = symmetry_order_of_polygon(polyline)
+        rec.update(end_score(polyline, end_true, pose0_true + episode.offset,
+                             trial.tolerances))
+        rec["com_error"] = self._com_error(pose0_true, end_true, order)
+        rec["goal"] = episode.goal.tolist()
+        if scenario:
+            rec.update(fault.record(self, episode))
+        rec["com_true"] = None if self._com_true is None else self._com_true.tolist()
+        rec["com_true_episode"] = (None if self._c_true_episode is None
+                                   else self._c_true_episode.tolist())
+        rec["com_est"] = self.rec.com[-1][1].tolist() if self.rec.com else None
+        rec["wall_s"] = time.perf_counter() - t_start
+        return rec
+
+    def _line_errors(self, executed: list[tuple[float, float, float]],
+                     pushes: list[tuple[float, np.ndarray]]) -> list[float]:
+        """Per executed arm push: the true tool tip's largest distance from the commanded
+        contact segment (``sim/tool_tip`` vs ``planner/push``), mm (:func:`line_deviation`)."""
+        def runs_in() -> bool:  # sim/tool_tip goes out before the run's camera frame
+            return all(any(st[0] <= t0 and st[-1] >= t1 for _, st, _ in self.rec.tool_tip
+                           if len(st)) for _, t0, t1 in executed)
+
+        self.wait(runs_in, STEP_TIMEOUT, "sim/tool_tip of every executed push")
+        errors = []
+        for wall, t0, t1 in executed:
+            commanded = [p for w, p in pushes if w <= wall]
+            run = next((tip for _, st, tip in self.rec.tool_tip
+                        if len(st) and st[0] <= t0 and st[-1] >= t1), None)
+            if not commanded or run is None:
+                continue
+            deviation = line_deviation(run, commanded[-1][1], commanded[-1][2])
+            if deviation is not None:
+                errors.append(1e3 * deviation)
+        return errors
+
+    def _setup_episode(self, trial: Trial, fault: Fault) -> None:
+        self.set_parameters("planner_node", {**planner_episode_params(trial),
+                                             "after_goal": "report", **fault.planner_params()})
+        self.reset("planner_node")  # drop the old goal before the scene changes under it
+        world = trial.world_kwargs()
+        x, y, theta = world["object_pose"]
+        com = world.get("com_offset")
+        self.set_parameters("sim_bridge_node", {
+            "object": str(world["object"]), "initial_pose.x": float(x),
+            "initial_pose.y": float(y), "initial_pose.theta": math.remainder(theta, 2 * math.pi),
+            "use_com_offset": com is not None,
+            "com_offset": [0.0, 0.0] if com is None else [float(v) for v in com],
+            "seed": int(world["seed"]), "randomize": bool(world["randomize"]),
+            **NO_BRIDGE_FAULTS, **fault.bridge_params(trial)})
+        message = self.reset("sim_bridge_node")
+        match = _COM_RE.search(message)
+        self._com_true = (np.array([float(match.group(1)), float(match.group(2))])
+                          if match else None)
+        # The scene first, then the pipeline, as with a real camera: frames stamped before a
+        # node's ~/reset belong to the old episode (push_ros.stamps.episode_boundary), so the
+        # new episode starts with the next frame of the new scene (the camera streams); the
+        # planner's second reset forgets the estimates of the scene change.
+        first = _FIRST_FRAME_RE.search(message)
+        if first is None:
+            raise GraphError(f"sim_bridge_node's ~/reset answer names no first frame: {message}")
+        self._last_stamp = float(first.group(1))
+        for name in ("segmentation_node", "ekf_node", "planner_node"):
+            answer = self.reset(name)
+            after = _INPUTS_AFTER_RE.search(answer) if name == "ekf_node" else None
+            if after is not None:  # estimates of the old episode are stamped at or before it
+                self._last_stamp = max(self._last_stamp, float(after.group(1)))
+
+    def _first_estimate(self, trial: Trial, fault: Fault) -> tuple[float, np.ndarray]:
+        """Set the episode up and wait for the first estimate of the new scene. The estimator
+        publishes one estimate per new frame; should it be lost, the set-up (resets, a new
+        scene with new frames) is repeated."""
+        for attempt in range(1, FIRST_ESTIMATE_ATTEMPTS + 1):
+            self._setup_episode(trial, fault)
+            after = self._last_stamp
+
+            def first(after: float = after) -> tuple[float, np.ndarray] | None:
+                return next(((s, p) for s, p in self.rec.est if s > after), None)
+
+            try:
+                return self.wait(first, FIRST_ESTIMATE_TIMEOUT, "the first estimate of the new "
+                                 f"scene on estimator/object_pose (attempt {attempt} of "
+                                 f"{FIRST_ESTIMATE_ATTEMPTS})")
+            except GraphError as exc:
+                self.nodes.check_alive()
+                if attempt == FIRST_ESTIMATE_ATTEMPTS:
+                    raise
+                print(f"pushbot graph: {exc}; repeating the episode set-up", file=sys.stderr,
+                      flush=True)
+        raise AssertionError("unreachable")
+
+    def _true_at(self, stamp: float) -> np.ndarray:
+        def at() -> np.ndarray | None:
+            return next((p for s, p in reversed(self.rec.true) if s == stamp), None)
+
+        return self.wait(at, STEP_TIMEOUT, f"sim/object_pose stamped {stamp:.3f} s")
+
+    def _true_after(self, stamp: float) -> np.ndarray:
+        return next((p for s, p in self.rec.true if s >= stamp), self.rec.true[-1][1])
+
+    def _est_after(self, stamp: float, default: np.ndarray) -> np.ndarray:
+        """The last estimate of the frame after the push that ended at ``stamp``."""
+        later = [(s, p) for s, p in self.rec.est if s >= stamp]
+        if not later:
+            return default
+        first = later[0][0]
+        return [p for s, p in later if s == first][-1]
+
+    def _wait_end(self, episode: Episode, fault: Fault) -> dict[str, str]:
+        """Wait for ``goal reached`` / ``failed`` for the episode's goal (that ``fault``
+        accepts); fail after STEP_TIMEOUT s without progress."""
+        progress = [None, time.monotonic()]
+        trial = episode.trial
+
+        def done() -> dict[str, str] | None:
+            fault.poll(self, episode)
+            mine = [(i, s) for i, s in enumerate(self.rec.status[episode.n_status:],
+                                                 episode.n_status)
+                    if _same_goal(s.get("goal", ""), episode.goal_text)]
+            key = (len(self.rec.pushes), len(self.rec.executed), len(mine))
+            if key != progress[0]:
+                progress[0], progress[1] = key, time.monotonic()
+            end = next((s for i, s in reversed(mine) if s.get("state") in ("reached", "failed")
+                        and fault.accepts_end(self, i)), None)
+            if end is not None:
+                return end
+            if time.monotonic() - progress[1] > STEP_TIMEOUT:
+                last = mine[-1][1]["_message"] if mine else "no status for this goal"
+                raise GraphError(f"no progress for {STEP_TIMEOUT:.0f} s (planner: {last!r}); "
+                                 f"node logs in {self.log_dir}")
+            return None
+
+        limit = STEP_TIMEOUT * (trial.max_steps + 2)
+        return self.wait(done, limit, f"the end of the episode ({trial.max_steps} steps max)")
+
+    def _wait_recorded(self, status: dict[str, str], n_push: int, n_exec: int) -> None:
+        """After the final status: wait until this client has received every ``planner/push``
+        of the episode (``step`` of them), the ``pusher/executed`` of the last push the planner
+        saw executed (``last_push_end``) and the estimate after it (the planner decided on one).
+        They come from other publishers than the status, so they can still be in flight (or
+        queued here) when it arrives."""
+        steps = int(status.get("step", 0))
+        last_end = _status_seconds(status, "last_push_end")
+
+        def complete() -> bool:
+            if len(self.rec.pushes) - n_push < steps:
+                return False
+            if not math.isfinite(last_end):
+                return True
+            return (any(e[2] >= last_end - 1e-6 for e in self.rec.executed[n_exec:])
+                    and any(st >= last_end - 1e-6 for st, _ in self.rec.est))
+
+        self.wait(complete, STEP_TIMEOUT, f"the {steps} planner/push, the pusher/executed "
+                  f"ending at {last_end:.3f} s and the estimate after it")
+
+    def _com_error(self, pose0_true: np.ndarray, end_true: np.ndarray, order: int
+                   ) -> float | None:
+        """|c_est - c_true| in the episode frame (as :mod:`pushbot.experiments.inprocess`),
+        metres."""
+        self._c_true_episode = None
+        if self._com_true is None or not self.rec.com or not self.rec.est:
+            return None
+        from push_core.geometry import rot2, wrap_angle
+
+        theta_est = self.rec.est[-1][1][2]
+        theta0 = float(pose0_true[2])
+        period = 2.0 * math.pi / max(order, 1)
+        shift = period * round(float(wrap_angle(theta_est - (end_true[2] - theta0))) / period)
+        c_true = rot2(theta0 - shift) @ self._com_true
+        self._c_true_episode = c_true
+        return float(math.hypot(*(self.rec.com[-1][1] - c_true)))
+
+
+def _same_goal(a: str, b: str) -> bool:
+    try:
+        va, vb = [float(v) for v in a.split()], [float(v) for v in b.split()]
+    except ValueError:
+        return False
+    return len(va) == len(vb) == 3 and all(abs(x - y) < 2e-4 for x, y in zip(va, vb,
+                                                                              strict=True))
+
+
+def _status_seconds(status: dict[str, str], key: str) -> float:
+    """A time value (s) of planner/status; -inf when absent or unreadable."""
+    try:
+        return float(status.get(key, "-inf"))
+    except ValueError:
+        return -math.inf
+
+
+def _reason(message: str) -> str:
+    if message.startswith("goal reached"):
+        return "goal reached"
+    if message.startswith("failed after max steps"):
+        return "max steps"
+    if message.startswith("failed: no feasible push"):
+        return "no feasible push"
+    return message
+
+
+#: Tool tip samples lower than this above the table count as "in contact" for the line error
+#: of an arm push (the executor pushes at 1 cm; transit and park moves are far higher), m.
+CONTACT_HEIGHT = 0.02
+
+
+def line_deviation(tip: np.ndarray, contact: np.ndarray, end: np.ndarray,
+                   max_height: float = CONTACT_HEIGHT) -> float | None:
+    """Largest horizontal distance of tool tip samples from a commanded push line, m.
+
+    Parameters
+    ----------
+    tip : (K, 3) array
+        True tool tip positions in ``world`` (m).
+    contact, end : (2,) arrays
+        The commanded contact segment (``planner/push``'s contact and end points, m).
+    max_height : float
+        Only samples at most this high count (the pushing height; not transit), m.
+
+    Returns
+    -------
+    float or None
+        The maximum over the samples whose projection falls on the segment, or None when
+        there is none.
+    """
+    tip = np.asarray(tip, dtype=float).reshape(-1, 3)
+    a, b = np.asarray(contact, dtype=float), np.asarray(end, dtype=float)
+    d = b - a
+    length = float(np.hypot(*d))
+    if length == 0.0:
+        return None
+    u = d / length
+    rel = tip[:, :2] - a
+    along = rel @ u
+    off = np.abs(rel @ np.array([-u[1], u[0]]))
+    on = (tip[:, 2] <= max_height) & (along >= 0.0) & (along <= length)
+    return float(off[on].max()) if on.any() else None
+
+
+def _latencies(executed: list[tuple[float, float, float]],
+               pushes: list[tuple[float, np.ndarray]]) -> list[float]:
+    """Wall ms from each pusher/executed to the next planner/push (as received here)."""
+    out = []
+    for t_exec, _, _ in executed:
+        following = [t for t, _ in pushes if t > t_exec]
+        if following:
+            out.append(1e3 * (following[0] - t_exec))
+    return out
+
+
+def check_trial(trial: Trial) -> None:
+    """``ValueError`` for trials the graph cannot run (module docstring)."""
+    if not isinstance(trial, Trial):
+        raise ValueError(f"expected a pushbot.experiments.protocol.Trial, "
+                         f"got {type(trial).__name__}")
+    if trial.state != "filter":
+        raise ValueError(f"the graph estimates the state from images: state must be 'filter', "
+                         f"got {trial.state!r}")
+    if trial.method == "pushnet":
+        raise ValueError("the graph has no Push-Net node: method 'pushnet' runs in-process only")
+    if not getattr(trial, "estimate_com", True):
+        raise ValueError("estimate_com=False (COM pinned) is not available in the graph")
+
+
+def run_graph_trials(trials: list[Trial], *, out_dir: Path | str | None = None,
+                     progress: bool = True, robot: str = "pusher") -> list[dict[str, Any]]:
+    """Run ``trials`` through the ROS graph (four node processes, started once) in order.
+
+    Parameters
+    ----------
+    trials : list of Trial
+        ``state="filter"`` trials (see :func:`check_trial`).
+    out_dir : path, optional
+        The node logs go to ``out_dir/graph_logs``; default: a temporary directory.
+    progress : bool
+        One line per trial on stderr.
+    robot : str
+        ``pusher`` or ``arm`` (:class:`GraphRunner`).
+
+    Returns
+    -------
+    list of dict
+        One episode record per trial (docs/ARCHITECTURE.md). A trial that breaks the graph (a
+        timeout, a node that died) gets ``success=False`` and the error as ``reason``; the
+        graph is then restarted for the next trial.
+    """
+    for trial in trials:
+        check_trial(trial)
+    log_dir = Path(out_dir) / "graph_logs" if out_dir is not None else None
+    records: list[dict[str, Any]] = []
+    with sigterm_as_keyboard_interrupt(), GraphRunner(log_dir=log_dir, robot=robot) as graph:
+        for i, trial in enumerate(trials):
+            try:
+                record = graph.run(trial)
+            except GraphError as exc:
+                record = new_record(trial.as_dict(), reason=f"graph error: {exc}",
+                                    engine="graph")
+                graph.restart()
+            records.append(record)
+            if progress:
+                err = record["end_error_xy"]
+                print(f"graph trial {i + 1}/{len(trials)}: {trial.object} {trial.task} "
+                      f"{trial.method} k={trial.k} #{trial.index}: {record['reason']}, "
+                      f"{record['steps']} steps"
+                      + (f", end error {1e3 * err:.1f} mm / "
+                         f"{math.degrees(record['end_error_theta']):.1f} deg" if err is not None
+                         else "")
+                      + f", {record['wall_s']:.1f} s", file=sys.stderr, flush=True)
+    return records
