@@ -1,7 +1,7 @@
 """Speed and own-model consistency of the EKF (push_core.estimator.PushEKF).
 
 Speed (target: one predict + update <= 0.5 ms median): for each object (butter, tri1, hex),
-200 informative pushes (``push_core.active.informative_push``: random outline point,
+200 informative pushes (``push_core.estimator.active.informative_push``: random outline point,
 toward the centre +-30 deg, 2-4 cm after a 0.5-1.5 cm approach, so 2.5-5.5 cm of pusher travel
 in 3-6 substeps of 1 cm) from one filter state; each repeat restores the state, then times
 ``predict_push`` + ``update_pose`` with an observation near the prediction. Reported for the
@@ -35,12 +35,12 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import format_section, update_section  # noqa: E402
 
-from push_core.active import (  # noqa: E402
+from push_core.estimator import EKFConfig, PushEKF, predict_push  # noqa: E402
+from push_core.estimator.active import (  # noqa: E402
     ACTIVE_CANDIDATES,
     informative_push,
     most_informative_push,
 )
-from push_core.estimator import EKFConfig, PushEKF, predict_push  # noqa: E402
 from push_core.objects import load_object  # noqa: E402
 from pushbot.experiments.estimator_episodes import chi2_band, run_model_episodes  # noqa: E402
 
@@ -156,7 +156,7 @@ def main(argv: list[str] | None = None) -> int:
         f"after a 0.5-1.5 cm approach; substeps of 1 cm). Prediction = pushing model with its "
         f"closed-form Jacobian over the substeps (contact search on the decimated outline); "
         f"update = gate + Joseph-form update for H = [I 0], written out "
-        f"(`push_core.kalman.EKFBase.update_leading`) "
+        f"(`push_core.estimator.kalman.EKFBase.update_leading`) "
         f"(+ for 2 iterations: re-linearised prediction and a second update). 1-minute load "
         f"average {load_before:.2f} before, "
         f"{load_after:.2f} after (2 cores shared with other jobs: medians are the figure, "
@@ -170,7 +170,7 @@ def main(argv: list[str] | None = None) -> int:
         "For comparison: `torch.func.jacfwd` through the torch path of the model costs about "
         "10 ms for one substep.",
         "",
-        f"Active push choice (`push_core.active.most_informative_push`, the default push "
+        f"Active push choice (`push_core.estimator.active.most_informative_push`, the default push "
         f"policy of `pushbot eval estimator`): the EKF's forecast "
         f"(`PushEKF.expected_covariance`: prediction with Jacobian + covariance update) for "
         f"each of {ACTIVE_CANDIDATES} candidate pushes, wall clock in ms per choice, "

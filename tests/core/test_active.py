@@ -1,4 +1,5 @@
-"""push_core.active: informative pushes (geometry of the push against a disc, by hand) and the
+"""push_core.estimator.active: informative pushes (geometry of the push against a disc, by hand)
+and the
 choice of the most informative one."""
 
 from __future__ import annotations
@@ -8,8 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from push_core import active
-from push_core.ekf import PushEKF
+from push_core.estimator import active
+from push_core.estimator.ekf import PushEKF
 from push_core.geometry import wrap_angle
 from push_core.objects import load_object
 

@@ -1,4 +1,5 @@
-"""push_core.contact: the EKF's outline, against closed forms (square, rectangle, disc)."""
+"""push_core.estimator.contact: the EKF's outline, against closed forms (square, rectangle,
+disc)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from push_core.contact import ContactOutline, area_second_moment, limit_surface_of_polygon
+from push_core.estimator.contact import ContactOutline, area_second_moment, limit_surface_of_polygon
 
 #: A 10 cm square centred on the origin, counter-clockwise.
 SQUARE = np.array([[0.05, -0.05], [0.05, 0.05], [-0.05, 0.05], [-0.05, -0.05]])

@@ -1,4 +1,4 @@
-"""push_core.ekf: the push EKF's mechanics against hand-written Kalman algebra (first
+"""push_core.estimator.ekf: the push EKF's mechanics against hand-written Kalman algebra (first
 observation, Joseph-form update, gating, clipping, iterated update, the expected covariance,
 snapshots, resets, refusals)."""
 
@@ -9,12 +9,12 @@ import math
 import numpy as np
 import pytest
 
-from push_core import active
-from push_core.contact import ContactOutline, limit_surface_of_polygon
-from push_core.ekf import PushEKF
-from push_core.estimator_config import STATE_LABELS, EKFConfig
+from push_core.estimator import active
+from push_core.estimator.config import STATE_LABELS, EKFConfig
+from push_core.estimator.contact import ContactOutline, limit_surface_of_polygon
+from push_core.estimator.ekf import PushEKF
+from push_core.estimator.process_model import predict_push
 from push_core.objects import load_object
-from push_core.process_model import predict_push
 
 
 def square(half: float, n_per_side: int = 1) -> np.ndarray:

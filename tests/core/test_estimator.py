@@ -10,11 +10,11 @@ import math
 import numpy as np
 import pytest
 
-from push_core import active
 from push_core.estimator import (
     ContactOutline,
     EKFConfig,
     PushEKF,
+    active,
     limit_surface_of_polygon,
     predict_push,
     symmetry_order_of_polygon,
@@ -101,7 +101,7 @@ def test_contact_outline_decimates_and_keeps_the_outline() -> None:
 
 def test_closest_feature_loop_equals_the_vectorised_search(
         monkeypatch: pytest.MonkeyPatch) -> None:
-    import push_core.contact as estimator
+    import push_core.estimator.contact as estimator
 
     outline = ContactOutline.from_points(*library_outline("tri1"), tolerance=5e-4)
     assert len(outline.vertices) <= estimator._SMALL_POLYGON  # the loop is used for tri1

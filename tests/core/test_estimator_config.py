@@ -1,4 +1,4 @@
-"""push_core.estimator_config: the state layout, the noise models against their formulas,
+"""push_core.estimator.config: the state layout, the noise models against their formulas,
 validation naming the field, and the input check."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from push_core.estimator_config import STATE_LABELS, STATE_SIZE, EKFConfig, finite_vector
+from push_core.estimator.config import STATE_LABELS, STATE_SIZE, EKFConfig, finite_vector
 
 
 def test_state_layout() -> None:

@@ -16,8 +16,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from push_core import active
-from push_core.estimator import EKFConfig, PushEKF, predict_push
+from push_core.estimator import EKFConfig, PushEKF, active, predict_push
 from push_core.objects import load_object
 
 TRUE_COM = np.array([0.03, -0.01])

@@ -1,11 +1,11 @@
-"""Unit tests of push_core.kalman.EKFBase: the textbook equations, written out."""
+"""Unit tests of push_core.estimator.kalman.EKFBase: the textbook equations, written out."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from push_core.kalman import EKFBase
+from push_core.estimator.kalman import EKFBase
 
 
 class ConstantVelocity(EKFBase):

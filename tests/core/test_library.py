@@ -177,7 +177,7 @@ def test_estimator_with_known_com_and_friction_zero() -> None:
     assert np.all(np.isfinite(ekf.covariance)) and ekf.covariance[3:, 3:] == pytest.approx(0.0)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        from push_core.estimator_config import EKFConfig
+        from push_core.estimator.config import EKFConfig
         with pytest.raises(ValueError, match="known_m"):
             EKFConfig(known_m=-0.1)
         with pytest.raises(ValueError, match="known_l"):

@@ -1,4 +1,4 @@
-"""push_core.pairing: estimator pose + state messages paired into estimates (no rclpy)."""
+"""push_core.estimator.pairing: estimator pose + state messages paired into estimates (no rclpy)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from push_core.pairing import EstimatePairing
+from push_core.estimator.pairing import EstimatePairing
 
 
 def state(x: float, y: float, theta: float) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""push_core.process_model: predict_push against hand-derived pushes of a square and its
+"""push_core.estimator.process_model: predict_push against hand-derived pushes of a square and its
 Jacobian against central differences."""
 
 from __future__ import annotations
@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from push_core.contact import ContactOutline
-from push_core.process_model import predict_push
+from push_core.estimator.contact import ContactOutline
+from push_core.estimator.process_model import predict_push
 
 #: A 10 cm square, centred on its COM.
 SQUARE = np.array([[0.05, -0.05], [0.05, 0.05], [-0.05, 0.05], [-0.05, -0.05]])

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from push_core.contact import limit_surface_of_polygon
+from push_core.estimator.contact import limit_surface_of_polygon
 from push_core.pushable import Pusher, PushObject
 
 #: A 0.1 x 0.04 m rectangle given about its lower-left corner (centroid at (0.05, 0.02)).

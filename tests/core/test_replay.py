@@ -1,4 +1,5 @@
-"""push_core.replay: inputs in stamp order and the late push re-filtered (real PushEKF, no ROS)."""
+"""push_core.estimator.replay: inputs in stamp order and the late push re-filtered (real PushEKF,
+no ROS)."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ import numpy as np
 import pytest
 
 from push_core.estimator import EKFConfig, PushEKF
-from push_core.replay import Rejected, ReplayHistory
+from push_core.estimator.replay import Rejected, ReplayHistory
 
 
 def square(half: float = 0.03, n: int = 10) -> np.ndarray:

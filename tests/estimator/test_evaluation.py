@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from push_core.active import informative_push
 from push_core.estimator import EKFConfig
+from push_core.estimator.active import informative_push
 from pushbot.experiments.estimator_episodes import run_physics_episode
 from pushbot.experiments.estimator_evaluation import main
 

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from push_core.replay import Rejected
+from push_core.estimator.replay import Rejected
 from push_estimator.config import PARAMETERS, changed_values, check_parameter_set
 from push_estimator.inputs import (
     COVARIANCE_RANGE,

@@ -57,7 +57,7 @@ from rclpy.parameter import Parameter  # noqa: E402
 from sensor_msgs.msg import PointCloud2, PointField  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
-import push_core.ekf as ekf_module  # noqa: E402
+import push_core.estimator.ekf as ekf_module  # noqa: E402
 from push_core.estimator import EKFConfig, PushEKF, predict_push  # noqa: E402
 from push_estimator import ekf_node as node_module  # noqa: E402
 from push_estimator.ekf_node import PARAMETERS, EkfNode  # noqa: E402

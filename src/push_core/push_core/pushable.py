@@ -37,8 +37,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from push_core.ekf import PushEKF
-from push_core.estimator_config import EKFConfig
+from push_core.estimator.config import EKFConfig
+from push_core.estimator.ekf import PushEKF
 from push_core.geometry import object_to_world, world_to_object, wrap_angle
 from push_core.objects import DEFAULT_FRICTION_PUSHER, limit_surface_guess
 from push_core.planner import Outline, Planner, PlannerConfig, prepare_outline

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from push_core.estimator import EKFConfig, PushEKF
-from push_core.replay import FILTER_ERRORS
+from push_core.estimator.replay import FILTER_ERRORS
 from push_ros.frames import OBJECT_FRAME, WORLD_FRAME
 from push_ros.interfaces import SIM_TIME
 from push_ros.node import ParamSpec

@@ -1,8 +1,8 @@
 """``ekf_node``: EKF over the object pose, centre of mass, limit surface and friction.
 
 Role: feeds :class:`push_core.estimator.PushEKF` the perceived poses and the executed pushes in
-stamp order through :class:`push_core.replay.ReplayHistory` (a late push is inserted and the
-later observations re-filtered), builds the filter from ``perception/outline`` (a different
+stamp order through :class:`push_core.estimator.replay.ReplayHistory` (a late push is inserted and
+the later observations re-filtered), builds the filter from ``perception/outline`` (a different
 outline starts an episode) and publishes the estimate latched, stamped with the observation's
 stamp. Input rules: :mod:`push_estimator.inputs`; parameters: :mod:`push_estimator.config`.
 
@@ -33,8 +33,8 @@ from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
 from push_core.estimator import STATE_LABELS, PushEKF
+from push_core.estimator.replay import FILTER_ERRORS, Rejected, ReplayHistory
 from push_core.geometry import NonFiniteError
-from push_core.replay import FILTER_ERRORS, Rejected, ReplayHistory
 from push_estimator import inputs
 from push_estimator.config import (
     NODE_NAME,

@@ -1,8 +1,8 @@
 """The input rules of ``ekf_node``, ROS-free: positions, push lengths, stamps, covariances.
 
-Each rule raises :class:`push_core.replay.Rejected` (``kind`` = the node's ``refused_<kind>``
-class) or answers a plain question, on float seconds, metres and numpy arrays, so it is tested
-without rclpy (``tests/estimator/test_inputs.py``).
+Each rule raises :class:`push_core.estimator.replay.Rejected` (``kind`` = the node's
+``refused_<kind>`` class) or answers a plain question, on float seconds, metres and numpy arrays,
+so it is tested without rclpy (``tests/estimator/test_inputs.py``).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from push_core.episode import precedes_episode
-from push_core.replay import Rejected
+from push_core.estimator.replay import Rejected
 
 __all__ = [
     "COVARIANCE_RANGE",
@@ -133,7 +133,7 @@ class EpisodeInputs:
 
 
 def observation_problem(stamp: float, result: Any, relearned: bool, gate_threshold: float) -> str:
-    """What an observation update (``push_core.ekf.UpdateResult``-like: ``nis``,
+    """What an observation update (``push_core.estimator.ekf.UpdateResult``-like: ``nis``,
     ``reinitialized``) at ``stamp`` (s) reports on /diagnostics and as a warning; "" if
     nothing: re-learning of c, l, m, or a failed gate (pose re-initialised, c, l, m kept)."""
     if relearned:
@@ -147,8 +147,9 @@ def observation_problem(stamp: float, result: Any, relearned: bool, gate_thresho
 
 
 def outline_summary(outline: Any, n_points: int, n_received: int, replaced: bool) -> str:
-    """The log line of an outline the filter was built on (``push_core.contact.ContactOutline``:
-    ``vertices``, ``limit_surface`` m, ``symmetry_order``)."""
+    """The log line of an outline the filter was built on
+    (``push_core.estimator.contact.ContactOutline``: ``vertices``, ``limit_surface`` m,
+    ``symmetry_order``)."""
     decimated = f" (decimated from {n_received})" if n_points < n_received else ""
     return (f"{'new ' if replaced else ''}outline: {n_points} points{decimated} -> "
             f"{len(outline.vertices)} contact vertices, l_0 = {1e3 * outline.limit_surface:.1f} "

@@ -2,7 +2,7 @@
 
 Role: feeds :class:`push_core.episode.EpisodeEngine` (the closed-loop rules, shared with the
 in-process loops) and acts on its decisions; planning is :class:`push_core.planner.Planner`.
-Estimates are paired by :class:`push_core.pairing.EstimatePairing`, goals de-duplicated by
+Estimates are paired by :class:`push_core.estimator.pairing.EstimatePairing`, goals de-duplicated by
 :class:`push_ros.message_info.GoalSources`; a matching ``pusher/refused`` (:mod:`push_ros.refusal`)
 or a push not executed within ``push_timeout`` is a lost push, and the node re-plans.
 Parameters: :mod:`push_planner.config`.
@@ -35,7 +35,7 @@ from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
 from push_core.episode import EpisodeEngine
-from push_core.pairing import Estimate, EstimatePairing
+from push_core.estimator.pairing import Estimate, EstimatePairing
 from push_core.planner import Planner, PushPlan, check_state, prepare_outline
 from push_planner.config import NODE_NAME, PARAMETERS, PlannerNodeParams, load_learned_model
 from push_planner.conversions import affordance_markers, executed_end, goal_from_msg, status_message
@@ -54,7 +54,7 @@ __all__ = ["PARAMETERS", "PlannerNode", "PlannerNodeParams", "main"]
 
 #: Period of /diagnostics and of the push-timeout check, seconds of wall time.
 DIAGNOSTICS_PERIOD_S = 1.0
-#: Poses and states kept for pairing (push_core.pairing).
+#: Poses and states kept for pairing (push_core.estimator.pairing).
 PAIR_BUFFER = 10
 #: Least step between the header stamps of two pushes, ns (a refusal names one push).
 PUSH_STAMP_STEP_NS = 1000

@@ -9,7 +9,7 @@ by an observation. Every push is drawn at a random outline point, toward the obj
 the world accepts it; pushes bring the object back when it is more than 8 cm from the
 workspace centre). ``--push-policy`` (one or both, comma-separated; each gets its own tables):
 ``active`` (default) executes, of 16 such draws, the one the filter expects to shrink its COM
-covariance most (``push_core.active.most_informative_push``: the smallest trace of the
+covariance most (``push_core.estimator.active.most_informative_push``: the smallest trace of the
 COM block of :meth:`push_core.estimator.PushEKF.expected_covariance`); ``random`` executes the
 first draw. The filter (:class:`push_core.estimator.PushEKF`, default settings) gets what the
 robot would get: the object's outline (library shape sampled every 2 mm with outward normals,

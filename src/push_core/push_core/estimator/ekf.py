@@ -1,10 +1,10 @@
 """The push EKF: pose, centre of mass, limit surface and friction from pushes and poses.
 
 docs/ARCHITECTURE.md, "Estimator". ROS-free: numpy in, numpy out. :class:`PushEKF` is an
-:class:`~push_core.kalman.EKFBase` over the state of :mod:`push_core.estimator_config`; its
-prediction is the process model :func:`push_core.process_model.predict_push` on the perceived
-outline (:class:`push_core.contact.ContactOutline`) with the per-push process noise
-:meth:`EKFConfig.process_noise`.
+:class:`~push_core.estimator.kalman.EKFBase` over the state of :mod:`push_core.estimator.config`;
+its prediction is the process model :func:`push_core.estimator.process_model.predict_push` on the
+perceived outline (:class:`push_core.estimator.contact.ContactOutline`) with the per-push process
+noise :meth:`EKFConfig.process_noise`.
 
 Observation model: identity on ``(x, y, theta)``. The innovation's angle is wrapped, and for an
 object with ``symmetry_order`` k (its outline looks the same after a rotation by 2 pi / k) it is
@@ -15,7 +15,7 @@ itself within ``symmetry_tolerance``). An observation whose orientation variance
 observed" (:func:`push_core.symmetry.orientation_observed`: a continuously symmetric outline
 such as a disc) updates only ``(x, y)``; the orientation then follows the process model from
 yaw 0 at the first frame. The update is the Joseph form for ``H = [I_3 0]`` (or ``[I_2 0]``)
-written out (:meth:`push_core.kalman.EKFBase.update_leading`), then symmetrised; ``l`` and
+written out (:meth:`push_core.estimator.kalman.EKFBase.update_leading`), then symmetrised; ``l`` and
 ``m`` are clipped to physical ranges (``l`` in ``[l_min_fraction * l_0, r_max]`` with ``l_0``
 the uniform-pressure guess and ``r_max`` the largest distance of the outline from its centroid,
 ``m`` in ``m_range``) and ``c`` to the convex hull of the outline (a rigid object's COM lies
@@ -34,7 +34,7 @@ pybullet physics the default is section ``eval_estimator`` and ``pushbot eval es
 Initialisation: the pose from the first observation (covariance R), ``c = 0`` with covariance
 ``com_prior_fraction^2`` times the second moment matrix of the outline's area (the COM anywhere
 in the object, uniformly), ``l = l_0`` computed from the outline polygon itself
-(:func:`push_core.contact.limit_surface_of_polygon`, mean distance of the area from the
+(:func:`push_core.estimator.contact.limit_surface_of_polygon`, mean distance of the area from the
 centroid, exact; standard deviation 25 %), ``m = m_init`` (a guess: 0.3, between the
 steel-on-steel pusher of the source and the 0.15-0.5 range of the simulator, standard deviation
 0.15).
@@ -66,10 +66,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.stats import chi2
 
-from push_core.contact import ContactOutline
-from push_core.estimator_config import STATE_SIZE, EKFConfig, finite_vector
-from push_core.kalman import EKFBase
-from push_core.process_model import PushPrediction, _predict_push
+from push_core.estimator.config import STATE_SIZE, EKFConfig, finite_vector
+from push_core.estimator.contact import ContactOutline
+from push_core.estimator.kalman import EKFBase
+from push_core.estimator.process_model import PushPrediction, _predict_push
 from push_core.symmetry import orientation_observed
 
 __all__ = ["PushEKF", "UpdateResult"]
@@ -110,7 +110,7 @@ class UpdateResult:
 class PushEKF(EKFBase):
     """EKF over ``(x, y, theta, c_x, c_y, l, m)``; see the module docstring.
 
-    An :class:`~push_core.kalman.EKFBase` whose prediction is the pushing model:
+    An :class:`~push_core.estimator.kalman.EKFBase` whose prediction is the pushing model:
     ``predict(u=(pusher_start, pusher_end))`` (or :meth:`predict_push`) sets ``F`` to the
     closed-form Jacobian and ``Q`` to the push's process noise, then the base propagates
     ``P = F P F^T + Q``. The update is the base's Joseph form for ``H = [I_n 0]`` with the

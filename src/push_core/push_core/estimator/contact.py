@@ -1,7 +1,7 @@
 """The outline as the push EKF sees it: contact queries and the polygon's area properties.
 
 ROS-free; object frame, metres. :class:`ContactOutline` is the perceived outline prepared for
-the process model (:mod:`push_core.process_model`): validated, decimated to a
+the process model (:mod:`push_core.estimator.process_model`): validated, decimated to a
 counter-clockwise polygon (Douglas-Peucker), with per-segment tangents and outward normals,
 the closest-feature search of the contact test (a Python loop over outlines of at most
 ``_SMALL_POLYGON`` segments, vectorised over larger ones: numpy calls on 2-vectors cost more

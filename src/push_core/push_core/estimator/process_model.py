@@ -1,17 +1,18 @@
 """The push EKF's process model: one straight push, with its closed-form Jacobian.
 
-ROS-free; SI units, state as in :mod:`push_core.estimator_config`. :func:`predict_push` is the
+ROS-free; SI units, state as in :mod:`push_core.estimator.config`. :func:`predict_push` is the
 analytical pushing model (:mod:`push_core.model`) driven by the executed
 straight push (pusher axis from ``pusher_start`` to ``pusher_end`` in ``world``), integrated in
 substeps of at most ``substep`` (a push no longer than one substep is a single model step;
 ``max_substeps`` bounds the loop: a longer push is split into that many equal substeps).
 Every substep finds the contact on the *decimated* outline polygon
-(:class:`push_core.contact.ContactOutline`) the way :func:`push_core.rollout.rollout_push` does
-(closest outline feature to the pusher centre at the substep start, contact test ``approach >
-0`` and ``gap - approach <= contact_tol``), with one refinement: when the pusher closes a gap
-inside the substep, the contact point is taken where it touches (not at the substep start) and
-only the rest of the substep pushes. ``c``, ``l`` and ``m`` do not change in the prediction;
-they are slowly varying parameters with a random walk per push (the filter's process noise).
+(:class:`push_core.estimator.contact.ContactOutline`) the way
+:func:`push_core.rollout.rollout_push` does (closest outline feature to the pusher centre at the
+substep start, contact test ``approach > 0`` and ``gap - approach <= contact_tol``), with one
+refinement: when the pusher closes a gap inside the substep, the contact point is taken where it
+touches (not at the substep start) and only the rest of the substep pushes. ``c``, ``l`` and ``m``
+do not change in the prediction; they are slowly varying parameters with a random walk per push
+(the filter's process noise).
 
 Jacobian: closed form. The substep model is written out in scalar arithmetic together with its
 partial derivatives (the contact point and normal on the touched segment or vertex as functions
@@ -32,8 +33,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from push_core.contact import ContactOutline
-from push_core.estimator_config import STATE_SIZE, finite_vector
+from push_core.estimator.config import STATE_SIZE, finite_vector
+from push_core.estimator.contact import ContactOutline
 from push_core.model import ALPHA_MAX, ALPHA_MIN, L_MAX, L_MIN
 from push_core.rollout import CONTACT_TOL, PUSHER_RADIUS
 
@@ -320,7 +321,7 @@ def predict_push(state: ArrayLike, outline: ContactOutline, pusher_start: ArrayL
     Parameters
     ----------
     state : array_like, shape (7,)
-        ``(x, y, theta, c_x, c_y, l, m)`` before the push (:mod:`push_core.estimator_config`).
+        ``(x, y, theta, c_x, c_y, l, m)`` before the push (:mod:`push_core.estimator.config`).
     outline : ContactOutline
         The object's outline (object frame).
     pusher_start, pusher_end : array_like, shape (2,)
