@@ -372,15 +372,15 @@ def test_goal_without_a_planner_exits_1_with_one_line() -> None:
     assert result.stderr.count("\n") == 1
 
 
-@pytest.mark.ros
+@pytest.mark.graph
 def test_goal_wait_timing_out_says_the_goal_stays_and_how_to_drop_it(processes: Any) -> None:
     # A planner alone: it takes the goal but never gets an estimate, so --wait times out.
     planner = processes.node("planner_node")
-    result = pushbot("goal", "0.03", "0", "0", "--wait", "--timeout", "30")
+    result = pushbot("goal", "0.03", "0", "0", "--wait", "--timeout", "10")
     assert planner.poll() is None, processes.output(planner)
     assert result.returncode == 1
     assert result.stdout.startswith("goal sent: x 0.03 m"), result.stdout
-    assert "pushbot goal: timed out after 30 s" in result.stderr, result.stderr
+    assert "pushbot goal: timed out after 10 s" in result.stderr, result.stderr
     assert ("the goal stays with planner_node" in result.stderr
             and "pushbot service call /planner_node/reset" in result.stderr)
     assert result.stderr.count("\n") == 1

@@ -147,6 +147,7 @@ def one_torch_thread():
     cv2.setNumThreads(before[1])
 
 
+@pytest.mark.slow
 def test_one_loop_step_on_320_random_shapes_raises_nothing(tmp_path, one_torch_thread):
     from push_perception.model import Segmenter
     from sim_bridge.world import PushWorld, quiet_stdout

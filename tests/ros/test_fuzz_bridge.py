@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-pytestmark = [pytest.mark.ros]
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 rclpy = pytest.importorskip("rclpy")
 pytest.importorskip("hypothesis")

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-pytestmark = [pytest.mark.ros]
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 rclpy = pytest.importorskip("rclpy")
 hypothesis = pytest.importorskip("hypothesis")

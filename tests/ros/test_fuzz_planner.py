@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-pytestmark = [pytest.mark.ros]
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 hypothesis = pytest.importorskip("hypothesis")
 
