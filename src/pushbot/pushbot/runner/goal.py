@@ -39,6 +39,10 @@ STAYS = ("the goal stays with planner_node and runs as soon as it has estimates;
 LINGER = 2.0
 """Seconds ``goal`` (without ``--wait``) keeps its latched publisher after sending: DDS
 discovery of this new process by a running ``bag record`` or ``view`` takes a moment."""
+LATE_SUBSCRIBER_WAIT = 5.0
+"""Seconds, after ``LINGER``, that ``goal`` waits at most for the subscribers of ``goal_pose``
+the graph knows of (one that found the topic during the linger) to match its publisher and
+acknowledge the latched goal; a subscriber whose QoS never matches costs this bound."""
 PLANNER_TIMEOUT = 20.0
 """Longest wait for planner_node (its goal subscription and latched status), seconds: enough
 for a graph that ``pushbot up`` is still starting (the nodes import torch)."""
@@ -60,11 +64,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--linger", type=float, default=LINGER,
                         help="seconds the latched goal stays available after it was sent "
                              "(without --wait): a recorder or viewer that discovers the topic "
-                             "meanwhile still receives it (default: %(default)s)")
+                             "meanwhile still receives it; then up to "
+                             f"{LATE_SUBSCRIBER_WAIT:g} s more until every subscriber the "
+                             "graph knows has it (default: %(default)s)")
     parser.add_argument("--timeout", type=float, default=DEFAULT_TIMEOUT,
                         help="seconds to wait, with --wait, for the end of the episode "
                              "(default: %(default)s; planner_node itself is waited for at most "
                              f"{PLANNER_TIMEOUT:g} s)")
+
+
+def goal_delivered(node: Any, publisher: Any) -> bool:
+    """True when every subscriber of the publisher's topic in the graph is matched and has
+    acknowledged the published samples (reliable readers; best-effort ones count as matched)."""
+    from rclpy.duration import Duration
+
+    return (publisher.get_subscription_count() >= node.count_subscribers(publisher.topic_name)
+            and publisher.wait_for_all_acked(Duration(seconds=0)))
 
 
 def status_values(msg: Any) -> dict[str, str]:
@@ -155,6 +170,8 @@ def _send(args: argparse.Namespace, goal: tuple[float, float, float]) -> int:
             sent = time.monotonic()
             publisher.wait_for_all_acked(Duration(seconds=2.0))
             spin_until(executor, lambda: False, sent + args.linger)
+            spin_until(executor, lambda: goal_delivered(node, publisher),
+                       time.monotonic() + LATE_SUBSCRIBER_WAIT)
             return 0
         last_line = ""
         accepted = False
