@@ -387,17 +387,27 @@ def test_record_all_catches_a_short_lived_publisher(tmp_path: Path, processes) -
 
 
 def test_record_all_catches_the_goal_of_pushbot_goal(tmp_path: Path, processes) -> None:
-    # `pushbot goal` (no --wait) waits for the planner, sends the latched goal and lingers
-    # (--linger, 2 s), so a recorder discovering the new process meanwhile still gets it.
+    # `pushbot goal` (no --wait) waits for the planner, sends the latched goal and lingers, so a
+    # recorder discovering the new process meanwhile still gets it. The linger here is long
+    # (20 s, the default 2 s) so that discovery on a loaded machine stays far inside it; the goal
+    # is interrupted once the recorder holds the message.
     from pushbot.ros2cli.bag import BagRecorder, TopicSelection
 
     planner = processes.node("planner_node")
     with BagRecorder(tmp_path / "bag", TopicSelection(all_topics=True)) as recorder:
-        goal = processes.start([PUSHBOT, "goal", "0.03", "0", "0"], name="goal")
-        assert goal.wait(timeout=90) == 0, processes.output(goal)
-        time.sleep(0.5)  # the last sample's way to the recorder
+        goal = processes.start([PUSHBOT, "goal", "0.03", "0", "0", "--linger", "20"],
+                               name="goal")
+        deadline = time.monotonic() + 60
+        while recorder.counts().get("/goal_pose", 0) < 1 and time.monotonic() < deadline \
+                and goal.poll() is None:
+            time.sleep(0.1)
+        if goal.poll() is None:
+            goal.send_signal(signal.SIGINT)
+        assert goal.wait(timeout=90) in (0, 130), processes.output(goal)
+        time.sleep(0.5)  # a second sample would have had time to arrive
         counts = recorder.counts()
     assert planner.poll() is None, processes.output(planner)
+    assert processes.output(goal).startswith("goal sent: x 0.03 m")
     assert counts.get("/goal_pose") == 1, (counts, processes.output(goal))
 
 
