@@ -84,7 +84,9 @@ def test_one_episode_reaches_the_goal(graph: GraphRunner) -> None:
     assert math.hypot(*(end[:2] - goal_true[:2])) == pytest.approx(rec["end_error_xy"])
     # The goal went out as the first estimate plus the offset (yaw in the episode frame).
     np.testing.assert_allclose(rec["goal"], np.asarray(rec["poses_est"][0]) + trial.goal_offset())
-    assert abs(rec["poses_est"][0][2]) < 1e-9  # the first frame defines yaw 0
+    # The first frame defines yaw 0; the first estimate may already have fused a still frame of
+    # the resting object (fresh sensor noise: a small fraction of a degree), never more.
+    assert abs(rec["poses_est"][0][2]) < math.radians(0.5)
     # The object moved by about the task's 10 cm, the estimate followed it.
     assert np.linalg.norm(end[:2] - pose0[:2]) > 0.08
     assert np.linalg.norm(np.asarray(rec["poses_est"][-1])[:2] - end[:2]) < 0.005
@@ -119,7 +121,7 @@ def test_consecutive_trials_on_one_graph(graph: GraphRunner) -> None:
                   com="centre", index=5, seed=0, region="medium")
     rec = graph.run(trial)
     np.testing.assert_allclose(rec["poses_true"][0], [0.0, 0.0, trial.initial_yaw], atol=2e-3)
-    assert abs(rec["poses_est"][0][2]) < 1e-9 and rec["steps"] >= 1
+    assert abs(rec["poses_est"][0][2]) < math.radians(0.5) and rec["steps"] >= 1  # as above
     assert rec["reason"] in ("goal reached", "max steps", "no feasible push"), rec["reason"]
     assert rec["success"] == (rec["end_error_xy"] <= trial.tolerances[0]
                               and rec["end_error_theta"] <= trial.tolerances[1])
