@@ -6,9 +6,15 @@ Runs each tier once, as the Makefile does (``python -m pytest -m "not graph and 
 and after (the machine may be shared: a loaded machine stretches every figure). Not run by
 ``run_all.py`` (it would run the whole suite inside ``make bench``).
 
+With ``--ci-log FILE`` (repeatable) it also reads clean-clone CI runs: the output of
+``(time bash .ci/run) > FILE 2>&1`` in a fresh clone (venv build, then ``make test``); each adds
+a row with pytest's own wall time, its summary counts and the whole run's time (``real``, the
+venv build included).
+
 Usage::
 
-    .venv/bin/python benchmarks/time_tests.py [--tiers fast full] [--no-write]
+    .venv/bin/python benchmarks/time_tests.py [--tiers fast full] [--ci-log FILE ...]
+        [--no-write]
 """
 
 from __future__ import annotations
@@ -29,6 +35,8 @@ REPO = Path(__file__).resolve().parents[1]
 TIERS = {"fast": ("make test-fast", ["-m", "not graph and not slow"]),
          "full": ("make test", [])}
 _COUNT = re.compile(r"(\d+) (passed|failed|skipped|deselected|errors?|xfailed|xpassed)")
+_PYTEST_SECONDS = re.compile(r" in ([0-9.]+)s")
+_REAL = re.compile(r"^real\s+(\d+)m([0-9.]+)s", re.M)
 
 
 def summary_counts(output: str) -> dict[str, int]:
@@ -57,34 +65,67 @@ def run_tier(name: str) -> dict[str, object]:
             "tail": proc.stdout.strip().splitlines()[-1:] or [""]}
 
 
+def read_ci_log(path: Path) -> dict[str, object]:
+    """A clean-clone CI run from its log (module docstring): pytest's wall time (s) and
+    counts, the whole run's time (s, venv build included) and the exit status if recorded.
+
+    >>> import tempfile
+    >>> log = Path(tempfile.mkdtemp()) / "cc.log"
+    >>> _ = log.write_text("== 2 failed, 9 passed, 1 warning in 61.5s ==\\nreal\\t2m3.5s\\n")
+    >>> r = read_ci_log(log)
+    >>> r["seconds"], r["counts"], r["total"]
+    (61.5, {'failed': 2, 'passed': 9}, 123.5)
+    """
+    text = path.read_text(encoding="utf-8", errors="replace")
+    summary = [line for line in text.splitlines() if _COUNT.search(line)
+               and _PYTEST_SECONDS.search(line)]
+    if not summary:
+        raise ValueError(f"{path}: no pytest summary line")
+    real = _REAL.search(text)
+    return {"tier": "full", "source": path.name,
+            "seconds": float(_PYTEST_SECONDS.search(summary[-1]).group(1)),  # type: ignore[union-attr]
+            "counts": summary_counts(summary[-1]),
+            "total": 60 * int(real.group(1)) + float(real.group(2)) if real else None,
+            "status": 0 if "failed" not in summary_counts(summary[-1]) else 1}
+
+
 def section(results: list[dict[str, object]], command: str) -> str:
     """The ``test_tiers`` section of docs/RESULTS.md."""
     rows = ["| tier | command | wall time | pytest exit | outcome | load avg before / after |",
             "| --- | --- | --- | --- | --- | --- |"]
     for r in results:
         counts = ", ".join(f"{n} {k}" for k, n in r["counts"].items())  # type: ignore[union-attr]
-        before, after = r["load"]  # type: ignore[misc]
-        rows.append(f"| {r['tier']} | `{TIERS[str(r['tier'])][0]}` | "
-                    f"{float(r['seconds']) / 60:.1f} min | {r['status']} | {counts} | "
-                    f"{before:.1f} / {after:.1f} |")
+        if "load" in r:
+            before, after = r["load"]  # type: ignore[misc]
+            load, where = f"{before:.1f} / {after:.1f}", f"`{TIERS[str(r['tier'])][0]}`"
+        else:
+            total = r["total"]
+            load = "-"
+            where = (f"`.ci/run` on a clean clone ({r['source']}"
+                     + (f"; {float(total) / 60:.1f} min with the venv build)" if total else ")"))
+        rows.append(f"| {r['tier']} | {where} | {float(r['seconds']) / 60:.1f} min | "
+                    f"{r['status']} | {counts} | {load} |")
     body = ("Each tier run once on this worktree (`-p no:cacheprovider`; the fast tier leaves "
-            "out the `graph` and `slow` markers). Wall time from start to exit of pytest; the "
-            "load average shows how busy the machine was.\n\n" + "\n".join(rows))
+            "out the `graph` and `slow` markers), and clean-clone CI runs read from their logs. "
+            "Wall time from start to exit of pytest; the load average shows how busy the "
+            "machine was.\n\n" + "\n".join(rows))
     return format_section("Test tiers (`time_tests`)", command, body)
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--tiers", nargs="+", choices=sorted(TIERS), default=["fast", "full"])
+    parser.add_argument("--tiers", nargs="*", choices=sorted(TIERS), default=["fast", "full"])
+    parser.add_argument("--ci-log", type=Path, action="append", default=[],
+                        help="log of a clean-clone `(time bash .ci/run)` run (repeatable)")
     parser.add_argument("--no-write", action="store_true", help="print, do not write")
     args = parser.parse_args(argv)
-    results = []
+    results: list[dict[str, object]] = [read_ci_log(path) for path in args.ci_log]
     for name in args.tiers:
         print(f"== {name}", flush=True)
         results.append(run_tier(name))
         print(results[-1], flush=True)
     text = section(results, "python benchmarks/time_tests.py " + " ".join(
-        ["--tiers", *args.tiers]))
+        ["--tiers", *args.tiers, *(f"--ci-log {p.name}" for p in args.ci_log)]))
     print(text)
     if not args.no_write:
         update_section("test_tiers", text)
