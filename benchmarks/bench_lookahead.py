@@ -38,7 +38,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _pushes import pushes_over_minimum, trial_minimum  # noqa: E402
 from _results import format_section, update_section  # noqa: E402
-from bench_planner import time_ms  # noqa: E402
+from bench_planner import planning_cases, time_ms  # noqa: E402
 
 from push_core.objects import load_object  # noqa: E402
 from push_core.planner import Planner, PlannerConfig, prepare_outline  # noqa: E402
@@ -57,12 +57,7 @@ def speed_rows(repeats: int, horizons: tuple[int, ...]) -> list[str]:
     for obj in ("butter", "tri1"):
         spec = load_object(obj)
         outline = prepare_outline(*spec.outline(0.0015))
-        rng = np.random.default_rng(0)
-        cases = []
-        for _ in range(64):
-            pose = np.array([*rng.uniform(-0.05, 0.05, 2), rng.uniform(-np.pi, np.pi)])
-            goal = pose + [*rng.uniform(-0.1, 0.1, 2), rng.uniform(-0.6, 0.6)]
-            cases.append(([*pose, *spec.com, spec.limit_surface_guess(), 0.25], goal))
+        cases = planning_cases(spec)
         greedy = None
         for h in horizons:
             planner = Planner(PlannerConfig(horizon=h))

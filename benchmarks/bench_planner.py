@@ -62,16 +62,24 @@ def time_ms(fn: Callable[[], object], repeats: int, warmup: int = 10) -> np.ndar
     return 1e3 * out
 
 
+def planning_cases(spec, n: int = 64, seed: int = 0) -> list[tuple[list[float], np.ndarray]]:
+    """``n`` seeded (state, goal) pairs for timing ``Planner.plan`` on ``spec``: a pose within
+    5 cm of the origin at any yaw, the spec's COM, its limit-surface guess and friction 0.25,
+    a goal within 10 cm and 0.6 rad of the pose."""
+    rng = np.random.default_rng(seed)
+    cases = []
+    for _ in range(n):
+        pose = np.array([*rng.uniform(-0.05, 0.05, 2), rng.uniform(-np.pi, np.pi)])
+        goal = pose + [*rng.uniform(-0.1, 0.1, 2), rng.uniform(-0.6, 0.6)]
+        cases.append(([*pose, *spec.com, spec.limit_surface_guess(), 0.25], goal))
+    return cases
+
+
 def speed_rows(repeats: int) -> tuple[list[str], float, int]:
     """Timing table rows; returns them, the headline median (ms) and the point count."""
     spec = load_object("butter")
     outline = prepare_outline(*spec.outline(0.0015))
-    rng = np.random.default_rng(0)
-    cases = []
-    for _ in range(64):
-        pose = np.array([*rng.uniform(-0.05, 0.05, 2), rng.uniform(-np.pi, np.pi)])
-        goal = pose + [*rng.uniform(-0.1, 0.1, 2), rng.uniform(-0.6, 0.6)]
-        cases.append(([*pose, *spec.com, spec.limit_surface_guess(), 0.25], goal))
+    cases = planning_cases(spec)
     rows, headline = [], math.nan
     variants = [("ana, k = 3, rollouts (target)", {"k": 3}), ("ana, k = 1, rollouts", {"k": 1}),
                 ("ana, k = 10, rollouts", {"k": 10}),
