@@ -43,16 +43,19 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _pushes import pushes_over_minimum  # noqa: E402
 from _results import format_section, update_section  # noqa: E402
-from bench_lookahead import VariantRunner  # noqa: E402
+from bench_lookahead import variant_fields  # noqa: E402
 
 from push_core.geometry import world_to_object  # noqa: E402
 from push_core.objects import load_object  # noqa: E402
 from push_core.planner import AVOID_RADIUS, motion_score  # noqa: E402
+from pushbot.experiments.inprocess import EpisodeRunner  # noqa: E402
 from pushbot.experiments.protocol import Trial, make_trials  # noqa: E402
 from sim_bridge.world import PushWorld, WorldConfig, quiet_stdout  # noqa: E402
 
 WORLDS = ("friction_jump", "sticky_patch", "com_edge")
 VARIANTS = ("greedy", "lookahead+adapt")
+#: Pushes looked ahead by ``lookahead+adapt``.
+HORIZON = 2
 TARGET = 0.95
 
 
@@ -78,11 +81,11 @@ class ContradictingWorld(PushWorld):
         return super().execute_push(approach, contact, end, *args, **kwargs)
 
 
-class WorldRunner(VariantRunner):
-    """``VariantRunner`` in a :class:`ContradictingWorld` of one kind."""
+class WorldRunner(EpisodeRunner):
+    """The protocol's episode runner in a :class:`ContradictingWorld` of one kind."""
 
-    def __init__(self, variant: str, kind: str) -> None:
-        super().__init__(variant, horizon=2)
+    def __init__(self, kind: str) -> None:
+        super().__init__()
         self.kind = kind
 
     def _make_world(self, trial: Trial) -> Any:
@@ -136,10 +139,10 @@ def main(argv: list[str] | None = None) -> int:
             "with any) | target |", "| --- " * 7 + "|"]
     for kind in args.worlds:
         for variant in args.variants:
-            runner = WorldRunner(variant, kind)
+            runner = WorldRunner(kind)
             recs = []
             for trial in make_trials(args.objects, ["mixed"], ["ana"], [3], args.trials,
-                                     state=args.state):
+                                     state=args.state, **variant_fields(variant, HORIZON)):
                 rec = runner.run(trial)
                 recs.append(rec)
                 print(f"{kind} {variant} {trial.object} #{trial.index}: {rec['steps']} "

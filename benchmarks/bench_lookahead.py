@@ -30,7 +30,6 @@ import argparse
 import os
 import sys
 import time
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -77,28 +76,21 @@ def speed_rows(repeats: int, horizons: tuple[int, ...]) -> list[str]:
     return rows
 
 
-class VariantRunner(EpisodeRunner):
-    """The protocol's episode runner with the planner (and estimator) of one variant."""
-
-    def __init__(self, variant: str, horizon: int) -> None:
-        super().__init__()
-        self.variant, self.horizon = variant, horizon
-        if variant == "lookahead+adapt":
-            self.ekf_config = replace(self.ekf_config, relearn=True)
-
-    def _planner(self, trial, world):  # noqa: ANN001, ANN202 - EpisodeRunner's hook
-        base = super()._planner(trial, world)
-        if self.variant == "greedy":
-            return base
-        cfg = replace(base.config, horizon=self.horizon,
-                      avoid_contradicted=self.variant == "lookahead+adapt")
-        return Planner(cfg, None)
+def variant_fields(variant: str, horizon: int) -> dict[str, object]:
+    """The :class:`pushbot.experiments.protocol.Trial` fields of a variant (module docstring)."""
+    if variant not in VARIANTS:
+        raise ValueError(f"variant: expected one of {VARIANTS}, got {variant!r}")
+    if variant == "greedy":
+        return {}
+    adapt = variant == "lookahead+adapt"
+    return {"horizon": horizon, "avoid_contradicted": adapt, "relearn": adapt}
 
 
 def closed_loop(variant: str, horizon: int, state: str, trials: int) -> list[dict]:
-    runner = VariantRunner(variant, horizon)
+    runner = EpisodeRunner()
     records = []
-    for trial in make_trials(list(OBJECTS), list(TASKS), ["ana"], [3], trials, state=state):
+    for trial in make_trials(list(OBJECTS), list(TASKS), ["ana"], [3], trials, state=state,
+                             **variant_fields(variant, horizon)):
         rec = runner.run(trial)
         records.append(rec)
         print(f"{variant} {trial.object} {trial.task} #{trial.index}: {rec['steps']} pushes, "

@@ -250,8 +250,8 @@ def main() -> int:
     command = ("nice -n 5 .venv/bin/python benchmarks/eval_pusht.py "
                + " ".join(sys.argv[1:])).strip()
     load = os.getloadavg()[0]
-    body += (f"\n\nThe machine was shared with other jobs (1-minute load average {load:.1f} at "
-             "the end); wall times are indicative only.")
+    body += (f"\n\n1-minute load average at the end: {load:.1f} on {os.cpu_count()} logical cores "
+             "(the machine is shared; wall times are indicative only).")
     print(body)
     if not args.no_write:
         update_section("eval_pusht", format_section(

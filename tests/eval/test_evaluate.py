@@ -79,6 +79,56 @@ def test_build_trials_cross_product_and_deduplication():
     assert [t.index for t in trials[:2]] == [0, 1]
 
 
+def test_planner_and_filter_variants_reach_every_layer_and_keep_the_scenes():
+    """--horizon / --avoid-contradicted / --relearn (issue 22): carried by every trial into
+    the in-process planner and filter and the graph's node parameters; the variant is part of
+    the cell, not of the trial's seed (the same scenes, goals and planner seeds)."""
+    from push_planner.config import PARAMETERS as PLANNER_PARAMETERS
+    from pushbot.experiments.inprocess import EpisodeRunner
+    from pushbot.experiments.protocol import Trial, planner_episode_params
+
+    base = build_trials(EvalOptions(objects=["rect1"], tasks=["mixed"], trials=2))
+    opts = EvalOptions(objects=["rect1"], tasks=["mixed"], trials=2, horizon=3,
+                       avoid_contradicted=True, relearn=True)
+    trials = build_trials(opts)
+    assert opts.as_dict()["horizon"] == 3 and opts.as_dict()["relearn"] is True
+    assert [(t.horizon, t.avoid_contradicted, t.relearn) for t in trials] == [(3, True, True)] * 2
+    assert [t.trial_seed for t in trials] == [t.trial_seed for t in base]
+    assert [t.planner_seed for t in trials] == [t.planner_seed for t in base]
+    assert [(b.horizon, b.avoid_contradicted, b.relearn) for b in base] == [(1, False, False)] * 2
+    kw = trials[0].planner_kwargs()
+    assert kw["horizon"] == 3 and kw["avoid_contradicted"] is True
+    params = planner_episode_params(trials[0])
+    assert params["lookahead.horizon"] == 3 and params["avoid_contradicted"] is True
+    assert set(params) <= {spec.name for spec in PLANNER_PARAMETERS}
+    runner = EpisodeRunner()
+    assert runner._ekf_config(trials[0]).relearn is True
+    assert runner._ekf_config(base[0]).relearn is False
+    assert runner._ekf_config(Trial(object="rect1", state="filter", relearn=True,
+                                    estimate_com=False)).relearn is True
+    recs = [_record(True, 4, 0.002, 0.01, **t.as_dict()) for t in base + trials]
+    assert [c["horizon"] for c in summarise(recs)] == [1, 3]
+    for bad, match in (({"horizon": 0}, "horizon must be an integer >= 1"),
+                       ({"horizon": 1.5}, "horizon"), ({"relearn": "yes"}, "relearn must be"),
+                       ({"avoid_contradicted": 1}, "avoid_contradicted must be")):
+        with pytest.raises(ValueError, match=match):
+            Trial(object="rect1", **bad)
+
+
+def test_cli_takes_the_variant_flags():
+    import argparse
+
+    from pushbot.experiments.evaluate import add_arguments, options_from_args
+
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    opts = options_from_args(parser.parse_args(["--objects", "rect1", "--horizon", "2",
+                                                "--avoid-contradicted", "--relearn"]))
+    assert (opts.horizon, opts.avoid_contradicted, opts.relearn) == (2, True, True)
+    opts = options_from_args(parser.parse_args(["--objects", "rect1"]))
+    assert (opts.horizon, opts.avoid_contradicted, opts.relearn) == (1, False, False)
+
+
 @pytest.mark.parametrize("kwargs, match", [
     ({"tasks": ["push"]}, "--tasks: unknown value"),
     ({"methods": ["best"]}, "--methods: unknown value.*best"),
@@ -89,6 +139,7 @@ def test_build_trials_cross_product_and_deduplication():
     ({"trials": 0}, "--trials"),
     ({"objects": ["no_such_object"]}, "--objects: 'no_such_object'"),
     ({"objects": []}, "--objects: give at least one"),
+    ({"horizon": 0}, "--horizon"),
 ])
 def test_option_validation(kwargs, match):
     with pytest.raises(ValueError, match=match):

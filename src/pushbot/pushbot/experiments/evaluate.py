@@ -35,11 +35,13 @@ Examples::
         --com-estimation off on
     pushbot eval push --methods ana geo rdn lrn --k 1 3 10 --trials 20
     pushbot eval push --methods ana pushnet --region small medium large
+    pushbot eval push --state filter --horizon 2 --avoid-contradicted --relearn
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import itertools
 import json
 import math
@@ -72,7 +74,7 @@ DEFAULT_OBJECTS = ("tri1", "butter", "hex")
 TIMING_KEYS = frozenset({"timing", "wall_s", "planning_ms"})
 #: Trial fields that define a cell (everything except the index).
 CELL_FIELDS = ("object", "task", "method", "k", "state", "com", "region", "estimate_com",
-               "seed", "max_steps")
+               "seed", "max_steps", "horizon", "avoid_contradicted", "relearn")
 
 #: The source's Table 5.1 (mixed task, ana, COM at the centre): steps, end error mm, deg.
 SOURCE_TABLE_5_1 = {"gt": ((7.3, 3.6), (5.0, 1.8), (1.8, 1.3)),
@@ -97,7 +99,8 @@ class EvalOptions:
                  k: Sequence[int] = (3,), state: Sequence[str] = ("gt",),
                  com: Sequence[str] = ("centre",), region: Sequence[str] = ("small",),
                  com_estimation: Sequence[str] = ("on",), trials: int = 60, seed: int = 0,
-                 max_steps: int = 30) -> None:
+                 max_steps: int = 30, horizon: int = 1, avoid_contradicted: bool = False,
+                 relearn: bool = False) -> None:
         def listed(name: str, values: Sequence[Any], allowed: Iterable[Any] | None) -> list[Any]:
             values = list(dict.fromkeys(values))  # unique, in order
             if not values:
@@ -123,11 +126,13 @@ class EvalOptions:
             if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < 1:
                 raise ValueError(f"--k: values must be integers >= 1, got {v!r}")
         for name, value, low in (("trials", trials, 1), ("seed", seed, 0),
-                                 ("max_steps", max_steps, 1)):
+                                 ("max_steps", max_steps, 1), ("horizon", horizon, 1)):
             if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < low:
                 raise ValueError(f"--{name.replace('_', '-')}: must be an integer >= {low}, "
                                  f"got {value!r}")
         self.trials, self.seed, self.max_steps = int(trials), int(seed), int(max_steps)
+        self.horizon = int(horizon)
+        self.avoid_contradicted, self.relearn = bool(avoid_contradicted), bool(relearn)
         self._check_objects()
 
     def _check_objects(self) -> None:
@@ -143,7 +148,9 @@ class EvalOptions:
         return {"objects": self.objects, "tasks": self.tasks, "methods": self.methods,
                 "k": [int(v) for v in self.k], "state": self.state, "com": self.com,
                 "region": self.region, "com_estimation": self.com_estimation,
-                "trials": self.trials, "seed": self.seed, "max_steps": self.max_steps}
+                "trials": self.trials, "seed": self.seed, "max_steps": self.max_steps,
+                "horizon": self.horizon, "avoid_contradicted": self.avoid_contradicted,
+                "relearn": self.relearn}
 
 
 def build_trials(opts: EvalOptions) -> list[Trial]:
@@ -162,13 +169,21 @@ def build_trials(opts: EvalOptions) -> list[Trial]:
         seen.add(key)
         trials += [Trial(object=obj, task=task, method=method, k=int(k), state=state, com=com,
                          region=region, index=i, seed=opts.seed, max_steps=opts.max_steps,
-                         estimate_com=estimate) for i in range(opts.trials)]
+                         estimate_com=estimate, horizon=opts.horizon,
+                         avoid_contradicted=opts.avoid_contradicted, relearn=opts.relearn)
+                   for i in range(opts.trials)]
     return trials
+
+
+#: Defaults of the trial fields that have one: a record written before a field existed
+#: (e.g. ``horizon``) belongs to the cell of the default.
+_TRIAL_DEFAULTS = {f.name: f.default for f in dataclasses.fields(Trial)
+                   if f.default is not dataclasses.MISSING}
 
 
 def cell_key(trial: dict[str, Any]) -> tuple[Any, ...]:
     """The cell of a trial (``Trial.as_dict()``): every field except the index."""
-    return tuple(trial[f] for f in CELL_FIELDS)
+    return tuple(trial[f] if f in trial else _TRIAL_DEFAULTS[f] for f in CELL_FIELDS)
 
 
 # --------------------------------------------------------------------------------------------
@@ -532,18 +547,28 @@ def write_outputs(doc: dict[str, Any], out_dir: Path) -> list[Path]:
     return written
 
 
+def variant_label(cell: dict[str, Any]) -> str:
+    """The planner and filter variant of a cell or trial dict (issue 22): ``greedy`` or the
+    horizon and adaptations, e.g. ``H=2, avoid contradicted, relearn``."""
+    horizon = int(cell.get("horizon", 1))
+    parts = ["greedy" if horizon == 1 else f"H={horizon}"]
+    parts += [name.replace("_", " ") for name in ("avoid_contradicted", "relearn")
+              if cell.get(name)]
+    return ", ".join(parts)
+
+
 def cells_markdown(cells: list[dict[str, Any]]) -> str:
     """The per-cell table (what ``pushbot eval push`` prints)."""
-    lines = ["| object | task | method | k | state | com | region | COM est. | n | success | "
-             "steps | end mm | end deg | COM mm | plan ms |",
-             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | "
-             "--- | --- |"]
+    lines = ["| object | task | method | k | state | com | region | COM est. | variant | n | "
+             "success | steps | end mm | end deg | COM mm | plan ms |",
+             "| --- " * 16 + "|"]
     for c in cells:
         plan = c["timing"]["planning_ms_median"]
         com = _pm(c["com_error_mean"], c["com_error_std"], 1e3)
         lines.append(
             f"| {c['object']} | {c['task']} | {c['method']} | {c['k']} | {c['state']} | "
-            f"{c['com']} | {c['region']} | {'on' if c['estimate_com'] else 'off'} | {c['n']} | "
+            f"{c['com']} | {c['region']} | {'on' if c['estimate_com'] else 'off'} | "
+            f"{variant_label(c)} | {c['n']} | "
             f"{c['success_rate']:.2f} | {_pm(c['steps_mean'], c['steps_std'])} | "
             f"{_pm(c['end_error_xy_mean'], c['end_error_xy_std'], 1e3)} | "
             f"{_pm(c['end_error_theta_mean'], c['end_error_theta_std'], 180 / math.pi)} | "
@@ -583,6 +608,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="trials per cell (default 60 = 20 orientations x 3 runs)")
     parser.add_argument("--seed", type=int, default=0, help="base seed (default 0)")
     parser.add_argument("--max-steps", type=int, default=30, help="pushes allowed (default 30)")
+    parser.add_argument("--horizon", type=int, default=1,
+                        help="pushes the planner looks ahead (push_core.lookahead; default 1 = "
+                             "greedy, the source's planner)")
+    parser.add_argument("--avoid-contradicted", action="store_true",
+                        help="the planner avoids the contact region of a push whose outcome "
+                             "contradicted its prediction")
+    parser.add_argument("--relearn", action="store_true",
+                        help="filter: the EKF re-learns COM, limit surface and friction when "
+                             "the pushes contradict the model")
     parser.add_argument("--workers", type=int, default=None,
                         help="worker processes (default: the cores this process may use); 1 "
                              "runs in this process")
@@ -605,7 +639,8 @@ def options_from_args(args: argparse.Namespace) -> EvalOptions:
     return EvalOptions(objects=args.objects, tasks=args.tasks, methods=args.methods, k=args.k,
                        state=args.state, com=args.com, region=args.region,
                        com_estimation=args.com_estimation, trials=args.trials, seed=args.seed,
-                       max_steps=args.max_steps)
+                       max_steps=args.max_steps, horizon=args.horizon,
+                       avoid_contradicted=args.avoid_contradicted, relearn=args.relearn)
 
 
 def run(args: argparse.Namespace) -> int:

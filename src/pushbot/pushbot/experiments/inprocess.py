@@ -13,7 +13,8 @@ docs/ARCHITECTURE.md ("Closed loop and evaluation"). Each cycle:
    predicted with the executed pusher motion and updated with the perceived pose and its
    covariance, as ``ekf_node`` does. A frame without a pose (``PerceptionError``) leaves the
    prediction alone. ``estimate_com = False`` pins the COM at the geometric centre (prior and
-   random walk of the COM zero), the "without COM estimation" rows of the source's Table 5.2.
+   random walk of the COM zero), the "without COM estimation" rows of the source's Table 5.2;
+   ``relearn = True`` turns on the filter's re-learning (``EKFConfig.relearn``).
 2. **Goal** in the frame of the state source: ``trial.goal(first pose)`` (for ``filter`` the
    first perceived pose, yaw 0 at the first frame; for ``gt`` the true initial pose).
 3. **Stop** by the stop rule (``Planner.reached``: the *state source's* pose within the
@@ -192,9 +193,10 @@ class EpisodeRunner:
         return self._finish(rec, world, goal_true, t_start)
 
     def _ekf_config(self, trial: Trial) -> EKFConfig:
+        config = replace(self.ekf_config, relearn=True) if trial.relearn else self.ekf_config
         if trial.estimate_com:
-            return self.ekf_config
-        return replace(self.ekf_config, com_prior_fraction=PINNED_COM_PRIOR, com_noise=0.0)
+            return config
+        return replace(config, com_prior_fraction=PINNED_COM_PRIOR, com_noise=0.0)
 
     @staticmethod
     def _finish(rec: dict[str, Any], world: Any, goal_true: NDArray[np.float64],

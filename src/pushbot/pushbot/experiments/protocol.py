@@ -121,6 +121,18 @@ class Trial:
     estimate_com : bool
         ``filter``: the EKF estimates the COM (True) or keeps it at the geometric centre.
         Ignored by ``gt``.
+    horizon : int
+        Pushes the planner looks ahead (``PlannerConfig.horizon``, issue 22; 1 = greedy, the
+        source's planner). Ignored by ``pushnet``.
+    avoid_contradicted : bool
+        The planner avoids the contact region of a push whose observed outcome contradicted
+        its prediction (``PlannerConfig.avoid_contradicted``). Ignored by ``pushnet``.
+    relearn : bool
+        ``filter``: the EKF restarts COM, limit surface and friction at their priors when the
+        pushes contradict the model (``EKFConfig.relearn``). Ignored by ``gt``.
+
+    The three planner and filter variants do not enter :attr:`trial_seed`: every variant
+    faces the same scenes and goals.
     """
 
     object: str
@@ -134,6 +146,9 @@ class Trial:
     seed: int = 0
     max_steps: int = 30
     estimate_com: bool = True
+    horizon: int = 1
+    avoid_contradicted: bool = False
+    relearn: bool = False
 
     def __post_init__(self) -> None:
         _check("task", self.task, TASKS)
@@ -147,9 +162,15 @@ class Trial:
             raise ValueError(f"index and seed must be >= 0, got {self.index}, {self.seed}")
         if int(self.max_steps) < 1:
             raise ValueError(f"max_steps must be >= 1, got {self.max_steps}")
-        if not isinstance(self.estimate_com, bool | np.bool_):
-            raise ValueError(f"estimate_com must be a bool, got {self.estimate_com!r}")
-        object.__setattr__(self, "estimate_com", bool(self.estimate_com))
+        if isinstance(self.horizon, bool) or not isinstance(self.horizon, int | np.integer) \
+                or self.horizon < 1:
+            raise ValueError(f"horizon must be an integer >= 1, got {self.horizon!r}")
+        object.__setattr__(self, "horizon", int(self.horizon))
+        for name in ("estimate_com", "avoid_contradicted", "relearn"):
+            value = getattr(self, name)
+            if not isinstance(value, bool | np.bool_):
+                raise ValueError(f"{name} must be a bool, got {value!r}")
+            object.__setattr__(self, name, bool(value))
 
     # -- derived quantities -------------------------------------------------------------------
     @property
@@ -224,7 +245,8 @@ class Trial:
         tol_xy, tol_theta = self.tolerances
         return {"method": self.planner_method, "direct": self.direct, "k": int(self.k),
                 "tolerance_xy": tol_xy, "tolerance_theta": tol_theta,
-                "seed": self.planner_seed}
+                "seed": self.planner_seed, "horizon": self.horizon,
+                "avoid_contradicted": self.avoid_contradicted}
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -232,12 +254,15 @@ class Trial:
 
 def make_trials(objects: list[str], tasks: list[str], methods: list[str], ks: list[int],
                 n: int, *, state: str = "gt", com: str = "centre", region: str = "small",
-                seed: int = 0, max_steps: int = 30, estimate_com: bool = True) -> list[Trial]:
+                seed: int = 0, max_steps: int = 30, estimate_com: bool = True,
+                horizon: int = 1, avoid_contradicted: bool = False, relearn: bool = False
+                ) -> list[Trial]:
     """The cross product objects x tasks x methods x ks x ``n`` trial indices, in that order."""
     if n < 1:
         raise ValueError(f"the number of trials must be >= 1, got {n}")
     return [Trial(object=o, task=t, method=mth, k=k, state=state, com=com, region=region,
-                  index=i, seed=seed, max_steps=max_steps, estimate_com=estimate_com)
+                  index=i, seed=seed, max_steps=max_steps, estimate_com=estimate_com,
+                  horizon=horizon, avoid_contradicted=avoid_contradicted, relearn=relearn)
             for o in objects for t in tasks for mth in methods for k in ks for i in range(n)]
 
 
@@ -248,4 +273,6 @@ def planner_episode_params(trial: Trial) -> dict[str, Any]:
     return {"method": kw["method"], "direct": bool(kw["direct"]), "k": int(kw["k"]),
             "goal_tolerance.xy": float(kw["tolerance_xy"]),
             "goal_tolerance.theta": float(kw["tolerance_theta"]),
-            "max_steps": int(trial.max_steps), "seed": int(kw["seed"])}
+            "max_steps": int(trial.max_steps), "seed": int(kw["seed"]),
+            "lookahead.horizon": int(kw["horizon"]),
+            "avoid_contradicted": bool(kw["avoid_contradicted"])}

@@ -7,8 +7,10 @@ profile of :mod:`push_ros.dds`) once, and run every trial through them. A hidden
 this process drives the episodes only through the nodes' public interfaces:
 
 1. **Episode parameters.** ``planner_node``: ``method``, ``direct``, ``k``,
-   ``goal_tolerance.{xy,theta}``, ``max_steps``, ``seed`` (:meth:`Trial.planner_kwargs`), via
-   its ``set_parameters`` service; then ``/segmentation_node/reset`` (the next *new* frame
+   ``goal_tolerance.{xy,theta}``, ``max_steps``, ``seed``, ``lookahead.horizon``,
+   ``avoid_contradicted`` (:func:`pushbot.experiments.protocol.planner_episode_params`);
+   ``ekf_node``: ``relearn.enabled`` (:attr:`Trial.relearn`), via their
+   ``set_parameters`` services; then ``/segmentation_node/reset`` (the next *new* frame
    becomes the episode's reference; repeated frames of the old scene are skipped),
    ``/ekf_node/reset`` (repeated observations of the old scene are dropped) and
    ``/planner_node/reset`` (applies the parameters, forgets the goal and estimates).
@@ -315,6 +317,7 @@ class GraphRunner:
         self.set_parameters("planner_node", {**planner_episode_params(trial),
                                              "after_goal": "report", **fault.planner_params()})
         self.reset("planner_node")  # drop the old goal before the scene changes under it
+        self.set_parameters("ekf_node", {"relearn.enabled": trial.relearn})  # at its reset
         world = trial.world_kwargs()
         x, y, theta = world["object_pose"]
         com = world.get("com_offset")
