@@ -131,8 +131,29 @@ def fidelity_errors(trials: int, seed: int, two_faces: bool) -> dict[bool, list]
     return rows
 
 
-def _row(args: argparse.Namespace, obs: str, model: str, reused: list[str]) -> str:
-    """One table row: the run of (obs, model), run now or read back (``--reuse``)."""
+def failures(r: dict, obs: str, model: str) -> str:
+    """One line naming the failed episodes of a run (results.json) with what they reached, or
+    "" when every episode succeeded."""
+    failed = [e for e in r["episodes"] if not e["success"]]
+    if not failed:
+        return ""
+    parts = []
+    for e in failed:
+        extra = []
+        if e.get("goal_error_mm") is not None:
+            extra.append(f"goal fitted {e['goal_error_mm']:.1f} mm off")
+        if e.get("outline_error_mm") is not None:
+            extra.append(f"outline error {e['outline_error_mm']:.2f} mm")
+        parts.append(f"seed {e['seed']} (max coverage {e['max_coverage']:.3f} after "
+                     f"{e['steps']} steps, {e['pushes']} pushes" +
+                     "".join(f", {x}" for x in extra) + ")")
+    return f"- {obs}, {model} model: {len(failed)} failed: " + "; ".join(parts) + "."
+
+
+def _row(args: argparse.Namespace, obs: str, model: str, reused: list[str],
+         failed: list[str]) -> str:
+    """One table row: the run of (obs, model), run now or read back (``--reuse``); the run's
+    failures are appended to ``failed``."""
     t0 = time.perf_counter()
     folder = _folder(args.out, obs, model)
     saved = folder / "results.json"
@@ -153,6 +174,8 @@ def _row(args: argparse.Namespace, obs: str, model: str, reused: list[str]) -> s
                      progress=True, object_model=model)
         wall = time.perf_counter() - t0
     print(json.dumps({k: v for k, v in r.items() if k != "episodes"}), flush=True)
+    if failures(r, obs, model):
+        failed.append(failures(r, obs, model))
     lo, hi = r["success_wilson_95"]
     given = GIVEN[(obs, model)]
     if r["pose_error_mm_median"] is not None:
@@ -191,14 +214,14 @@ def main() -> int:
                              "--episodes from seed 0 where it exists instead of running the "
                              "episodes again")
     args = parser.parse_args()
-    rows, reused = [], []
+    rows, reused, failed = [], [], []
     for model in args.object_model:
         for obs in args.obs:
-            rows.append(_row(args, obs, model, reused))
+            rows.append(_row(args, obs, model, reused, failed))
     rows.append(
         f"| LeRobot Diffusion Policy (reference, not re-run) | "
         f"{DIFFUSION_POLICY['success_rate']:.3f} | {DIFFUSION_POLICY['avg_max_reward']:.3f} | - "
-        f"| - | - | - | - | - | - | - | - | 96 x 96 images + agent xy; 206 human "
+        f"| - | - | - | - | - | - | - | 96 x 96 images + agent xy; 206 human "
         f"demonstrations; about 7 GPU-hours of training |")
     body = "\n".join([
         f"gym-pusht 0.1.8 `gym_pusht/PushT-v0`, {args.episodes} episodes (seeds 0-"
@@ -240,6 +263,9 @@ def main() -> int:
         "planning median | wall per episode | given |",
         "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
         *rows,
+        "",
+        "Failures:" if failed else "Failures: none.",
+        *failed,
     ])
     body += ("\n\nModel fidelity on the T (contact-model check of issue 16): push_core's rollout "
              "(frictionless, l = sqrt(I/M), the adapter's frames) against the env for straight "
