@@ -17,6 +17,9 @@ figures are copied to ``docs/figures/``):
   (``filter``), random COM, mixed task.
 - ``ksweep``: k in {1, 3, 10} for ana, lrn, geo, rdn, ana-direct, lrn-direct, ground-truth state
   (Figs. 5.5, 5.6).
+- ``lookahead``: the ``full`` protocol with the lookahead planner (``--horizon``, default 2),
+  contradicted pushes avoided and the filter re-learning, against issue 22's targets, next to
+  ``full``'s greedy pushes on the same trials (section ``eval_push_lookahead``).
 
 Usage::
 
@@ -59,7 +62,7 @@ FIGURES = ROOT / "docs" / "figures"
 OBJECTS = ("tri1", "butter", "hex")
 TASKS = ("translation", "rotation", "mixed")
 DEFAULT_TRIALS = {"full": 60, "gt": 60, "table51": 60, "table52": 60, "regions": 20,
-                  "regions_filter": 20, "ksweep": 20}
+                  "regions_filter": 20, "ksweep": 20, "lookahead": 60}
 
 
 def _sel(records: list[dict], **fields: object) -> list[dict]:
@@ -430,9 +433,76 @@ def exp_ksweep(trials: int, workers: int, seed: int) -> tuple[str, str]:
     return body, "Contact points k: Figs. 5.5 and 5.6 (`eval_push_ksweep`)"
 
 
+#: Issue 22's acceptance: mean pushes per task on every object, and success over all trials.
+LOOKAHEAD_TARGETS = {"translation": 5.0, "mixed": 3.0, "rotation": 2.0}
+LOOKAHEAD_SUCCESS = 0.995
+#: Set by --horizon: the planner's lookahead of the ``lookahead`` experiment.
+HORIZON = 2
+
+
+def exp_lookahead(trials: int, workers: int, seed: int) -> tuple[str, str]:
+    """The full protocol with the lookahead planner and the adapting loop (issue 22), next to
+    the greedy ``full`` run of the same trials when its results exist."""
+    opts = EvalOptions(objects=OBJECTS, tasks=TASKS, methods=["ana"], k=[3], state=["filter"],
+                       trials=trials, seed=seed, horizon=HORIZON, avoid_contradicted=True,
+                       relearn=True)
+    doc = _run(f"lookahead_h{HORIZON}", opts, workers)
+    recs = doc["trials"]
+    greedy_doc = OUT / "full" / "results.json"
+    greedy = []
+    if greedy_doc.is_file():
+        g = json.loads(greedy_doc.read_text())
+        if g["config"]["trials"] == trials and g["config"]["seed"] == seed:
+            greedy = g["trials"]
+    lines = ["| task | object | trials | success | pushes (lookahead) | pushes (greedy, same "
+             "trials) | min | pushes / min | target (mean pushes) | planning ms median |",
+             "| --- " * 10 + "|"]
+    for task in TASKS:
+        for obj in OBJECTS:
+            r = _sel(recs, task=task, object=obj)
+            if not r:
+                continue
+            s = stats(r)
+            g = stats(_sel(greedy, task=task, object=obj)) if greedy else None
+            target = LOOKAHEAD_TARGETS[task]
+            mean = s["steps_mean"]
+            verdict = "met" if mean is not None and mean <= target else "NOT met"
+            plan = np.median([ms for x in r for ms in x["planning_ms"]])
+            lines.append(
+                f"| {task} | {obj} | {s['n']} | {s['success_rate']:.3f} | "
+                f"{_f(mean, '.2f')} | {_f(g['steps_mean'], '.2f') if g else '-'} | "
+                f"{trial_minimum(r[0]['trial'])} | {_f(pushes_over_minimum(r))} | "
+                f"<= {target:.1f}: {verdict} | {plan:.0f} |")
+    s = stats(recs)
+    g = stats(greedy) if greedy else None
+    ok = s["success_rate"] >= LOOKAHEAD_SUCCESS
+    body = "\n".join([
+        f"The full protocol of `eval_push_full` ({', '.join(OBJECTS)} x {', '.join(TASKS)} x "
+        f"{trials} trials, `filter`, ana, k = 3, COM at the centre, the same trials) with the "
+        f"planner looking ahead H = {HORIZON} pushes (`push_core.lookahead`, beam 8, push cost "
+        "20 mm), contradicted pushes avoided and the filter re-learning "
+        "(`pushbot eval push --horizon "
+        f"{HORIZON} --avoid-contradicted --relearn`). Issue 22's targets: mean pushes "
+        "translation <= 5.0, mixed <= 3.0, rotation <= 2.0 on every object, success "
+        f">= {LOOKAHEAD_SUCCESS}. Pushes are means over all trials (a failure counts its "
+        "pushes); `min` and `pushes / min` as in `eval_push_full`.",
+        "",
+        f"**Success {s['success_rate']:.3f}** ({s['successes']}/{s['n']}; target >= "
+        f"{LOOKAHEAD_SUCCESS}: {'met' if ok else 'NOT met'}); mean pushes "
+        f"{_f(s['steps_mean'], '.2f')}" + (f" against {_f(g['steps_mean'], '.2f')} greedy on "
+                                           "the same trials" if g else "") + ". "
+        + _timing(doc),
+        "",
+        *lines,
+        "",
+        _failures(recs),
+    ])
+    return body, f"Lookahead on the full protocol, H = {HORIZON} (`eval_push_lookahead`)"
+
+
 EXPERIMENTS = {"full": exp_full, "gt": exp_gt, "table51": exp_table51, "table52": exp_table52,
                "regions": exp_regions, "regions_filter": exp_regions_filter,
-               "ksweep": exp_ksweep}
+               "ksweep": exp_ksweep, "lookahead": exp_lookahead}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -445,14 +515,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--reuse", action="store_true",
                         help="re-render the sections from out/eval/<name>/results.json when its "
                              "options match (no new trials)")
+    parser.add_argument("--horizon", type=int, default=2,
+                        help="the lookahead experiment's horizon (default %(default)s)")
     args = parser.parse_args(argv)
-    global REUSE
-    REUSE = args.reuse
+    global REUSE, HORIZON
+    REUSE, HORIZON = args.reuse, args.horizon
     for name in args.experiments:
         trials = args.trials or DEFAULT_TRIALS[name]
         t0 = time.perf_counter()
         body, title = EXPERIMENTS[name](trials, args.workers, args.seed)
         extra = f" --trials {args.trials}" if args.trials else ""
+        if name == "lookahead":
+            extra += f" --horizon {HORIZON}"
         command = f"python benchmarks/eval_push.py {name}{extra} --workers {args.workers}"
         _write(f"eval_push_{name}", title, command, body, not args.no_write)
         print(f"{name}: {(time.perf_counter() - t0) / 60:.1f} min", file=sys.stderr)

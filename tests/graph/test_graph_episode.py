@@ -127,6 +127,29 @@ def test_consecutive_trials_on_one_graph(graph: GraphRunner) -> None:
                               and rec["end_error_theta"] <= trial.tolerances[1])
 
 
+def _param(node: str, name: str) -> str:
+    """``pushbot param get`` of a running node's parameter (its stdout)."""
+    exe = Path(sys.executable).parent / "pushbot"
+    got = subprocess.run([str(exe), "param", "get", node, name], capture_output=True, text=True,
+                         timeout=120, env=dict(os.environ), stdin=subprocess.DEVNULL)
+    assert got.returncode == 0, got.stderr
+    return got.stdout
+
+
+def test_the_trials_planner_and_filter_variant_reach_the_nodes(graph: GraphRunner) -> None:
+    # issue 22: Trial.horizon / avoid_contradicted go to planner_node, relearn to ekf_node
+    # before the episode (the nodes apply them at their resets), and the episode still runs.
+    trial = Trial(object="rect1", task="rotation", method="ana", k=3, state="filter",
+                  com="centre", index=2, seed=0, region="medium", horizon=2,
+                  avoid_contradicted=True, relearn=True)
+    rec = graph.run(trial)
+    assert rec["trial"]["horizon"] == 2 and rec["trial"]["relearn"] is True
+    assert rec["reason"] in ("goal reached", "max steps", "no feasible push"), rec["reason"]
+    assert _param("/planner_node", "lookahead.horizon") == "Integer value is: 2\n"
+    assert _param("/planner_node", "avoid_contradicted") == "Boolean value is: True\n"
+    assert _param("/ekf_node", "relearn.enabled") == "Boolean value is: True\n"
+
+
 FAULT_TRIAL = Trial(object="butter", task="mixed", method="ana", k=3, state="filter",
                     com="random", index=0, seed=0)
 

@@ -173,7 +173,7 @@ class GraphClient:
             self._executor_enable = node.create_client(SetBool, f"/{EXECUTOR_NODE}/enable")
             self._executor_cancel = node.create_client(Trigger, f"/{EXECUTOR_NODE}/cancel")
         self._set_params = {n: node.create_client(SetParameters, f"/{n}/set_parameters")
-                            for n in ("sim_bridge_node", "planner_node")}
+                            for n in ("sim_bridge_node", "ekf_node", "planner_node")}
 
     def close(self) -> None:
         """Destroy the node and shut its context down (idempotent)."""

@@ -156,6 +156,8 @@ class KillRestart(Fault):
         extra: list[str] = []
         if self.node == "planner_node":
             extra = planner_start_args(episode.trial)
+        elif self.node == "ekf_node":  # the episode's filter variant (Trial.relearn)
+            extra = [f"relearn.enabled:={str(episode.trial.relearn).lower()}"]
         n_estimates = len(runner.rec.est)
         restarted = time.monotonic()
         runner.nodes.kill_and_restart(self.node, extra)
