@@ -37,7 +37,14 @@ def test_gt_ana_trial_on_rect1_succeeds(index):
     assert rec["success"] and rec["reason"] == "goal reached"
     assert 1 <= rec["steps"] <= 30
     assert len(rec["poses_true"]) == len(rec["poses_est"]) == rec["steps"] + 1
-    assert len(rec["pushes"]) == len(rec["planning_ms"]) == rec["steps"]
+    assert len(rec["pushes"]) == len(rec["planning_ms"]) == len(rec["poses_predicted"]) \
+        == rec["steps"]
+    # each push's predicted pose: the model's guess of poses_true[i + 1], nearer to it than
+    # the pose before the push (rect1 with the true COM and friction)
+    pred, true = np.asarray(rec["poses_predicted"]), np.asarray(rec["poses_true"])
+    moved = np.linalg.norm(true[1:, :2] - true[:-1, :2], axis=1)
+    missed = np.linalg.norm(pred[:, :2] - true[1:, :2], axis=1)
+    assert np.all(missed < moved), (missed, moved)
     assert rec["com_error"] is None
     # gt: the estimate is the truth, and the end error is measured against the true goal
     np.testing.assert_allclose(rec["poses_est"], rec["poses_true"])

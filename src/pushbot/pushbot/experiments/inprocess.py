@@ -146,7 +146,7 @@ class EpisodeRunner:
         order = symmetry_order_of_polygon(spec.polyline())
         pose0_true = world.object_pose()
         goal_true = pose0_true + trial.goal_offset()
-        rec = new_record(trial.as_dict(), perception_failures=0)
+        rec = new_record(trial.as_dict(), perception_failures=0, poses_predicted=[])
         source = _GroundTruth(world) if trial.state == "gt" else _Filter(
             world, self.segmenter(), self._ekf_config(trial))
         try:
@@ -177,6 +177,7 @@ class EpisodeRunner:
             rec["steps"] = engine.steps
             rec["pushes"].append([plan.approach.tolist(), plan.contact.tolist(),
                                   plan.end.tolist()])
+            rec["poses_predicted"].append(np.asarray(plan.predicted_pose).tolist())
             try:
                 result = world.execute_push(plan.approach, plan.contact, plan.end)
                 engine.push_executed(world.sim_time)
