@@ -62,6 +62,8 @@ class Recorded:
     frames: dict[float, np.ndarray] = field(default_factory=dict)  # stamp -> rgb
     masks: dict[float, np.ndarray] = field(default_factory=dict)  # stamp -> bool mask
     outline: np.ndarray | None = None
+    #: Stamps of the ``perception/outline`` messages (each episode reference frame's), s.
+    outline_stamps: list[float] = field(default_factory=list)
     camera_matrix: np.ndarray | None = None
     t_world_camera: np.ndarray | None = None
 
@@ -142,12 +144,12 @@ class GraphClient:
         sub(PathMsg, "pusher/executed", self._on_executed, reliable)
         sub(DiagnosticStatus, "planner/status", self._on_status, latched)
         sub(DiagnosticArray, "/diagnostics", self._on_diagnostics, reliable)
+        sub(PointCloud2, "perception/outline", self._on_outline, latched)
         if self.record_frames:
             sub(Image, "camera/color/image_raw", self._on_rgb, qos_profile_sensor_data)
             sub(Image, "perception/mask", self._on_mask, qos_profile_sensor_data)
             sub(CameraInfo, "camera/color/camera_info", self._on_info, qos_profile_sensor_data)
             sub(TransformStamped, "camera/color/extrinsics", self._on_extrinsics, latched)
-            sub(PointCloud2, "perception/outline", self._on_outline, latched)
         # Latched (push_ros.qos.GOAL_QOS): a planner_node restarted mid-episode gets the goal.
         self._pub_goal = node.create_publisher(PoseStamped, "goal_pose", GOAL_QOS)
         # Fault scenarios (pushbot.runner.faults): a second, volatile goal sender (another
@@ -284,8 +286,11 @@ class GraphClient:
 
     def _on_outline(self, msg: Any) -> None:
         from push_ros.outline import outline_from_cloud
+        from push_ros.stamps import seconds_from_stamp
 
-        self.rec.outline = outline_from_cloud(msg)[0]
+        self.rec.outline_stamps.append(seconds_from_stamp(msg.header.stamp))
+        if self.record_frames:
+            self.rec.outline = outline_from_cloud(msg)[0]
 
     # ---- waiting -----------------------------------------------------------------------------
     def wait(self, predicate: Callable[[], Any], timeout: float, what: str) -> Any:
