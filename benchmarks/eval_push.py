@@ -35,6 +35,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import shutil
 import sys
 import time
@@ -77,7 +78,8 @@ def _timing(doc: dict) -> str:
     t = doc["timing"]
     return (f"{len(doc['trials'])} trials in {t['wall_s'] / 60:.1f} min with {t['engine']}; "
             f"1/5/15-minute load average {t['load_before']} before and {t['load_after']} after "
-            f"(2 cores shared with two other engineers' jobs).")
+            f"on {os.cpu_count()} logical cores (the machine may be shared; wall times are "
+            "indicative only).")
 
 
 def _task_object_table(records: list[dict], target: float | None = None) -> list[str]:
