@@ -20,6 +20,10 @@ figures are copied to ``docs/figures/``):
 - ``lookahead``: the ``full`` protocol with the lookahead planner (``--horizon``, default 2),
   contradicted pushes avoided and the filter re-learning, against issue 22's targets, next to
   ``full``'s greedy pushes on the same trials (section ``eval_push_lookahead``).
+- ``support``: the ``full`` protocol (greedy) in a world whose object is supported across its
+  footprint (``--support-cell``, default 15 mm: ``WorldConfig.support_cell``) next to ``full``
+  on the same trials, with each object's resting contacts in both worlds (section
+  ``eval_push_support``).
 
 Usage::
 
@@ -63,7 +67,7 @@ FIGURES = ROOT / "docs" / "figures"
 OBJECTS = ("tri1", "butter", "hex")
 TASKS = ("translation", "rotation", "mixed")
 DEFAULT_TRIALS = {"full": 60, "gt": 60, "table51": 60, "table52": 60, "regions": 20,
-                  "regions_filter": 20, "ksweep": 20, "lookahead": 60}
+                  "regions_filter": 20, "ksweep": 20, "lookahead": 60, "support": 60}
 
 
 def _sel(records: list[dict], **fields: object) -> list[dict]:
@@ -177,6 +181,11 @@ PREDICTION_TEXT = (
     "against the filter's estimate after the push (perception error included, below 1 deg); "
     "the last column over the pushes predicted to turn the object by more than 2 deg. A "
     "refused push (rare) counts as a push that did not move.")
+def _failures_and_predictions(records: list[dict]) -> list[str]:
+    """The failures line and the model's prediction table of a closed-loop run."""
+    return [_failures(records), "", PREDICTION_TEXT, "", *_prediction_table(records)]
+
+
 #: Set by --reuse: load out/eval/<name>/results.json instead of running when its options match.
 REUSE = False
 
@@ -244,11 +253,7 @@ def exp_full(trials: int, workers: int, seed: int) -> tuple[str, str]:
         "",
         *_task_object_table(doc["trials"]),
         "",
-        _failures(doc["trials"]),
-        "",
-        PREDICTION_TEXT,
-        "",
-        *_prediction_table(doc["trials"]),
+        *_failures_and_predictions(doc["trials"]),
         "",
         "Stop rule (issue 12): `goal reached` needs the estimate inside the goal region shrunk "
         "by z = 2.33 standard deviations of the EKF's pose covariance (confidence 0.99, "
@@ -484,6 +489,43 @@ LOOKAHEAD_SUCCESS = 0.995
 HORIZON = 2
 
 
+def _full_trials(trials: int, seed: int) -> list[dict]:
+    """The records of ``full`` (the greedy planner, whole support) when its results exist for
+    the same trials per cell and seed, else []."""
+    saved = OUT / "full" / "results.json"
+    if saved.is_file():
+        doc = json.loads(saved.read_text())
+        if doc["config"]["trials"] == trials and doc["config"]["seed"] == seed:
+            return doc["trials"]
+    return []
+
+
+def _against_full(recs: list[dict], full: list[dict], this: str, other: str) -> list[str]:
+    """Markdown rows per task and object: a variant's success and pushes (``this``) next to
+    ``full``'s on the same trials (``other``), the minimum and issue 22's target."""
+    lines = [f"| task | object | trials | success ({this} / {other}) | pushes ({this}) | "
+             f"pushes ({other}, same trials) | min | pushes / min ({this}) | target (mean "
+             "pushes) | planning ms median |", "| --- " * 10 + "|"]
+    for task in TASKS:
+        for obj in OBJECTS:
+            r = _sel(recs, task=task, object=obj)
+            if not r:
+                continue
+            s = stats(r)
+            g = stats(_sel(full, task=task, object=obj)) if full else None
+            target = LOOKAHEAD_TARGETS[task]
+            mean = s["steps_mean"]
+            verdict = "met" if mean is not None and mean <= target else "NOT met"
+            plan = np.median([ms for x in r for ms in x["planning_ms"]])
+            lines.append(
+                f"| {task} | {obj} | {s['n']} | {s['success_rate']:.3f} / "
+                f"{_f(g['success_rate'], '.3f') if g else '-'} | {_f(mean, '.2f')} | "
+                f"{_f(g['steps_mean'], '.2f') if g else '-'} | "
+                f"{trial_minimum(r[0]['trial'])} | {_f(pushes_over_minimum(r))} | "
+                f"<= {target:.1f}: {verdict} | {plan:.0f} |")
+    return lines
+
+
 def exp_lookahead(trials: int, workers: int, seed: int) -> tuple[str, str]:
     """The full protocol with the lookahead planner and the adapting loop (issue 22), next to
     the greedy ``full`` run of the same trials when its results exist."""
@@ -492,31 +534,8 @@ def exp_lookahead(trials: int, workers: int, seed: int) -> tuple[str, str]:
                        relearn=True)
     doc = _run(f"lookahead_h{HORIZON}", opts, workers)
     recs = doc["trials"]
-    greedy_doc = OUT / "full" / "results.json"
-    greedy = []
-    if greedy_doc.is_file():
-        g = json.loads(greedy_doc.read_text())
-        if g["config"]["trials"] == trials and g["config"]["seed"] == seed:
-            greedy = g["trials"]
-    lines = ["| task | object | trials | success | pushes (lookahead) | pushes (greedy, same "
-             "trials) | min | pushes / min | target (mean pushes) | planning ms median |",
-             "| --- " * 10 + "|"]
-    for task in TASKS:
-        for obj in OBJECTS:
-            r = _sel(recs, task=task, object=obj)
-            if not r:
-                continue
-            s = stats(r)
-            g = stats(_sel(greedy, task=task, object=obj)) if greedy else None
-            target = LOOKAHEAD_TARGETS[task]
-            mean = s["steps_mean"]
-            verdict = "met" if mean is not None and mean <= target else "NOT met"
-            plan = np.median([ms for x in r for ms in x["planning_ms"]])
-            lines.append(
-                f"| {task} | {obj} | {s['n']} | {s['success_rate']:.3f} | "
-                f"{_f(mean, '.2f')} | {_f(g['steps_mean'], '.2f') if g else '-'} | "
-                f"{trial_minimum(r[0]['trial'])} | {_f(pushes_over_minimum(r))} | "
-                f"<= {target:.1f}: {verdict} | {plan:.0f} |")
+    greedy = _full_trials(trials, seed)
+    lines = _against_full(recs, greedy, "lookahead", "greedy")
     s = stats(recs)
     g = stats(greedy) if greedy else None
     ok = s["success_rate"] >= LOOKAHEAD_SUCCESS
@@ -539,21 +558,83 @@ def exp_lookahead(trials: int, workers: int, seed: int) -> tuple[str, str]:
         "",
         *lines,
         "",
-        _failures(recs),
-        "",
-        PREDICTION_TEXT,
-        "",
-        *_prediction_table(recs),
+        *_failures_and_predictions(recs),
     ])
     return body, f"Lookahead on the full protocol, H = {HORIZON} (`eval_push_lookahead`)"
 
 
+#: ``support``'s cell size (m; ``--support-cell``).
+SUPPORT_CELL = 0.015
+
+
+def _resting_support(obj: str, cell: float) -> tuple[int, float, float]:
+    """The object at rest in the simulator, COM at the centre: (table contacts, their
+    normal-force-weighted mean distance from the COM mm, the uniform-pressure ``l`` mm)."""
+    from push_core.objects import load_object
+    from sim_bridge.world import PushWorld, WorldConfig, quiet_stdout
+
+    with quiet_stdout():
+        world = PushWorld(WorldConfig(object=obj, com_offset=(0.0, 0.0), support_cell=cell))
+    try:
+        client, body = world._client, world._object  # noqa: SLF001 - a diagnostic of the sim
+        points = [c for c in client.getContactPoints(bodyA=body)]
+        xy = np.array([c[5][:2] for c in points])
+        force = np.array([c[9] for c in points])
+        com = world.object_pose()[:2]
+        radius = float(np.sum(force * np.linalg.norm(xy - com, axis=1)) / np.sum(force))
+    finally:
+        world.close()
+    return len(points), 1e3 * radius, 1e3 * load_object(obj).limit_surface_guess()
+
+
+def exp_support(trials: int, workers: int, seed: int) -> tuple[str, str]:
+    """The full protocol in a world with the object supported across its footprint, next to
+    ``full`` (whole convex pieces) on the same trials when its results exist."""
+    opts = EvalOptions(objects=OBJECTS, tasks=TASKS, methods=["ana"], k=[3], state=["filter"],
+                       trials=trials, seed=seed, support_cell=SUPPORT_CELL)
+    mm = f"{1e3 * SUPPORT_CELL:g} mm"
+    doc = _run(f"support_{mm.replace(' ', '')}", opts, workers)
+    recs = doc["trials"]
+    whole = _full_trials(trials, seed)
+    rest = ["| object | contacts (whole / cut) | force-weighted distance from the COM mm "
+            "(whole / cut) | uniform-pressure l mm |", "| --- " * 4 + "|"]
+    for obj in OBJECTS:
+        (n0, r0, l0), (n1, r1, _) = _resting_support(obj, 0.0), _resting_support(obj, SUPPORT_CELL)
+        rest.append(f"| {obj} | {n0} / {n1} | {r0:.1f} / {r1:.1f} | {l0:.1f} |")
+    lines = _against_full(recs, whole, "cut", "whole")
+    s = stats(recs)
+    g = stats(whole) if whole else None
+    body = "\n".join([
+        f"The full protocol of `eval_push_full` ({', '.join(OBJECTS)} x {', '.join(TASKS)} x "
+        f"{trials} trials, `filter`, ana, k = 3, greedy, COM at the centre, the same trials) in a "
+        f"world whose object is cut into {mm} support cells (`pushbot eval push --support-cell "
+        f"{SUPPORT_CELL:g}`, `sim_bridge.scene.support_cells`). Whole, each convex piece of the "
+        "object rests on 3-4 of its corners (bullet keeps at most 4 contact points per pair of "
+        "convex shapes), so its table friction acts there, not over the footprint as the "
+        "model's uniform pressure assumes; cut, the table supports it across its footprint "
+        "(the solver still shares the load unevenly). At rest:",
+        "",
+        *rest,
+        "",
+        f"**Success {s['success_rate']:.3f}** ({s['successes']}/{s['n']}); mean pushes "
+        f"{_f(s['steps_mean'], '.2f')}" + (f" against {_f(g['steps_mean'], '.2f')} with whole "
+                                           "pieces on the same trials" if g else "") + ". "
+        + _timing(doc) + " The targets are issue 22's (for the default world).",
+        "",
+        *lines,
+        "",
+        *_failures_and_predictions(recs),
+    ])
+    return body, f"The object supported across its footprint, {mm} cells (`eval_push_support`)"
+
+
 EXPERIMENTS = {"full": exp_full, "gt": exp_gt, "table51": exp_table51, "table52": exp_table52,
                "regions": exp_regions, "regions_filter": exp_regions_filter,
-               "ksweep": exp_ksweep, "lookahead": exp_lookahead}
+               "ksweep": exp_ksweep, "lookahead": exp_lookahead, "support": exp_support}
 
 
 def main(argv: list[str] | None = None) -> int:
+    global REUSE, HORIZON, SUPPORT_CELL
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("experiments", nargs="+", choices=list(EXPERIMENTS))
     parser.add_argument("--trials", type=int, default=None)
@@ -565,9 +646,10 @@ def main(argv: list[str] | None = None) -> int:
                              "options match (no new trials)")
     parser.add_argument("--horizon", type=int, default=2,
                         help="the lookahead experiment's horizon (default %(default)s)")
+    parser.add_argument("--support-cell", type=float, default=SUPPORT_CELL,
+                        help="the support experiment's cell size, m (default %(default)s)")
     args = parser.parse_args(argv)
-    global REUSE, HORIZON
-    REUSE, HORIZON = args.reuse, args.horizon
+    REUSE, HORIZON, SUPPORT_CELL = args.reuse, args.horizon, args.support_cell
     for name in args.experiments:
         trials = args.trials or DEFAULT_TRIALS[name]
         t0 = time.perf_counter()
@@ -575,6 +657,8 @@ def main(argv: list[str] | None = None) -> int:
         extra = f" --trials {args.trials}" if args.trials else ""
         if name == "lookahead":
             extra += f" --horizon {HORIZON}"
+        if name == "support":
+            extra += f" --support-cell {SUPPORT_CELL:g}"
         command = f"python benchmarks/eval_push.py {name}{extra} --workers {args.workers}"
         _write(f"eval_push_{name}", title, command, body, not args.no_write)
         print(f"{name}: {(time.perf_counter() - t0) / 60:.1f} min", file=sys.stderr)

@@ -485,3 +485,47 @@ def test_service_call_prints_the_response_as_ros2_does(ros_context: Any) -> None
     assert as_yaml.returncode == 0, as_yaml.stderr
     assert yaml.safe_load(as_yaml.stdout.split("response:")[1]) == {
         "success": True, "message": "it's done"}
+
+
+@pytest.mark.ros
+def test_an_unanswered_request_is_sent_again(ros_context: Any) -> None:
+    # A request sent before any server exists is lost (nobody reads it), as a response is
+    # when the server has not matched the client yet. The server here appears 1 s after the
+    # first request: only a request sent again is answered.
+    import time
+
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from std_srvs.srv import Trigger
+
+    from pushbot.ros2cli.discovery import call_until_answered
+
+    node = Node("resend_test", context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    served: list[Any] = []
+
+    def answer(request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        response.success, response.message = True, "answered"
+        return response
+
+    def start_server() -> None:
+        timer.cancel()
+        served.append(node.create_service(Trigger, "resend_test_service", answer))
+
+    try:
+        client = node.create_client(Trigger, "resend_test_service")
+        timer = node.create_timer(1.0, start_server)
+        started = time.monotonic()
+        future = call_until_answered(client, Trigger.Request(), executor,
+                                     started + 30.0, resend_after=0.5)
+        assert future is not None and future.result().message == "answered"
+        assert served and time.monotonic() - started >= 1.0
+        node.destroy_service(served[0])
+        started = time.monotonic()
+        assert call_until_answered(client, Trigger.Request(), executor, started + 1.2,
+                                   resend_after=0.5) is None
+        assert time.monotonic() - started >= 1.2  # it waited out its deadline, then gave up
+    finally:
+        executor.shutdown()
+        node.destroy_node()

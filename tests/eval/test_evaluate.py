@@ -115,6 +115,28 @@ def test_planner_and_filter_variants_reach_every_layer_and_keep_the_scenes():
             Trial(object="rect1", **bad)
 
 
+def test_the_support_cell_is_a_world_variant_of_the_same_scenes():
+    from pushbot.experiments.evaluate import variant_label
+    from pushbot.experiments.protocol import Trial
+
+    base = build_trials(EvalOptions(objects=["rect1"], tasks=["mixed"], trials=2))
+    cut = build_trials(EvalOptions(objects=["rect1"], tasks=["mixed"], trials=2,
+                                   support_cell=0.015))
+    assert [t.support_cell for t in cut] == [0.015] * 2 and base[0].support_cell == 0.0
+    assert [t.trial_seed for t in cut] == [t.trial_seed for t in base]
+    assert cut[0].world_kwargs()["support_cell"] == 0.015
+    assert base[0].world_kwargs()["support_cell"] == 0.0
+    assert variant_label(cut[0].as_dict()) == "greedy, support 15 mm"
+    assert variant_label(base[0].as_dict()) == "greedy"
+    recs = [_record(True, 4, 0.002, 0.01, **t.as_dict()) for t in base + cut]
+    assert [c["support_cell"] for c in summarise(recs)] == [0.0, 0.015]
+    for bad in (0.001, 0.06, -0.01, True, "1 cm"):
+        with pytest.raises(ValueError, match="support_cell must be 0 or in"):
+            Trial(object="rect1", support_cell=bad)
+    with pytest.raises(ValueError, match="--support-cell"):
+        EvalOptions(objects=["rect1"], support_cell=0.2)
+
+
 def test_cli_takes_the_variant_flags():
     import argparse
 
@@ -127,6 +149,9 @@ def test_cli_takes_the_variant_flags():
     assert (opts.horizon, opts.avoid_contradicted, opts.relearn) == (2, True, True)
     opts = options_from_args(parser.parse_args(["--objects", "rect1"]))
     assert (opts.horizon, opts.avoid_contradicted, opts.relearn) == (1, False, False)
+    assert opts.support_cell == 0.0
+    opts = options_from_args(parser.parse_args(["--objects", "rect1", "--support-cell", "0.01"]))
+    assert opts.support_cell == 0.01
 
 
 @pytest.mark.parametrize("kwargs, match", [

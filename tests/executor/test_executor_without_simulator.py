@@ -10,11 +10,14 @@ from __future__ import annotations
 
 import importlib.util
 import sys
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import pytest
+
+from pushbot.ros2cli.discovery import call_until_answered
 
 from .test_kinematics import panda_urdf
 
@@ -53,8 +56,9 @@ def test_push_executor_starts_without_pybullet_and_sim_bridge(
         assert "ImportError" not in log and "Traceback" not in log, log[-3000:]
         enable = client.create_client(SetBool, "/push_executor_node/enable")
         assert enable.wait_for_service(timeout_sec=30.0)
-        future = enable.call_async(SetBool.Request(data=True))
-        assert wait_for(future.done, timeout=30.0, executor=executor)
+        future = call_until_answered(enable, SetBool.Request(data=True), executor,
+                                     time.monotonic() + 30.0)
+        assert future is not None, "/push_executor_node/enable: no answer in 30 s"
         assert future.result().success and future.result().message == "enabled"
         # The simulator really was unimportable in that process's environment.
         check = processes.start([sys.executable, "-c", "import pybullet"], env=no_simulator)

@@ -144,16 +144,18 @@ def _param(node: str, name: str) -> str:
 
 def test_the_trials_planner_and_filter_variant_reach_the_nodes(graph: GraphRunner) -> None:
     # issue 22: Trial.horizon / avoid_contradicted go to planner_node, relearn to ekf_node
-    # before the episode (the nodes apply them at their resets), and the episode still runs.
+    # before the episode (the nodes apply them at their resets), support_cell to the
+    # simulator (the scene's), and the episode still runs.
     trial = Trial(object="rect1", task="rotation", method="ana", k=3, state="filter",
                   com="centre", index=2, seed=0, region="medium", horizon=2,
-                  avoid_contradicted=True, relearn=True)
+                  avoid_contradicted=True, relearn=True, support_cell=0.015)
     rec = graph.run(trial)
     assert rec["trial"]["horizon"] == 2 and rec["trial"]["relearn"] is True
     assert rec["reason"] in ("goal reached", "max steps", "no feasible push"), rec["reason"]
     assert _param("/planner_node", "lookahead.horizon") == "Integer value is: 2\n"
     assert _param("/planner_node", "avoid_contradicted") == "Boolean value is: True\n"
     assert _param("/ekf_node", "relearn.enabled") == "Boolean value is: True\n"
+    assert _param("/sim_bridge_node", "support_cell") == "Double value is: 0.015\n"
 
 
 FAULT_TRIAL = Trial(object="butter", task="mixed", method="ana", k=3, state="filter",

@@ -21,6 +21,8 @@ from typing import Any
 
 import pytest
 
+from pushbot.ros2cli.discovery import call_until_answered
+
 pytestmark = [pytest.mark.ros, pytest.mark.graph]  # starts node processes
 
 BLOCKED = ("pybullet", "sim_bridge")
@@ -98,8 +100,9 @@ def test_runtime_nodes_start_without_pybullet_and_sim_bridge(
 
             reset = client.create_client(Trigger, service)
             assert reset.wait_for_service(timeout_sec=30.0), f"{service} not offered"
-            future = reset.call_async(Trigger.Request())
-            assert wait_for(future.done, timeout=30.0, executor=executor), f"{service}: no answer"
+            future = call_until_answered(reset, Trigger.Request(), executor,
+                                         time.monotonic() + 30.0)
+            assert future is not None, f"{service}: no answer"
             assert future.result().success, (service, future.result().message)
     finally:
         executor.shutdown()

@@ -15,6 +15,7 @@ from push_core.geometry import closest_point_on_polyline, object_to_world
 from push_core.model import push_twist
 from push_core.objects import load_object
 from sim_bridge.camera import CameraConfig, deproject, project
+from sim_bridge.scene import _area, support_cells
 from sim_bridge.world import (
     COM_SHRINK,
     FRICTION_PUSHER_RANGE,
@@ -257,6 +258,9 @@ def test_invalid_configs_raise_and_reset_keeps_the_previous_scene(rect_world):
         WorldConfig(mass=0.0)
     with pytest.raises(ValueError, match="camera.width"):
         CameraConfig(width=0)
+    for cell in (0.001, 0.2, -0.01, float("nan"), True):
+        with pytest.raises(ValueError, match="support_cell"):
+            WorldConfig(support_cell=cell)
     world = rect_world
     world.reset(WorldConfig(object="rect1"))
     with pytest.raises(ValueError, match="unknown object 'no_such_object'"):
@@ -443,3 +447,41 @@ def test_random_com_of_a_u_lies_in_its_area_in_base_and_arms(tmp_path):
     assert np.all(closest_point_on_polyline(outline, coms)[2] < 0)  # in the area, not the gap
     base_top = -0.02 + load_object(path).source_origin[1]
     assert np.any(coms[:, 1] < base_top) and np.any(coms[:, 1] > base_top)
+
+
+# ------------------------------------------------------------------- support cells
+def test_support_cells_of_a_rectangle_and_a_triangle_by_hand():
+    rect = np.array([[0.0, 0.0], [0.03, 0.0], [0.03, 0.02], [0.0, 0.02]])
+    cells = support_cells([rect], 0.01)
+    assert len(cells) == 6  # 3 x 2 squares of 1 cm
+    for c in cells:
+        assert len(c) == 4 and _area(c) == pytest.approx(1e-4)
+    tri = np.array([[0.0, 0.0], [0.04, 0.0], [0.0, 0.04]])  # area 8 cm^2, legs on grid lines
+    cells = support_cells([tri], 0.01)
+    # 6 full squares below the diagonal, 4 half squares on it
+    assert sorted(round(_area(c) * 1e4, 6) for c in cells) == [0.5] * 4 + [1.0] * 6
+    assert sum(_area(c) for c in cells) == pytest.approx(8e-4)
+    offset = tri + [0.005, 0.0]  # off the grid: cut into more, smaller pieces, same total
+    assert sum(_area(c) for c in support_cells([offset], 0.01)) == pytest.approx(8e-4)
+    with pytest.raises(ValueError, match="support cell"):
+        support_cells([tri], 0.0)
+
+
+def _table_contacts(world: PushWorld) -> int:
+    return len(world._client.getContactPoints(bodyA=world._object))
+
+
+def test_cut_support_spreads_the_contacts_and_pushes_as_before():
+    # Whole, tri1's single convex piece rests on its 3 corners; cut into 15 mm cells, on many
+    # points across its footprint. A central push still moves it straight ahead.
+    with PushWorld(WorldConfig(object="tri1", com_offset=(0.0, 0.0))) as whole:
+        assert _table_contacts(whole) <= 4
+    cfg = WorldConfig(object="rect1", support_cell=0.015)
+    with PushWorld(cfg) as world:
+        assert _table_contacts(world) >= 20
+        contact = np.array([-RECT_HALF - R_P, 0.0])
+        res = world.execute_push(contact - [0.01, 0.0], contact, contact + [0.05, 0.0])
+        moved = res.pose_after - res.pose_before
+        assert res.touched and res.settled
+        assert moved[0] == pytest.approx(0.05, abs=1.5e-3) and abs(moved[1]) < 1e-3
+        assert abs(np.degrees(moved[2])) < 3.0

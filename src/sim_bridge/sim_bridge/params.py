@@ -78,6 +78,10 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec("push_speed", 0.02, "Pusher speed along the push, m/s (the planner's push_speed "
               "should be equal).", (0.001, 0.2)),
     ParamSpec("pusher_radius", 0.0048, "Radius of the cylindrical pusher, m.", (0.001, 0.05)),
+    ParamSpec("support_cell", 0.0, "0: the object's convex collision pieces rest on 3-4 of "
+              "their corners (bullet's contact manifold); > 0 (5-50 mm): the pieces are cut "
+              "into grid cells of this size, m, so the table supports the whole footprint "
+              "(sim_bridge.scene.support_cells).", (0.0, 0.05)),
     ParamSpec("faults.frame_drop", 0.0, "Fault injection: probability that a camera frame "
               "publication (colour, depth, camera_info together) is dropped.", (0.0, 0.9)),
     ParamSpec("faults.frame_delay", 0.0, "Fault injection: probability that a camera frame "
@@ -181,6 +185,8 @@ class SimBridgeParams:
         m/s.
     pusher_radius : float
         m.
+    support_cell : float
+        m; 0 = the collision pieces whole (``WorldConfig.support_cell``).
     faults : FaultConfig
         Fault injection (all off by default).
     monitor : MonitorConfig or None
@@ -215,6 +221,7 @@ class SimBridgeParams:
     clock_rate: float
     push_speed: float
     pusher_radius: float
+    support_cell: float = 0.0
     faults: FaultConfig = FaultConfig()
     monitor: MonitorConfig | None = None
     robot: str = "pusher"
@@ -286,6 +293,7 @@ class SimBridgeParams:
             clock_rate=float(values["clock_rate"]),
             push_speed=float(values["push_speed"]),
             pusher_radius=float(values["pusher_radius"]),
+            support_cell=float(values.get("support_cell", 0.0)),
             faults=FaultConfig(frame_drop=float(values["faults.frame_drop"]),
                                frame_delay=float(values["faults.frame_delay"]),
                                push_refusal=float(values["faults.push_refusal"]),
@@ -322,6 +330,7 @@ class SimBridgeParams:
             randomize=self.randomize,
             seed=self.seed,
             pusher_radius=self.pusher_radius,
+            support_cell=self.support_cell,
             push_speed=self.push_speed,
             camera=CameraConfig(width=self.image_width, height=self.image_height),
             depth_noise=self.depth_noise,

@@ -11,8 +11,13 @@ Bodies
   ``shape.convex_pieces(tolerance=COLLISION_TOLERANCE)`` (a true convex decomposition of the
   outline simplified to within 0.5 mm, so non-convex outlines such as butter keep their
   concavities), with a collision margin of 0.1 mm (pybullet's default 1 mm inflates the
-  outline by 1 mm). Visual: a mesh of the true outline (top face triangulated, side walls;
-  within 0.02 mm), so images show the exact outline. Mass from the spec; inertia diagonal
+  outline by 1 mm). With ``WorldConfig.support_cell`` > 0 every piece is further cut into
+  cells of that size (:func:`support_cells`): bullet keeps at most 4 contact points per pair of
+  convex shapes, so a single convex piece rests on 3 or 4 of its corners and its friction acts
+  there, not over the footprint (the resting contacts of both: docs/RESULTS.md, section
+  eval_push_support); cells spread the support over the footprint. 0 (default) keeps the
+  pieces whole. Visual: a mesh of the true outline (top face triangulated, side walls; within
+  0.02 mm), so images show the exact outline. Mass from the spec; inertia diagonal
   ``(I_xx, I_yy, I_zz)`` about the COM with ``I_zz = ObjectSpec.moment_of_inertia`` and the
   tilt inertias of the uniform plate. The COM enters pybullet through the base inertial frame
   (``baseInertialFramePosition``), so collision and visual shapes stay in the object frame.
@@ -72,10 +77,12 @@ __all__ = [
     "PUSHER_MAX_FORCE",
     "PUSHER_PARK",
     "VISUAL_TOLERANCE",
+    "SUPPORT_CELL_RANGE",
     "Scene",
     "build_scene",
     "park_position",
     "simulated_spec",
+    "support_cells",
     "yaw_quaternion",
 ]
 
@@ -101,6 +108,10 @@ COLLISION_TOLERANCE = 5e-4
 VISUAL_TOLERANCE = 2e-5
 #: Collision margin of the object's convex pieces, m (pybullet's default is 1 mm).
 OBJECT_MARGIN = 1e-4
+#: Accepted ``WorldConfig.support_cell`` sizes (m) other than 0 (pieces kept whole).
+SUPPORT_CELL_RANGE = (0.005, 0.05)
+#: Support cells smaller than this area (m^2, a 1 mm x 1 mm sliver) are dropped.
+_MIN_CELL_AREA = 1e-6
 #: Steps run after building the scene so that resting contacts are established.
 INITIAL_SETTLE_STEPS = 24
 
@@ -187,7 +198,7 @@ def _create_object(c: BulletClient, cfg: WorldConfig, spec: ObjectSpec,
     tmp = Path(tempfile.mkdtemp(prefix="pushbot_sim_"))
     try:
         obj_file = tmp / "collision.obj"
-        obj_text, (verts, normals, indices) = _object_geometry(spec.shape, t)
+        obj_text, (verts, normals, indices) = _object_geometry(spec.shape, t, cfg.support_cell)
         obj_file.write_text(obj_text)
         col = c.createCollisionShape(p.GEOM_MESH, fileName=str(obj_file))
         vis = c.createVisualShape(p.GEOM_MESH, vertices=verts, normals=normals,
@@ -216,7 +227,7 @@ def yaw_quaternion(theta: float) -> list[float]:
 
 # ------------------------------------------------------------- the simulated object
 _LIBRARY_CACHE: dict[str, ObjectSpec] = {}
-_GEOMETRY_CACHE: dict[tuple[int, float], tuple[object, str, tuple]] = {}
+_GEOMETRY_CACHE: dict[tuple[int, float, float], tuple[object, str, tuple]] = {}
 
 
 def _load_object(name_or_path: str | Path) -> ObjectSpec:
@@ -283,20 +294,74 @@ def _inertia_diagonal(spec: ObjectSpec) -> NDArray[np.float64]:
 
 
 # ------------------------------------------------------------------------ geometry
-def _object_geometry(shape: Polygon | Ellipse, thickness: float) -> tuple[str, tuple]:
+def _object_geometry(shape: Polygon | Ellipse, thickness: float,
+                     support_cell: float = 0.0) -> tuple[str, tuple]:
     """Collision OBJ text and visual mesh of a shape, cached per shape object (randomised
-    specs share their library shape), at most 32 entries."""
-    key = (id(shape), thickness)
+    specs share their library shape) and support cell, at most 32 entries."""
+    key = (id(shape), thickness, support_cell)
     hit = _GEOMETRY_CACHE.get(key)
     if hit is not None and hit[0] is shape:
         return hit[1], hit[2]
     pieces = (shape.convex_pieces() if isinstance(shape, Ellipse)
               else shape.convex_pieces(tolerance=COLLISION_TOLERANCE))
+    if support_cell > 0.0:
+        pieces = support_cells(pieces, support_cell)
     geometry = (_prisms_obj(pieces, thickness), _extruded_mesh(shape, thickness))
     if len(_GEOMETRY_CACHE) >= 32:
         _GEOMETRY_CACHE.pop(next(iter(_GEOMETRY_CACHE)))
     _GEOMETRY_CACHE[key] = (shape, *geometry)
     return geometry
+
+
+def support_cells(pieces: list[NDArray[np.float64]], cell: float) -> list[NDArray[np.float64]]:
+    """Cut convex pieces into the cells of a square grid (side ``cell`` m, aligned with the
+    object frame's origin): each piece clipped to each grid square it overlaps (the clip of a
+    convex polygon by a square is convex), counter-clockwise; cells under ``_MIN_CELL_AREA``
+    dropped. Together they cover the pieces exactly."""
+    if not cell > 0.0:
+        raise ValueError(f"support cell must be > 0 m, got {cell!r}")
+    cells = []
+    for piece in pieces:
+        poly = np.asarray(piece, dtype=np.float64)
+        lo = np.floor(poly.min(axis=0) / cell).astype(int)
+        hi = np.ceil(poly.max(axis=0) / cell).astype(int)
+        for i in range(lo[0], hi[0]):
+            for j in range(lo[1], hi[1]):
+                clip = _clip_to_box(poly, (i * cell, j * cell), ((i + 1) * cell, (j + 1) * cell))
+                if len(clip) >= 3 and _area(clip) >= _MIN_CELL_AREA:
+                    cells.append(clip)
+    return cells
+
+
+def _clip_to_box(poly: NDArray[np.float64], low: tuple[float, float],
+                 high: tuple[float, float]) -> NDArray[np.float64]:
+    """Sutherland-Hodgman clip of a counter-clockwise polygon (K, 2) by an axis-aligned box;
+    the result keeps the orientation (possibly empty, (0, 2))."""
+    out = poly
+    for axis, bound, keep_below in ((0, low[0], False), (0, high[0], True),
+                                    (1, low[1], False), (1, high[1], True)):
+        if len(out) == 0:
+            break
+        side = (out[:, axis] - bound) * (-1.0 if keep_below else 1.0)  # >= 0: inside
+        nxt = []
+        for k in range(len(out)):
+            a, b = out[k], out[(k + 1) % len(out)]
+            sa, sb = side[k], side[(k + 1) % len(out)]
+            if sa >= 0.0:
+                nxt.append(a)
+            if (sa >= 0.0) != (sb >= 0.0):
+                nxt.append(a + (b - a) * (sa / (sa - sb)))
+        out = np.array(nxt, dtype=np.float64).reshape(-1, 2)
+    if len(out):  # drop repeated vertices (a corner on the box edge)
+        keep = np.linalg.norm(out - np.roll(out, -1, axis=0), axis=1) > 1e-9
+        out = out[keep]
+    return out
+
+
+def _area(poly: NDArray[np.float64]) -> float:
+    """Signed area of a polygon (K, 2), positive counter-clockwise (shoelace)."""
+    x, y = poly[:, 0], poly[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
 
 
 def _prisms_obj(pieces: list[NDArray[np.float64]], thickness: float) -> str:

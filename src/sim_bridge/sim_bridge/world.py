@@ -112,6 +112,7 @@ from sim_bridge.scene import (
     PUSHER_MASS,
     PUSHER_MAX_FORCE,
     PUSHER_PARK,
+    SUPPORT_CELL_RANGE,
     VISUAL_TOLERANCE,
     build_scene,
     park_position,
@@ -220,6 +221,11 @@ class WorldConfig:
         Arm mode: (x, y, z, yaw) of the arm's base in ``world``, m and rad.
     arm_park : (7,) tuple
         Arm mode: joint positions after a reset, rad.
+    support_cell : float
+        0 (default): the object's collision is its convex pieces, each resting on 3-4 of its
+        corners (bullet's contact manifold); > 0: the pieces cut into grid cells of this size,
+        m, in ``sim_bridge.scene.SUPPORT_CELL_RANGE``, so the table supports the whole
+        footprint (:func:`sim_bridge.scene.support_cells`).
     """
 
     object: str | Path = "rect1"
@@ -244,6 +250,7 @@ class WorldConfig:
     robot: str = "pusher"
     arm_base_pose: tuple[float, float, float, float] = DEFAULT_BASE_POSE
     arm_park: tuple[float, ...] = DEFAULT_PARK
+    support_cell: float = 0.0
 
     def __post_init__(self) -> None:
         if self.robot not in ("pusher", "arm"):
@@ -275,6 +282,13 @@ class WorldConfig:
             if not (np.isfinite(value) and low <= value <= high):
                 raise ValueError(f"{name}: must be in [{low}, {high}], got {value!r}")
             object.__setattr__(self, name, float(value))
+        cell = self.support_cell
+        low, high = SUPPORT_CELL_RANGE
+        if isinstance(cell, bool) or not (cell == 0.0 or (np.isfinite(cell)
+                                                          and low <= cell <= high)):
+            raise ValueError(f"support_cell: must be 0 (pieces whole) or in [{low}, {high}] m, "
+                             f"got {cell!r}")
+        object.__setattr__(self, "support_cell", float(cell))
         iters = self.solver_iterations
         if isinstance(iters, bool) or int(iters) != iters or not 1 <= iters <= 1000:
             raise ValueError(f"solver_iterations: expected an integer in [1, 1000], got {iters!r}")

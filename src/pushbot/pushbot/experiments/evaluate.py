@@ -74,7 +74,7 @@ DEFAULT_OBJECTS = ("tri1", "butter", "hex")
 TIMING_KEYS = frozenset({"timing", "wall_s", "planning_ms"})
 #: Trial fields that define a cell (everything except the index).
 CELL_FIELDS = ("object", "task", "method", "k", "state", "com", "region", "estimate_com",
-               "seed", "max_steps", "horizon", "avoid_contradicted", "relearn")
+               "seed", "max_steps", "horizon", "avoid_contradicted", "relearn", "support_cell")
 
 #: The source's Table 5.1 (mixed task, ana, COM at the centre): steps, end error mm, deg.
 SOURCE_TABLE_5_1 = {"gt": ((7.3, 3.6), (5.0, 1.8), (1.8, 1.3)),
@@ -100,7 +100,7 @@ class EvalOptions:
                  com: Sequence[str] = ("centre",), region: Sequence[str] = ("small",),
                  com_estimation: Sequence[str] = ("on",), trials: int = 60, seed: int = 0,
                  max_steps: int = 30, horizon: int = 1, avoid_contradicted: bool = False,
-                 relearn: bool = False) -> None:
+                 relearn: bool = False, support_cell: float = 0.0) -> None:
         def listed(name: str, values: Sequence[Any], allowed: Iterable[Any] | None) -> list[Any]:
             values = list(dict.fromkeys(values))  # unique, in order
             if not values:
@@ -133,6 +133,10 @@ class EvalOptions:
         self.trials, self.seed, self.max_steps = int(trials), int(seed), int(max_steps)
         self.horizon = int(horizon)
         self.avoid_contradicted, self.relearn = bool(avoid_contradicted), bool(relearn)
+        try:
+            self.support_cell = Trial(object="rect1", support_cell=support_cell).support_cell
+        except ValueError as exc:
+            raise ValueError(f"--support-cell: {exc}") from None
         self._check_objects()
 
     def _check_objects(self) -> None:
@@ -150,7 +154,7 @@ class EvalOptions:
                 "region": self.region, "com_estimation": self.com_estimation,
                 "trials": self.trials, "seed": self.seed, "max_steps": self.max_steps,
                 "horizon": self.horizon, "avoid_contradicted": self.avoid_contradicted,
-                "relearn": self.relearn}
+                "relearn": self.relearn, "support_cell": self.support_cell}
 
 
 def build_trials(opts: EvalOptions) -> list[Trial]:
@@ -170,7 +174,8 @@ def build_trials(opts: EvalOptions) -> list[Trial]:
         trials += [Trial(object=obj, task=task, method=method, k=int(k), state=state, com=com,
                          region=region, index=i, seed=opts.seed, max_steps=opts.max_steps,
                          estimate_com=estimate, horizon=opts.horizon,
-                         avoid_contradicted=opts.avoid_contradicted, relearn=opts.relearn)
+                         avoid_contradicted=opts.avoid_contradicted, relearn=opts.relearn,
+                         support_cell=opts.support_cell)
                    for i in range(opts.trials)]
     return trials
 
@@ -549,11 +554,14 @@ def write_outputs(doc: dict[str, Any], out_dir: Path) -> list[Path]:
 
 def variant_label(cell: dict[str, Any]) -> str:
     """The planner and filter variant of a cell or trial dict (issue 22): ``greedy`` or the
-    horizon and adaptations, e.g. ``H=2, avoid contradicted, relearn``."""
+    horizon and adaptations, e.g. ``H=2, avoid contradicted, relearn``, and the simulated
+    object's support when cut into cells (``support 15 mm``)."""
     horizon = int(cell.get("horizon", 1))
     parts = ["greedy" if horizon == 1 else f"H={horizon}"]
     parts += [name.replace("_", " ") for name in ("avoid_contradicted", "relearn")
               if cell.get(name)]
+    if cell.get("support_cell"):
+        parts.append(f"support {1e3 * float(cell['support_cell']):g} mm")
     return ", ".join(parts)
 
 
@@ -617,6 +625,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--relearn", action="store_true",
                         help="filter: the EKF re-learns COM, limit surface and friction when "
                              "the pushes contradict the model")
+    parser.add_argument("--support-cell", type=float, default=0.0, metavar="M",
+                        help="the simulated object's support: 0 = its convex pieces whole "
+                             "(each rests on 3-4 corners), 0.005-0.05 = cut into cells of this "
+                             "size, m, supported across the footprint (default 0)")
     parser.add_argument("--workers", type=int, default=None,
                         help="worker processes (default: the cores this process may use); 1 "
                              "runs in this process")
@@ -640,7 +652,8 @@ def options_from_args(args: argparse.Namespace) -> EvalOptions:
                        state=args.state, com=args.com, region=args.region,
                        com_estimation=args.com_estimation, trials=args.trials, seed=args.seed,
                        max_steps=args.max_steps, horizon=args.horizon,
-                       avoid_contradicted=args.avoid_contradicted, relearn=args.relearn)
+                       avoid_contradicted=args.avoid_contradicted, relearn=args.relearn,
+                       support_cell=args.support_cell)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -130,9 +130,13 @@ class Trial:
     relearn : bool
         ``filter``: the EKF restarts COM, limit surface and friction at their priors when the
         pushes contradict the model (``EKFConfig.relearn``). Ignored by ``gt``.
+    support_cell : float
+        The simulated object's support (``sim_bridge.world.WorldConfig.support_cell``): 0 =
+        its convex pieces whole (resting on 3-4 corners each), > 0 = cut into cells of this
+        size, m, supported across the footprint.
 
-    The three planner and filter variants do not enter :attr:`trial_seed`: every variant
-    faces the same scenes and goals.
+    The three planner and filter variants and the support do not enter :attr:`trial_seed`:
+    every variant faces the same scenes and goals.
     """
 
     object: str
@@ -149,6 +153,7 @@ class Trial:
     horizon: int = 1
     avoid_contradicted: bool = False
     relearn: bool = False
+    support_cell: float = 0.0
 
     def __post_init__(self) -> None:
         _check("task", self.task, TASKS)
@@ -166,6 +171,15 @@ class Trial:
                 or self.horizon < 1:
             raise ValueError(f"horizon must be an integer >= 1, got {self.horizon!r}")
         object.__setattr__(self, "horizon", int(self.horizon))
+        cell = self.support_cell
+        ok = not isinstance(cell, bool) and isinstance(cell, int | float | np.number)
+        if not ok or cell != 0:  # the simulator's range (imported only when needed)
+            from sim_bridge.scene import SUPPORT_CELL_RANGE
+
+            low, high = SUPPORT_CELL_RANGE
+            if not (ok and low <= cell <= high):
+                raise ValueError(f"support_cell must be 0 or in [{low}, {high}] m, got {cell!r}")
+        object.__setattr__(self, "support_cell", float(cell))
         for name in ("estimate_com", "avoid_contradicted", "relearn"):
             value = getattr(self, name)
             if not isinstance(value, bool | np.bool_):
@@ -231,6 +245,7 @@ class Trial:
             "object_pose": (0.0, 0.0, self.initial_yaw),
             "randomize": True,
             "seed": int(self.trial_seed % (2**31 - 1)),
+            "support_cell": self.support_cell,
         }
         if self.com == "centre":
             kwargs["com_offset"] = (0.0, 0.0)
@@ -255,14 +270,15 @@ class Trial:
 def make_trials(objects: list[str], tasks: list[str], methods: list[str], ks: list[int],
                 n: int, *, state: str = "gt", com: str = "centre", region: str = "small",
                 seed: int = 0, max_steps: int = 30, estimate_com: bool = True,
-                horizon: int = 1, avoid_contradicted: bool = False, relearn: bool = False
-                ) -> list[Trial]:
+                horizon: int = 1, avoid_contradicted: bool = False, relearn: bool = False,
+                support_cell: float = 0.0) -> list[Trial]:
     """The cross product objects x tasks x methods x ks x ``n`` trial indices, in that order."""
     if n < 1:
         raise ValueError(f"the number of trials must be >= 1, got {n}")
     return [Trial(object=o, task=t, method=mth, k=k, state=state, com=com, region=region,
                   index=i, seed=seed, max_steps=max_steps, estimate_com=estimate_com,
-                  horizon=horizon, avoid_contradicted=avoid_contradicted, relearn=relearn)
+                  horizon=horizon, avoid_contradicted=avoid_contradicted, relearn=relearn,
+                  support_cell=support_cell)
             for o in objects for t in tasks for mth in methods for k in ks for i in range(n)]
 
 

@@ -129,6 +129,31 @@ def spin_until(
             executor.spin_once(timeout_sec=min(step, remaining))
 
 
+#: Seconds without an answer after which :func:`call_until_answered` sends a request again.
+RESEND_AFTER = 5.0
+
+
+def call_until_answered(client: Any, request: Any, executor: Executor | None, deadline: float,
+                        resend_after: float = RESEND_AFTER) -> Any:
+    """Call an *idempotent* service until it answers or ``time.monotonic()`` passes
+    ``deadline``: the done future, or None.
+
+    A server can receive a request before it has matched the client's response reader (the
+    client matched first: ``wait_for_service`` said ready); Fast DDS then waits 100 ms for the
+    match and drops the response (ros2/rmw_fastrtps#390 and #467), which a loaded machine
+    makes likely. The request is therefore sent again after ``resend_after`` s without an
+    answer (the unanswered one withdrawn): only for services a repeat does not harm (a reset,
+    setting parameters, an enable switch).
+    """
+    while True:
+        future = client.call_async(request)
+        if spin_until(executor, future.done, min(deadline, time.monotonic() + resend_after)):
+            return future
+        client.remove_pending_request(future)
+        if time.monotonic() >= deadline:
+            return None
+
+
 #: The discovery rule of the graph commands (see :func:`wait_for_stable_graph`): at least
 #: MIN_DISCOVERY_TIME seconds, then until nothing changed for SETTLE_TIME seconds. Chosen from
 #: discovery timelines on the ``pushbot up`` graph (benchmarks/bench_cli.py, docs/RESULTS.md

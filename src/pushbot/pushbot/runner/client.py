@@ -348,8 +348,24 @@ class GraphClient:
 
     # ---- service calls -----------------------------------------------------------------------
     def _call(self, client: Any, request: Any, what: str) -> Any:
-        future = client.call_async(request)
-        self.wait(future.done, SERVICE_TIMEOUT, f"the response of {what}")
+        """Call an idempotent service (a reset, set_parameters), sending the request again
+        after ``RESEND_AFTER`` s without an answer
+        (:func:`pushbot.ros2cli.discovery.call_until_answered` says why)."""
+        from pushbot.ros2cli.discovery import RESEND_AFTER
+
+        deadline = time.monotonic() + SERVICE_TIMEOUT
+        while True:
+            future = client.call_async(request)
+            left = deadline - time.monotonic()
+            try:
+                self.wait(future.done, min(RESEND_AFTER, max(left, 0.0)),
+                          f"the response of {what}")
+                break
+            except GraphError:
+                self.check_alive()  # a node that exited is reported at once
+                client.remove_pending_request(future)
+                if left <= RESEND_AFTER:
+                    raise
         if future.exception() is not None:
             raise GraphError(f"{what} failed: {future.exception()}")
         return future.result()

@@ -15,9 +15,10 @@ this process drives the episodes only through the nodes' public interfaces:
    ``/ekf_node/reset`` (repeated observations of the old scene are dropped) and
    ``/planner_node/reset`` (applies the parameters, forgets the goal and estimates).
 2. **Scene.** ``sim_bridge_node``: ``object``, ``initial_pose.{x,y,theta}``, ``com_offset``
-   (``[0, 0]`` for COM at the centre, empty = the randomised COM), ``seed``, ``randomize``
-   (:meth:`Trial.world_kwargs`), then ``/sim_bridge_node/reset``, which rebuilds the scene and
-   publishes its first frame (stamps strictly later than the previous scene's).
+   (``[0, 0]`` for COM at the centre, empty = the randomised COM), ``seed``, ``randomize``,
+   ``support_cell`` (:meth:`Trial.world_kwargs`), then ``/sim_bridge_node/reset``, which
+   rebuilds the scene and publishes its first frame (stamps strictly later than the previous
+   scene's).
 3. **Goal.** The first ``estimator/object_pose`` at or after the new scene's reference frame
    (the new ``perception/outline``'s stamp) plus
    :meth:`Trial.goal_offset` (ARCHITECTURE "Goal frame": yaw in the episode frame) on
@@ -328,7 +329,8 @@ class GraphRunner:
             "use_com_offset": com is not None,
             "com_offset": [0.0, 0.0] if com is None else [float(v) for v in com],
             "seed": int(world["seed"]), "randomize": bool(world["randomize"]),
-            **NO_BRIDGE_FAULTS, **fault.bridge_params(trial)})
+            "support_cell": float(world["support_cell"]), **NO_BRIDGE_FAULTS,
+            **fault.bridge_params(trial)})
         message = self.reset("sim_bridge_node")
         match = _COM_RE.search(message)
         self._com_true = (np.array([float(match.group(1)), float(match.group(2))])
