@@ -20,6 +20,7 @@ from push_core.objects import library_names, load_object
 from push_ros.node import ParamSpec
 from sim_bridge.arm_robot import DEFAULT_BASE_POSE, DEFAULT_PARK
 from sim_bridge.faults import FaultConfig
+from sim_bridge.scene import SUPPORT_CELL_RANGE
 from sim_bridge.world import CameraConfig, MonitorConfig, WorldConfig
 
 __all__ = ["NODE_NAME", "PARAMETERS", "YAML_EXTRA", "YAML_HEADER", "YAML_NOTES", "FaultConfig",
@@ -79,9 +80,10 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               "should be equal).", (0.001, 0.2)),
     ParamSpec("pusher_radius", 0.0048, "Radius of the cylindrical pusher, m.", (0.001, 0.05)),
     ParamSpec("support_cell", 0.0, "0: the object's convex collision pieces rest on 3-4 of "
-              "their corners (bullet's contact manifold); > 0 (5-50 mm): the pieces are cut "
-              "into grid cells of this size, m, so the table supports the whole footprint "
-              "(sim_bridge.scene.support_cells).", (0.0, 0.05)),
+              "their corners (bullet's contact manifold); > 0 "
+              f"({1e3 * SUPPORT_CELL_RANGE[0]:g}-{1e3 * SUPPORT_CELL_RANGE[1]:g} mm): the "
+              "pieces are cut into grid cells of this size, m, so the table supports the whole "
+              "footprint (sim_bridge.scene.support_cells).", (0.0, SUPPORT_CELL_RANGE[1])),
     ParamSpec("faults.frame_drop", 0.0, "Fault injection: probability that a camera frame "
               "publication (colour, depth, camera_info together) is dropped.", (0.0, 0.9)),
     ParamSpec("faults.frame_delay", 0.0, "Fault injection: probability that a camera frame "

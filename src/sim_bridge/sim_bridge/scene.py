@@ -80,6 +80,7 @@ __all__ = [
     "SUPPORT_CELL_RANGE",
     "Scene",
     "build_scene",
+    "check_support_cell",
     "park_position",
     "simulated_spec",
     "support_cells",
@@ -110,6 +111,17 @@ VISUAL_TOLERANCE = 2e-5
 OBJECT_MARGIN = 1e-4
 #: Accepted ``WorldConfig.support_cell`` sizes (m) other than 0 (pieces kept whole).
 SUPPORT_CELL_RANGE = (0.005, 0.05)
+def check_support_cell(cell: object) -> float:
+    """``WorldConfig.support_cell`` as a float: 0 or in :data:`SUPPORT_CELL_RANGE` (m);
+    ``ValueError`` naming it otherwise (a bool, not a number, out of range)."""
+    low, high = SUPPORT_CELL_RANGE
+    number = not isinstance(cell, bool) and isinstance(cell, int | float | np.number)
+    if not (number and (cell == 0 or low <= cell <= high)):
+        raise ValueError(f"support_cell must be 0 or in [{low}, {high}] m (0: the pieces "
+                         f"whole), got {cell!r}")
+    return float(cell)
+
+
 #: Support cells smaller than this area (m^2, a 1 mm x 1 mm sliver) are dropped.
 _MIN_CELL_AREA = 1e-6
 #: Steps run after building the scene so that resting contacts are established.

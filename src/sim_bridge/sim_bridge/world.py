@@ -112,9 +112,9 @@ from sim_bridge.scene import (
     PUSHER_MASS,
     PUSHER_MAX_FORCE,
     PUSHER_PARK,
-    SUPPORT_CELL_RANGE,
     VISUAL_TOLERANCE,
     build_scene,
+    check_support_cell,
     park_position,
     simulated_spec,
 )
@@ -282,13 +282,7 @@ class WorldConfig:
             if not (np.isfinite(value) and low <= value <= high):
                 raise ValueError(f"{name}: must be in [{low}, {high}], got {value!r}")
             object.__setattr__(self, name, float(value))
-        cell = self.support_cell
-        low, high = SUPPORT_CELL_RANGE
-        if isinstance(cell, bool) or not (cell == 0.0 or (np.isfinite(cell)
-                                                          and low <= cell <= high)):
-            raise ValueError(f"support_cell: must be 0 (pieces whole) or in [{low}, {high}] m, "
-                             f"got {cell!r}")
-        object.__setattr__(self, "support_cell", float(cell))
+        object.__setattr__(self, "support_cell", check_support_cell(self.support_cell))
         iters = self.solver_iterations
         if isinstance(iters, bool) or int(iters) != iters or not 1 <= iters <= 1000:
             raise ValueError(f"solver_iterations: expected an integer in [1, 1000], got {iters!r}")

@@ -171,15 +171,10 @@ class Trial:
                 or self.horizon < 1:
             raise ValueError(f"horizon must be an integer >= 1, got {self.horizon!r}")
         object.__setattr__(self, "horizon", int(self.horizon))
-        cell = self.support_cell
-        ok = not isinstance(cell, bool) and isinstance(cell, int | float | np.number)
-        if not ok or cell != 0:  # the simulator's range (imported only when needed)
-            from sim_bridge.scene import SUPPORT_CELL_RANGE
+        if not (isinstance(self.support_cell, float) and self.support_cell == 0.0):
+            from sim_bridge.scene import check_support_cell  # the simulator's rule
 
-            low, high = SUPPORT_CELL_RANGE
-            if not (ok and low <= cell <= high):
-                raise ValueError(f"support_cell must be 0 or in [{low}, {high}] m, got {cell!r}")
-        object.__setattr__(self, "support_cell", float(cell))
+            object.__setattr__(self, "support_cell", check_support_cell(self.support_cell))
         for name in ("estimate_com", "avoid_contradicted", "relearn"):
             value = getattr(self, name)
             if not isinstance(value, bool | np.bool_):
