@@ -1,9 +1,12 @@
 """Shared helper of the closed-loop benchmarks: pushes against the physical minimum (issue 22).
 
 ``pushes / min`` of a set of episode records is the mean, over the successful trials, of
-``steps / n_min`` with ``n_min`` from :func:`push_core.episode.min_pushes` for the trial's goal
-offset, goal region, the planner's longest push (5 cm) and the object's rotational symmetry
-(definition: docs/ARCHITECTURE.md, "Pushes against the physical minimum").
+``steps / n_min`` with ``n_min`` from :func:`push_core.reach.model_min_pushes` for the trial's
+goal offset, goal region, the planner's longest push (5 cm), the object's rotational symmetry
+and, where the trial fixes the COM (``com`` ``centre`` or ``spec``), the object's outline, COM
+and uniform-pressure ``l`` (definition: docs/ARCHITECTURE.md, "Pushes against the physical
+minimum"). With a random COM only the geometric bound (:func:`push_core.episode.min_pushes`)
+is used.
 """
 
 from __future__ import annotations
@@ -14,8 +17,10 @@ from typing import Any
 import numpy as np
 
 from push_core.episode import min_pushes
+from push_core.geometry import rot2
 from push_core.objects import load_object
 from push_core.planner import PlannerConfig
+from push_core.reach import model_min_pushes
 from push_core.symmetry import symmetry_order_of_polygon
 from pushbot.experiments.protocol import Trial
 
@@ -28,10 +33,25 @@ def _order(obj: str) -> int:
     return symmetry_order_of_polygon(load_object(obj).polyline())
 
 
+@cache
+def _model_minimum(obj: str, com_mode: str, offset: tuple[float, float, float],
+                   tolerances: tuple[float, float]) -> int:
+    spec = load_object(obj)
+    com = np.zeros(2) if com_mode == "centre" else np.asarray(spec.com)
+    return model_min_pushes(offset, tolerances, MAX_PUSH_LENGTH, spec.polyline(), com,
+                            spec.replace(com=com).limit_surface_guess(), _order(obj))
+
+
 def trial_minimum(trial: dict[str, Any]) -> int:
     """The physical minimum of pushes of one trial (``Trial.as_dict()``)."""
     t = Trial(**trial)
-    return min_pushes(t.goal_offset(), t.tolerances, MAX_PUSH_LENGTH, _order(t.object))
+    offset = t.goal_offset()
+    if t.com not in ("centre", "spec"):
+        return min_pushes(offset, t.tolerances, MAX_PUSH_LENGTH, _order(t.object))
+    # the offset in the object's initial frame, rounded so that equal goals share the search
+    local = np.asarray(rot2(-t.initial_yaw)) @ offset[:2]
+    key = tuple(round(float(v), 9) for v in (*local, offset[2]))
+    return _model_minimum(t.object, t.com, key, tuple(t.tolerances))
 
 
 def pushes_over_minimum(records: list[dict[str, Any]]) -> float | None:

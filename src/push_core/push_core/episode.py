@@ -87,6 +87,7 @@ __all__ = [
     "EpisodeEngine",
     "Step",
     "end_score",
+    "check_goal_offset",
     "min_pushes",
     "new_record",
     "precedes_episode",
@@ -454,6 +455,22 @@ def end_score(polyline: ArrayLike, end_true: ArrayLike, goal_true: ArrayLike,
             "orientation_ignored": ignored}
 
 
+def check_goal_offset(offset: ArrayLike, tolerances: tuple[float, float],
+                      max_push_length: float) -> tuple[NDArray[np.float64], float, float]:
+    """The arguments of :func:`min_pushes` checked: ``(offset (3,), tol_xy, tol_theta)``;
+    ``ValueError`` naming ``offset``, ``tolerances`` or ``max_push_length``."""
+    o = np.asarray(offset, dtype=np.float64)
+    if o.shape != (3,) or not np.all(np.isfinite(o)):
+        raise ValueError(f"offset: expected 3 finite numbers, got {offset!r}")
+    tol_xy, tol_theta = (float(v) for v in tolerances)
+    if not (tol_xy > 0.0 and tol_theta > 0.0):
+        raise ValueError(f"tolerances: expected positive (m, rad), got {tolerances!r}")
+    if not (isinstance(max_push_length, int | float | np.floating)
+            and math.isfinite(max_push_length) and max_push_length > 0.0):
+        raise ValueError(f"max_push_length: expected > 0 m, got {max_push_length!r}")
+    return o, tol_xy, tol_theta
+
+
 def min_pushes(offset: ArrayLike, tolerances: tuple[float, float], max_push_length: float,
                order: int = 1) -> int:
     """The physical minimum of pushes for a goal ``offset`` (docs/ARCHITECTURE.md, "Pushes
@@ -488,14 +505,7 @@ def min_pushes(offset: ArrayLike, tolerances: tuple[float, float], max_push_leng
     ValueError
         Naming ``offset``, ``tolerances`` or ``max_push_length``.
     """
-    o = np.asarray(offset, dtype=np.float64)
-    if o.shape != (3,) or not np.all(np.isfinite(o)):
-        raise ValueError(f"offset: expected 3 finite numbers, got {offset!r}")
-    tol_xy, tol_theta = (float(v) for v in tolerances)
-    if not (tol_xy > 0.0 and tol_theta > 0.0):
-        raise ValueError(f"tolerances: expected positive (m, rad), got {tolerances!r}")
-    if not max_push_length > 0.0:
-        raise ValueError(f"max_push_length: expected > 0 m, got {max_push_length!r}")
+    o, tol_xy, tol_theta = check_goal_offset(offset, tolerances, max_push_length)
     dxy, dtheta = true_errors(np.zeros(3), o, order)
     translation = max(0, math.ceil((dxy - tol_xy) / max_push_length - 1e-9))
     return max(translation, 1 if dtheta > tol_theta else 0)
