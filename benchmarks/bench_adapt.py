@@ -18,7 +18,10 @@ Variants: ``greedy`` (the current loop) and ``lookahead+adapt`` (``horizon`` 2,
 ``bench_lookahead``. ``futile repeats``: pushes made at the same contact region (object frame,
 within ``push_core.planner.AVOID_RADIUS``) as the previous push after that push gained less
 than a quarter of the true eq. (5.1) score to the goal (lambda 2 mm/deg) - the issue's "the
-same useless push again".
+same useless push again", whether or not the model predicted it. ``contradicted repeats``: the
+issue's acceptance test, pushes at the contact region of an earlier push of the episode whose
+outcome contradicted its prediction (:func:`push_core.episode.contradiction`, rule 8, on the
+state source's poses: what the loop could know).
 
 Writes the ``bench_adapt`` section of ``docs/RESULTS.md`` (``bench_adapt_filter`` with
 ``--state filter``).
@@ -45,6 +48,7 @@ from _pushes import pushes_over_minimum  # noqa: E402
 from _results import format_section, update_section  # noqa: E402
 from bench_lookahead import variant_fields  # noqa: E402
 
+from push_core.episode import contradiction  # noqa: E402
 from push_core.geometry import world_to_object  # noqa: E402
 from push_core.objects import load_object  # noqa: E402
 from push_core.planner import AVOID_RADIUS, motion_score  # noqa: E402
@@ -124,6 +128,26 @@ def futile_repeats(rec: dict) -> int:
     return count
 
 
+def contradicted_repeats(rec: dict) -> int:
+    """Pushes at the contact region of an earlier push whose outcome contradicted its
+    prediction (module docstring)."""
+    pushes, est = rec["pushes"], np.asarray(rec["poses_est"])
+    pred = np.asarray(rec.get("poses_predicted", []), dtype=float).reshape(-1, 3)
+    n = min(len(pushes), len(pred), len(est) - 1)
+    if n < 2:
+        return 0
+    goal = np.asarray(rec["poses_true"][0]) + Trial(**rec["trial"]).goal_offset()
+    contact = [world_to_object(est[i], np.asarray(pushes[i][1])) for i in range(n)]
+    bad: list[np.ndarray] = []
+    count = 0
+    for i in range(n):
+        if any(np.linalg.norm(contact[i] - b) <= AVOID_RADIUS for b in bad):
+            count += 1
+        if contradiction(est[i], pred[i], est[i + 1], goal, 2.0) is not None:
+            bad.append(contact[i])
+    return count
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--state", default="gt", choices=("gt", "filter"))
@@ -136,7 +160,8 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     load_before = " ".join(f"{v:.2f}" for v in os.getloadavg())
     rows = ["| world | variant | success | pushes | pushes / min | futile repeats (episodes "
-            "with any) | target |", "| --- " * 7 + "|"]
+            "with any) | contradicted repeats (episodes with any) | target |",
+            "| --- " * 8 + "|"]
     for kind in args.worlds:
         for variant in args.variants:
             runner = WorldRunner(kind)
@@ -147,16 +172,19 @@ def main(argv: list[str] | None = None) -> int:
                 recs.append(rec)
                 print(f"{kind} {variant} {trial.object} #{trial.index}: {rec['steps']} "
                       f"pushes, {'ok' if rec['success'] else 'FAILED ' + rec['reason']}, "
-                      f"futile repeats {futile_repeats(rec)}", flush=True)
+                      f"futile repeats {futile_repeats(rec)}, contradicted repeats "
+                      f"{contradicted_repeats(rec)}", flush=True)
             runner.close()
             ok = [r for r in recs if r["success"]]
             rate = len(ok) / len(recs)
             repeats = [futile_repeats(r) for r in recs]
+            again = [contradicted_repeats(r) for r in recs]
             ratio = pushes_over_minimum(recs)
             rows.append(f"| {kind} | {variant} | {len(ok)}/{len(recs)} | "
                         f"{np.mean([r['steps'] for r in ok]) if ok else float('nan'):.2f} | "
                         f"{'-' if ratio is None else f'{ratio:.2f}'} | {sum(repeats)} "
-                        f"({sum(r > 0 for r in repeats)}) | >= {TARGET}: "
+                        f"({sum(r > 0 for r in repeats)}) | {sum(again)} "
+                        f"({sum(r > 0 for r in again)}) | >= {TARGET}: "
                         f"{'met' if rate >= TARGET else 'NOT met'} |")
             print(rows[-1], flush=True)
     load_after = " ".join(f"{v:.2f}" for v in os.getloadavg())

@@ -19,10 +19,15 @@ interval, mean steps of the successful trials, true end error mm / deg over all 
 whose *estimate* reached the goal but whose true pose did not, failure reasons), an overall
 table and the comparison with the source's 10.6-13.9 pushes (Table 5.2).
 
+With ``--horizon H`` (H > 1), ``--avoid-contradicted`` or ``--relearn`` the planner and filter
+variants of issue 22 run (``pushbot eval push`` has the same options); their results go to the
+section ``eval_shapes_variant`` and ``--out``'s ``variant/`` folder, so the greedy section stays.
+
 Usage::
 
     .venv/bin/python benchmarks/eval_shapes.py [--trials 10] [--workers N]
         [--classes disc u_shape ...] [--seed 0] [--no-write] [--out out/eval/shapes]
+        [--horizon H] [--avoid-contradicted] [--relearn]
 """
 
 from __future__ import annotations
@@ -71,10 +76,11 @@ def class_objects(classes: list[str]) -> dict[str, list[str]]:
     return out
 
 
-def run(classes: list[str], trials: int, workers: int, seed: int,
-        out: Path) -> tuple[list[dict], dict[str, str], list[dict]]:
+def run(classes: list[str], trials: int, workers: int, seed: int, out: Path,
+        variant: dict | None = None) -> tuple[list[dict], dict[str, str], list[dict]]:
     """Evaluate the classes (one evaluation per COM mode); returns the records, the class of
-    every object path and the evaluations' timing records."""
+    every object path and the evaluations' timing records. ``variant``: ``horizon``,
+    ``avoid_contradicted``, ``relearn`` of :class:`EvalOptions` (default: the greedy loop)."""
     objects = class_objects(classes)
     of_class = {path: cls for cls, paths in objects.items() for path in paths}
     groups = {"random": [p for c, ps in objects.items() if c != "com_edge" for p in ps],
@@ -84,7 +90,8 @@ def run(classes: list[str], trials: int, workers: int, seed: int,
         if not paths:
             continue
         opts = EvalOptions(objects=paths, tasks=TASKS, methods=["ana"], k=[3],
-                           state=["filter"], com=[com], trials=trials, seed=seed)
+                           state=["filter"], com=[com], trials=trials, seed=seed,
+                           **(variant or {}))
         doc = evaluate(opts, workers=workers, progress=True)
         doc["timing"]["command"] = "benchmarks/eval_shapes.py"
         write_outputs(doc, out / f"com_{com}")
@@ -181,18 +188,32 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-write", action="store_true", help="do not write docs/RESULTS.md")
     ap.add_argument("--out", type=Path, default=Path("out/eval/shapes"),
                     help="output directory, relative to the repository root")
+    ap.add_argument("--horizon", type=int, default=1,
+                    help="pushes the planner looks ahead (default 1: greedy)")
+    ap.add_argument("--avoid-contradicted", action="store_true",
+                    help="avoid the contact regions of pushes that contradicted the model")
+    ap.add_argument("--relearn", action="store_true",
+                    help="the filter re-learns c, l, m when pushes contradict the model")
     args = ap.parse_args(argv)
     workers = usable_cores() if args.workers is None else args.workers
+    variant = {"horizon": args.horizon, "avoid_contradicted": args.avoid_contradicted,
+               "relearn": args.relearn}
+    flags = (f" --horizon {args.horizon}" if args.horizon != 1 else "") + \
+        (" --avoid-contradicted" if args.avoid_contradicted else "") + \
+        (" --relearn" if args.relearn else "")
+    out = args.out / "variant" if flags else args.out
     os.chdir(ROOT)  # the spec-file paths in the records are relative to the repository root
     t0 = time.perf_counter()
-    records, of_class, timings = run(args.classes, args.trials, workers, args.seed, args.out)
+    records, of_class, timings = run(args.classes, args.trials, workers, args.seed, out, variant)
     wall = time.perf_counter() - t0
     loads = "; ".join(f"{t['load_before']} before, {t['load_after']} after" for t in timings)
     body = "\n".join([
         "Full system (`filter`: rendered 640 x 480 RGB-D -> segmentation CNN -> perception core "
         "-> EKF with COM estimation -> planner), ana, k = 3, tasks translation (20 cm) and "
         "mixed (10 cm, 0.35 rad), small goal region (0.75 cm, 5 deg), 30 pushes max, "
-        f"{args.trials} trials per object and task; random COM (uniform over the outline "
+        f"{args.trials} trials per object and task"
+        + (f"; planner and filter variant:{flags}" if flags else "; greedy planner")
+        + "; random COM (uniform over the outline "
         "shrunk by 30 %) except `com_edge` (the spec's COM, 80-90 % of the way to the "
         "outline); randomised mass and frictions. Objects: `benchmarks/objects/<class>/` "
         "(`benchmarks/make_shape_objects.py`, seed 0). Success and end errors from ground "
@@ -205,15 +226,18 @@ def main(argv: list[str] | None = None) -> int:
         f"{len(records)} trials in {wall / 60:.1f} min with {workers} worker(s); load average "
         f"{loads}.",
     ])
-    (args.out / "summary.md").write_text(body + "\n", encoding="utf-8")
+    (out / "summary.md").write_text(body + "\n", encoding="utf-8")
     print(body)
     if not args.no_write:
         command = (f"python benchmarks/eval_shapes.py --trials {args.trials} --workers {workers}"
                    + (f" --classes {' '.join(args.classes)}"
-                      if list(args.classes) != list(SHAPE_CLASSES) else ""))
-        update_section("eval_shapes", format_section(
-            "Shape classes: the full system on every flat object (`eval_shapes`)", command, body))
-        print("wrote section eval_shapes")
+                      if list(args.classes) != list(SHAPE_CLASSES) else "") + flags)
+        name = "eval_shapes_variant" if flags else "eval_shapes"
+        title = ("Shape classes with the lookahead planner and adaptation (`eval_shapes_variant`)"
+                 if flags else "Shape classes: the full system on every flat object "
+                 "(`eval_shapes`)")
+        update_section(name, format_section(title, command, body))
+        print(f"wrote section {name}")
     return 0
 
 

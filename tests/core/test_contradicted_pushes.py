@@ -3,9 +3,12 @@ planned again (issue 22), and the status says so; off by default."""
 
 from __future__ import annotations
 
-import numpy as np
+import math
 
-from push_core.episode import CONTRADICTION_MISS, EpisodeEngine
+import numpy as np
+import pytest
+
+from push_core.episode import CONTRADICTION_MISS, EpisodeEngine, contradiction
 from push_core.objects import load_object
 from push_core.planner import AVOID_RADIUS, Planner, PlannerConfig, prepare_outline
 
@@ -98,3 +101,22 @@ def test_contradicted_regions_are_forgotten_with_a_new_goal() -> None:
     again = e.step().plan
     pts = e.outline.points
     assert np.linalg.norm(pts[again.index] - pts[first.index]) <= AVOID_RADIUS
+
+
+def test_the_contradiction_test_by_hand() -> None:
+    goal, start, predicted = [0.1, 0.0, 0.0], [0.0, 0.0, 0.0], [0.05, 0.0, 0.0]
+    # to go: 100 mm from the start, 50 predicted, 90 observed; 40 mm off the prediction and
+    # 10 gained of the 50 predicted (< 0.5): contradicted
+    assert contradiction(start, predicted, [0.01, 0.0, 0.0], goal, 2.0) == \
+        pytest.approx((100.0, 50.0, 90.0))
+    # 15 mm off but 35 of 50 gained; 5 mm off (within CONTRADICTION_MISS): not contradicted
+    assert contradiction(start, predicted, [0.035, 0.0, 0.0], goal, 2.0) is None
+    assert contradiction(start, predicted, [0.045, 0.0, 0.0], goal, 2.0) is None
+    # turned 10 deg where none was predicted: 20 mm of eq. (5.1) off, and 100 - (50 + 20) = 30
+    # gained of 50 (>= 25): not contradicted; unless the turn is 20 deg (40 off, 10 gained)
+    assert contradiction(start, predicted, [0.05, 0.0, math.radians(10.0)], goal, 2.0) is None
+    assert contradiction(start, predicted, [0.05, 0.0, math.radians(20.0)], goal, 2.0) == \
+        pytest.approx((100.0, 50.0, 90.0))
+    # for an object whose orientation does not matter the turn is not counted
+    assert contradiction(start, predicted, [0.05, 0.0, math.radians(20.0)], goal, 2.0,
+                         orientation_matters=False) is None

@@ -88,6 +88,7 @@ __all__ = [
     "Step",
     "end_score",
     "check_goal_offset",
+    "contradiction",
     "min_pushes",
     "new_record",
     "precedes_episode",
@@ -383,24 +384,16 @@ class EpisodeEngine:
             return
         start, predicted, point = self._outcome
         self._outcome = None
-        lam = getattr(self.planner.config, "lam", 0.0) if self.orientation_matters else 0.0
-        goal = self.goal if self.orientation_matters else np.r_[self.goal[:2], 0.0]
-
-        def to_go(pose: NDArray[np.float64]) -> float:
-            p = pose if self.orientation_matters else np.r_[pose[:2], 0.0]
-            return float(motion_score(goal - p, lam))
-
-        p_obs = state[:3] if self.orientation_matters else np.r_[state[:2], 0.0]
-        p_pred = predicted if self.orientation_matters else np.r_[predicted[:2], 0.0]
-        miss = float(motion_score(p_obs - p_pred, lam))
-        gain, predicted_gain = to_go(start) - to_go(state[:3]), to_go(start) - to_go(predicted)
-        if miss > CONTRADICTION_MISS and gain < CONTRADICTION_GAIN * predicted_gain:
+        lam = getattr(self.planner.config, "lam", 0.0)
+        to_go = contradiction(start, predicted, state[:3], self.goal, lam,
+                              self.orientation_matters)
+        if to_go is not None:
             self.counts["contradicted"] += 1
             self._contradicted.append(point)
             del self._contradicted[:-MAX_CONTRADICTED]
             self.last_contradiction = (
-                f"the last push contradicted its prediction (predicted {to_go(predicted):.1f} "
-                f"mm to go, observed {to_go(state[:3]):.1f} from {to_go(start):.1f}): its "
+                f"the last push contradicted its prediction (predicted {to_go[1]:.1f} "
+                f"mm to go, observed {to_go[2]:.1f} from {to_go[0]:.1f}): its "
                 f"contact region is avoided")
         else:
             self.last_contradiction = ""
@@ -415,6 +408,36 @@ class EpisodeEngine:
 
 
 # ------------------------------------------------------------------------------------ scoring
+def contradiction(start: ArrayLike, predicted: ArrayLike, observed: ArrayLike, goal: ArrayLike,
+                  lam: float, orientation_matters: bool = True
+                  ) -> tuple[float, float, float] | None:
+    """Rule 8's test: did a push contradict its prediction?
+
+    The push started at ``start``, was predicted to end at ``predicted`` and was observed at
+    ``observed`` (poses ``(x, y, theta)``, ``world``; ``goal`` likewise). It contradicted its
+    prediction when the observation is more than ``CONTRADICTION_MISS`` from the prediction
+    and it gained less than ``CONTRADICTION_GAIN`` of the predicted gain (eq. 5.1 with
+    ``lam``, mm + lam deg; without the orientation when ``orientation_matters`` is False).
+
+    Returns
+    -------
+    (float, float, float) or None
+        Eq. (5.1) to the goal from the start, the prediction and the observation when it
+        contradicted, else None.
+    """
+    def flat(pose: ArrayLike) -> NDArray[np.float64]:
+        p = np.asarray(pose, dtype=np.float64)[:3]
+        return p if orientation_matters else np.r_[p[:2], 0.0]
+
+    weight = lam if orientation_matters else 0.0
+    g = flat(goal)
+    go = [float(motion_score(g - flat(p), weight)) for p in (start, predicted, observed)]
+    miss = float(motion_score(flat(observed) - flat(predicted), weight))
+    if miss > CONTRADICTION_MISS and go[0] - go[2] < CONTRADICTION_GAIN * (go[0] - go[1]):
+        return go[0], go[1], go[2]
+    return None
+
+
 def true_errors(pose: ArrayLike, goal: ArrayLike, order: int) -> tuple[float, float]:
     """Position (m) and absolute orientation error (rad) of ``pose`` against ``goal``, the
     orientation modulo ``2 pi / order`` (closest equivalent)."""
