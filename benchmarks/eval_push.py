@@ -24,6 +24,10 @@ figures are copied to ``docs/figures/``):
   footprint (``--support-cell``, default 15 mm: ``WorldConfig.support_cell``) next to ``full``
   on the same trials, with each object's resting contacts in both worlds (section
   ``eval_push_support``).
+- ``limits``: what keeps the loop above issue 22's targets: the ``full`` protocol with the true
+  COM given to the filter (``com_known``) and with k = 10 (``k10``), next to the saved results
+  of ``full``, ``lookahead`` and ``gt`` on the same trials (section ``eval_push_limits``; run
+  those first).
 
 Usage::
 
@@ -66,7 +70,7 @@ OUT = ROOT / "out" / "eval"
 FIGURES = ROOT / "docs" / "figures"
 OBJECTS = ("tri1", "butter", "hex")
 TASKS = ("translation", "rotation", "mixed")
-DEFAULT_TRIALS = {"full": 60, "gt": 60, "table51": 60, "table52": 60, "regions": 20,
+DEFAULT_TRIALS = {"limits": 60, "full": 60, "gt": 60, "table51": 60, "table52": 60, "regions": 20,
                   "regions_filter": 20, "ksweep": 20, "lookahead": 60, "support": 60}
 
 
@@ -519,15 +523,20 @@ LOOKAHEAD_SUCCESS = 0.995
 HORIZON = 2
 
 
-def _full_trials(trials: int, seed: int) -> list[dict]:
-    """The records of ``full`` (the greedy planner, whole support) when its results exist for
+def _saved_trials(name: str, trials: int, seed: int) -> list[dict]:
+    """The records of experiment run ``name`` (``out/eval/<name>``) when its results exist for
     the same trials per cell and seed, else []."""
-    saved = OUT / "full" / "results.json"
+    saved = OUT / name / "results.json"
     if saved.is_file():
         doc = json.loads(saved.read_text())
         if doc["config"]["trials"] == trials and doc["config"]["seed"] == seed:
             return doc["trials"]
     return []
+
+
+def _full_trials(trials: int, seed: int) -> list[dict]:
+    """The records of ``full`` (the greedy planner, whole support), or []."""
+    return _saved_trials("full", trials, seed)
 
 
 def _against_full(recs: list[dict], full: list[dict], this: str, other: str) -> list[str]:
@@ -658,9 +667,62 @@ def exp_support(trials: int, workers: int, seed: int) -> tuple[str, str]:
     return body, f"The object supported across its footprint, {mm} cells (`eval_push_support`)"
 
 
+def exp_limits(trials: int, workers: int, seed: int) -> tuple[str, str]:
+    """What keeps the loop above issue 22's targets: the full protocol's pushes with the true
+    COM given to the filter and with k = 10 contact points, next to ``full``, ``lookahead``
+    and ``gt`` of the same trials (their saved results; run those first)."""
+    base = {"objects": OBJECTS, "tasks": TASKS, "methods": ["ana"], "state": ["filter"],
+            "trials": trials, "seed": seed}
+    known = _run("com_known", EvalOptions(**base, k=[3], com_estimation=["off"]),
+                 workers)["trials"]
+    k10 = _run("k10", EvalOptions(**base, k=[10]), workers)["trials"]
+    columns = [("full (greedy)", _full_trials(trials, seed)),
+               (f"lookahead H = {HORIZON}", _saved_trials(f"lookahead_h{HORIZON}", trials, seed)),
+               ("COM known", known), ("k = 10", k10),
+               ("gt state (k = 1)", _saved_trials("gt", trials, seed))]
+    columns = [(label, recs) for label, recs in columns if recs]
+    lines = ["| task | object | min | " + " | ".join(label for label, _ in columns)
+             + f" | at the min ({columns[0][0]}) | target |", "| --- " * (len(columns) + 5) + "|"]
+    for task in TASKS:
+        for obj in OBJECTS:
+            full = _sel(columns[0][1], task=task, object=obj)
+            if not full:
+                continue
+            n_min = trial_minimum(full[0]["trial"])
+            means = [stats(_sel(recs, task=task, object=obj))["steps_mean"]
+                     for _, recs in columns]
+            at_min = np.mean([r["success"] and r["steps"] <= n_min for r in full])  # column 1
+            lines.append(f"| {task} | {obj} | {n_min} | "
+                         + " | ".join(_f(m, ".2f") for m in means)
+                         + f" | {at_min:.2f} | <= {LOOKAHEAD_TARGETS[task]:.1f} |")
+    body = "\n".join([
+        f"Mean pushes (all trials; a failure counts its pushes) on the full protocol's trials "
+        f"({', '.join(OBJECTS)} x {', '.join(TASKS)} x {trials}, COM at the centre, the same "
+        "scenes in every column): the full system greedy (`eval_push_full`), with the "
+        f"lookahead (`eval_push_lookahead`), with the filter given the true COM "
+        "(`--com-estimation off`: c fixed at the centre, where the protocol puts it), with "
+        "k = 10 sampled contact points instead of 3, and with the ground-truth state "
+        "(`eval_push_gt`: true pose, COM and friction, l of uniform pressure, k = 1). `min`: "
+        "the physical minimum (docs/ARCHITECTURE.md). `at the min`: the share of the first "
+        "column's trials that succeeded in `min` pushes. Where the minimum is 2 "
+        "(rotation of butter and hex) a mean of 2.0 needs every trial at it.",
+        "",
+        *lines,
+        "",
+        "COM known: " + _timing_line(known) + " k = 10: " + _timing_line(k10),
+    ])
+    return body, "What limits the pushes (`eval_push_limits`)"
+
+
+def _timing_line(records: list[dict]) -> str:
+    s = stats(records)
+    return f"success {s['success_rate']:.3f} ({s['successes']}/{s['n']})."
+
+
 EXPERIMENTS = {"full": exp_full, "gt": exp_gt, "table51": exp_table51, "table52": exp_table52,
                "regions": exp_regions, "regions_filter": exp_regions_filter,
-               "ksweep": exp_ksweep, "lookahead": exp_lookahead, "support": exp_support}
+               "ksweep": exp_ksweep, "lookahead": exp_lookahead, "support": exp_support,
+               "limits": exp_limits}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -685,7 +747,7 @@ def main(argv: list[str] | None = None) -> int:
         t0 = time.perf_counter()
         body, title = EXPERIMENTS[name](trials, args.workers, args.seed)
         extra = f" --trials {args.trials}" if args.trials else ""
-        if name == "lookahead":
+        if name in ("lookahead", "limits"):
             extra += f" --horizon {HORIZON}"
         if name == "support":
             extra += f" --support-cell {SUPPORT_CELL:g}"
