@@ -615,15 +615,12 @@ def _resting_support(obj: str, cell: float) -> tuple[int, float, float]:
     with quiet_stdout():
         world = PushWorld(WorldConfig(object=obj, com_offset=(0.0, 0.0), support_cell=cell))
     try:
-        client, body = world._client, world._object  # noqa: SLF001 - a diagnostic of the sim
-        points = [c for c in client.getContactPoints(bodyA=body)]
-        xy = np.array([c[5][:2] for c in points])
-        force = np.array([c[9] for c in points])
+        xy, force = world.support_contacts()
         com = world.object_pose()[:2]
         radius = float(np.sum(force * np.linalg.norm(xy - com, axis=1)) / np.sum(force))
     finally:
         world.close()
-    return len(points), 1e3 * radius, 1e3 * load_object(obj).limit_surface_guess()
+    return len(xy), 1e3 * radius, 1e3 * load_object(obj).limit_surface_guess()
 
 
 def exp_support(trials: int, workers: int, seed: int) -> tuple[str, str]:

@@ -468,7 +468,11 @@ def test_support_cells_of_a_rectangle_and_a_triangle_by_hand():
 
 
 def _table_contacts(world: PushWorld) -> int:
-    return len(world._client.getContactPoints(bodyA=world._object))
+    points, force = world.support_contacts()
+    assert points.shape == (len(force), 2) and np.all(force >= 0.0)
+    # at rest the table carries the object's weight (g = 9.81)
+    assert force.sum() == pytest.approx(9.81 * world.object_spec.mass, rel=0.05)
+    return len(force)
 
 
 def test_cut_support_spreads_the_contacts_and_pushes_as_before():

@@ -444,6 +444,14 @@ class PushWorld:
         """The object's outline polyline (P, 2) at its current pose in ``world`` (addition)."""
         return object_to_world(self.object_pose(), self._spec.polyline())
 
+    def support_contacts(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The object's contacts with the table now: points ``(K, 2)`` in ``world`` (m, on
+        the object) and their normal forces ``(K,)`` (N) (addition: a diagnostic of how the
+        simulator supports the object, docs/RESULTS.md ``eval_push_support``)."""
+        points = self._client.getContactPoints(bodyA=self._object, bodyB=self._scene.table)
+        xy = np.array([c[5][:2] for c in points], dtype=np.float64).reshape(-1, 2)
+        return xy, np.array([c[9] for c in points], dtype=np.float64)
+
     def pusher_position(self) -> NDArray[np.float64]:
         """Measured (x, y) of the pusher axis in ``world``, m (the parked pose between pushes;
         in arm mode the tool tip's)."""
