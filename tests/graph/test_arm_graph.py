@@ -51,8 +51,15 @@ def test_an_arm_episode_reaches_the_goal_along_the_commanded_lines(graph: GraphR
                           - np.asarray(rec["poses_true"][0])[:2]) > 0.05
 
 
-def _latest_joint_state(graph: GraphRunner) -> tuple[float, np.ndarray, np.ndarray]:
-    graph.wait(lambda: len(graph.rec.joint_states) > 0, 30.0, "/joint_states")
+def _held_joint_state(graph: GraphRunner) -> tuple[float, np.ndarray, np.ndarray]:
+    """The newest joint state once the arm is held: the last two states at the same positions
+    with every joint slower than ``HELD`` (after an episode the arm may still be going back
+    to its park pose; on a loaded machine that takes a while in wall time)."""
+    def held() -> bool:
+        states = list(graph.rec.joint_states)[-2:]
+        return len(states) == 2 and np.allclose(states[0][1], states[1][1], atol=1e-9) \
+            and all(np.max(np.abs(v)) < HELD for _, _, v in states)
+    graph.wait(held, 60.0, "the arm held on /joint_states")
     return graph.rec.joint_states[-1]
 
 
@@ -60,7 +67,7 @@ def test_a_dry_run_plans_and_refuses_and_moves_nothing(graph: GraphRunner) -> No
     client = graph._client()
     client.executor_enable(False)
     try:
-        stamp0, q0, _ = _latest_joint_state(graph)
+        stamp0, q0, _ = _held_joint_state(graph)
         true0 = graph.rec.true[-1][1].copy()
         n_refusals, n_paths = len(graph.rec.refusals), graph.rec.executor_paths
         client.publish_push(FAR_PUSH)
