@@ -136,7 +136,9 @@ def contradicted_repeats(rec: dict) -> int:
     n = min(len(pushes), len(pred), len(est) - 1)
     if n < 2:
         return 0
-    goal = np.asarray(rec["poses_true"][0]) + Trial(**rec["trial"]).goal_offset()
+    # the goal the loop pursued: in the state source's frame (filter: yaw since the first
+    # frame), as pushbot.experiments.inprocess sets it
+    goal = est[0] + Trial(**rec["trial"]).goal_offset()
     contact = [world_to_object(est[i], np.asarray(pushes[i][1])) for i in range(n)]
     bad: list[np.ndarray] = []
     count = 0
