@@ -132,12 +132,12 @@ def _prediction_table(records: list[dict]) -> list[str]:
         for obj in OBJECTS:
             dxy, dth, rel, short = [], [], [], []
             for r in _sel(records, task=task, object=obj):
-                short += _shortfalls(r)
                 pred = np.asarray(r.get("poses_predicted", []), dtype=float).reshape(-1, 3)
                 est = np.asarray(r["poses_est"], dtype=float)
                 n = min(len(pred), len(est) - 1)
                 if n < 1:
                     continue
+                short += _shortfalls(pred, est, np.asarray(r["poses_true"], dtype=float))
                 dxy += list(1e3 * np.linalg.norm(pred[:n, :2] - est[1:n + 1, :2], axis=1))
                 err = np.abs(np.remainder(pred[:n, 2] - est[1:n + 1, 2] + math.pi,
                                           2 * math.pi) - math.pi)
@@ -159,13 +159,12 @@ def _prediction_table(records: list[dict]) -> list[str]:
 LONG_PUSH = 0.03
 
 
-def _shortfalls(record: dict) -> list[float]:
-    """Shortfall (mm) of each long push (predicted to move the object >= ``LONG_PUSH``): the
-    predicted displacement minus the *true* displacement projected on it. The planner's
-    rollout starts at the estimate, so the predicted displacement is taken from there."""
-    pred = np.asarray(record.get("poses_predicted", []), dtype=float).reshape(-1, 3)
-    est = np.asarray(record["poses_est"], dtype=float)
-    true = np.asarray(record["poses_true"], dtype=float)
+def _shortfalls(pred: np.ndarray, est: np.ndarray, true: np.ndarray) -> list[float]:
+    """Shortfall (mm) of each long push of one record (predicted to move the object >=
+    ``LONG_PUSH``): the predicted displacement minus the *true* displacement projected on it.
+    ``pred``, ``est``, ``true``: its ``poses_predicted``, ``poses_est`` and ``poses_true``.
+    The planner's rollout starts at the estimate, so the predicted displacement is taken from
+    there."""
     n = min(len(pred), len(est) - 1, len(true) - 1)
     out = []
     for i in range(n):
@@ -706,12 +705,12 @@ def exp_limits(trials: int, workers: int, seed: int) -> tuple[str, str]:
         "",
         *lines,
         "",
-        "COM known: " + _timing_line(known) + " k = 10: " + _timing_line(k10),
+        "COM known: " + _success_line(known) + " k = 10: " + _success_line(k10),
     ])
     return body, "What limits the pushes (`eval_push_limits`)"
 
 
-def _timing_line(records: list[dict]) -> str:
+def _success_line(records: list[dict]) -> str:
     s = stats(records)
     return f"success {s['success_rate']:.3f} ({s['successes']}/{s['n']})."
 

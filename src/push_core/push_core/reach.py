@@ -64,6 +64,9 @@ REACH_SUBSTEP = 0.001
 #: Douglas-Peucker tolerance of the outline pushed against, m (the planner's,
 #: ``PlannerConfig.simplify_tolerance``).
 REACH_SIMPLIFY = 5e-4
+#: Gap between the pusher and the surface at the start of a searched push, m (the push runs
+#: that much farther, so its length past the contact is the longest push).
+_START_GAP = 5e-4
 #: Pushes rolled out per batch (bounds the memory of the search).
 _CHUNK = 4096
 
@@ -112,7 +115,7 @@ def _push_starts(poly: NDArray[np.float64], spacing: float,
         k = max(1, int(math.ceil(length / spacing)))
         s = (np.arange(k) + 0.5) / k
         points = a + s[:, None] * edge
-        starts.append(points + (pusher_radius + 5e-4) * n_out)
+        starts.append(points + (pusher_radius + _START_GAP) * n_out)
         inward.append(np.broadcast_to(-n_out, points.shape))
     return np.concatenate(starts), np.concatenate(inward)
 
@@ -164,8 +167,7 @@ def one_push_reaches(polyline: ArrayLike, com: ArrayLike, l: float,  # noqa: E74
     dx = c[None, :] * inward[:, None, 0] - s[None, :] * inward[:, None, 1]
     dy = s[None, :] * inward[:, None, 0] + c[None, :] * inward[:, None, 1]
     pusher0 = np.repeat(starts, len(angles), axis=0)
-    # the start is 0.5 mm off the surface: the push runs that much farther
-    travel = (max_push_length + 5e-4) * np.stack([dx.ravel(), dy.ravel()], axis=1)
+    travel = (max_push_length + _START_GAP) * np.stack([dx.ravel(), dy.ravel()], axis=1)
     period = 2.0 * math.pi / max(int(order), 1)
     pose0 = np.zeros(3)
     for m in REACH_FRICTIONS:
