@@ -11,12 +11,17 @@ SETUP_FILES := $(foreach p,$(PACKAGES),src/$(p)/setup.py src/$(p)/setup.cfg)
 demo: $(STAMP)
 	$(BIN)/pushbot demo
 
+# The suite on every core (pytest-xdist; tests/conftest.py: one ROS domain per worker, tests
+# sharing a module-scoped graph kept on one worker). PYTEST_WORKERS=0 runs it in one process.
+PYTEST_WORKERS ?= auto
+XDIST := -n $(PYTEST_WORKERS) --dist loadgroup
+
 test: $(STAMP)
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest $(XDIST)
 
 # The fast tier: unit and in-process tests, no node processes or graphs (markers graph, slow).
 test-fast: $(STAMP)
-	$(BIN)/python -m pytest -m "not graph and not slow"
+	$(BIN)/python -m pytest $(XDIST) -m "not graph and not slow"
 
 venv: $(STAMP)
 

@@ -89,6 +89,26 @@ def _isolate_ros_session() -> int:
 TEST_DOMAIN_ID = _isolate_ros_session()
 
 
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Keep the tests that share a module- or class-scoped fixture on one xdist worker.
+
+    ``make test`` runs the suite with ``pytest-xdist --dist loadgroup``: tests are spread over
+    the workers one by one, except those with an ``xdist_group`` mark, which stay together. A
+    module that shares one started graph (or one node, one context) among its tests is given
+    the group of its file here, so the graph is started once, on one worker, and its tests run
+    in file order as without xdist. Runs before xdist's own hook, which reads the mark.
+    """
+    for item in items:
+        info = getattr(item, "_fixtureinfo", None)
+        if info is None:
+            continue
+        shared = any(defs and defs[-1].scope in ("module", "class", "package")
+                     for defs in (info.name2fixturedefs.get(n) for n in item.fixturenames))
+        if shared:
+            item.add_marker(pytest.mark.xdist_group(item.nodeid.split("::", 1)[0]))
+
+
 def pytest_report_header(config: pytest.Config) -> str:
     return (f"ROS isolation: ROS_DOMAIN_ID={TEST_DOMAIN_ID}, "
             "ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, FASTDDS_BUILTIN_TRANSPORTS=UDPv4")

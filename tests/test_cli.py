@@ -6,7 +6,6 @@ subprocesses inherit it.
 
 from __future__ import annotations
 
-import json
 import os
 import re
 import secrets
@@ -106,46 +105,6 @@ def test_doctor_reports_a_missing_module_without_traceback() -> None:
     assert re.search(r"^FAIL\s+torch\s+torch is not installed: run make venv$", result.stdout,
                      re.M), result.stdout
     assert "Traceback" not in result.stdout + result.stderr
-
-
-@pytest.mark.ros
-@pytest.mark.slow
-@pytest.mark.graph
-def test_demo_runs_doctor_then_the_closed_loop_through_the_graph(tmp_path: Path) -> None:
-    result = pushbot("demo", "--object", "rect1", "--com", "centre", "--out", str(tmp_path),
-                     timeout=300)
-    assert result.returncode == 0, result.stdout + result.stderr
-    out = result.stdout
-    assert "checks passed" in out
-    # The four nodes ran as processes: each wrote its log.
-    for name in NODES:
-        assert (tmp_path / "graph_logs" / f"{name}.log").stat().st_size > 0, name
-    record = json.loads((tmp_path / "episode.json").read_text())
-    assert record["trial"]["object"] == "rect1" and record["trial"]["task"] == "mixed"
-    assert record["reason"] == "goal reached" and record["success"], out
-    # a push the bridge refused (e.g. still busy with the scene) is a step without a new pose
-    assert 1 <= record["steps"] == len(record["pushes"])
-    assert len(record["poses_true"]) == record["steps"] - record["refused"] + 1
-    # The summary prints the ground-truth figures of the record.
-    match = re.search(r"^result: goal reached after (\d+) pushes \(success by ground truth\)$",
-                      out, re.M)
-    assert match and int(match.group(1)) == record["steps"], out
-    match = re.search(r"^true end-pose error: ([\d.]+) mm, ([\d.]+) deg", out, re.M)
-    assert match, out
-    assert float(match.group(1)) == pytest.approx(1e3 * record["end_error_xy"], abs=0.06)
-    assert float(match.group(1)) <= 7.5 and float(match.group(2)) <= 5.0
-    assert re.search(r"^centre of mass \(object frame, mm\): estimated \(.*\), true \(.*\), "
-                     r"error [\d.]+ mm$", out, re.M), out
-    assert re.search(r"^wall time: ([\d.]+) s in all", out, re.M), out  # figures: RESULTS.md
-    from PIL import Image
-
-    from pushbot.viz.render import GIF_MAX_FRAMES
-
-    # Camera frames (one lost in transport is skipped) and the bridge's monitor frames of the
-    # pushes, subsampled to at most GIF_MAX_FRAMES.
-    with Image.open(tmp_path / "episode.gif") as gif:
-        assert record["steps"] + 1 < gif.n_frames <= GIF_MAX_FRAMES
-    assert (tmp_path / "trajectory.png").stat().st_size > 10_000
 
 
 @pytest.mark.parametrize("value", ["-1", "nan", "inf"])

@@ -1,14 +1,17 @@
-"""The demo's recording (issue 14 acceptance): ``pushbot demo`` writes an MCAP bag of its
+"""``pushbot demo`` as a user runs it, once for the whole module: the doctor's checks, then
+the closed loop through the four node processes to the goal (summary printed from the episode
+record, the node logs, the GIF and trajectory plot), and its recording: an MCAP bag of the
 episode that reads back with ``rosbags`` (topics, types, counts consistent with the episode
 record), a video with one frame per camera frame of the episode and one per monitor frame of
 the bridge (on in the demo: rendered during the pushes, so the video has more frames than
 camera frames), and ``pushbot bag play`` republishes it so that ``pushbot topic echo`` sees
-it. One demo run (~15-20 s) for all.
+it. Bad arguments are refused before anything starts.
 """
 
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -39,14 +42,56 @@ EXPECTED = {
 }
 
 
+#: The demo's nodes: each runs as a process and writes its log.
+NODES = ("sim_bridge_node", "segmentation_node", "ekf_node", "planner_node")
+
+
 @pytest.fixture(scope="module")
-def demo_out(tmp_path_factory) -> tuple[Path, dict]:
+def demo_run(tmp_path_factory) -> tuple[Path, dict, str]:
+    """One ``pushbot demo`` (doctor included): (output folder, episode record, stdout)."""
     out = tmp_path_factory.mktemp("demo")
-    result = subprocess.run([PUSHBOT, "demo", "--skip-doctor", "--object", "rect1", "--com",
-                             "centre", "--out", str(out)], capture_output=True, text=True,
-                            timeout=300)
+    result = subprocess.run([PUSHBOT, "demo", "--object", "rect1", "--com", "centre", "--out",
+                             str(out)], capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stdout + result.stderr
-    return out, json.loads((out / "episode.json").read_text())
+    return out, json.loads((out / "episode.json").read_text()), result.stdout
+
+
+@pytest.fixture
+def demo_out(demo_run) -> tuple[Path, dict]:
+    return demo_run[0], demo_run[1]
+
+
+def test_demo_runs_doctor_then_the_closed_loop_through_the_graph(demo_run) -> None:
+    tmp_path, record, out = demo_run
+    assert "checks passed" in out
+    # The four nodes ran as processes: each wrote its log.
+    for name in NODES:
+        assert (tmp_path / "graph_logs" / f"{name}.log").stat().st_size > 0, name
+    assert record["trial"]["object"] == "rect1" and record["trial"]["task"] == "mixed"
+    assert record["reason"] == "goal reached" and record["success"], out
+    # a push the bridge refused (e.g. still busy with the scene) is a step without a new pose
+    assert 1 <= record["steps"] == len(record["pushes"])
+    assert len(record["poses_true"]) == record["steps"] - record["refused"] + 1
+    # The summary prints the ground-truth figures of the record.
+    match = re.search(r"^result: goal reached after (\d+) pushes \(success by ground truth\)$",
+                      out, re.M)
+    assert match and int(match.group(1)) == record["steps"], out
+    match = re.search(r"^true end-pose error: ([\d.]+) mm, ([\d.]+) deg", out, re.M)
+    assert match, out
+    assert float(match.group(1)) == pytest.approx(1e3 * record["end_error_xy"], abs=0.06)
+    assert float(match.group(1)) <= 7.5 and float(match.group(2)) <= 5.0
+    assert re.search(r"^centre of mass \(object frame, mm\): estimated \(.*\), true \(.*\), "
+                     r"error [\d.]+ mm$", out, re.M), out
+    assert re.search(r"^wall time: ([\d.]+) s in all", out, re.M), out  # figures: RESULTS.md
+    from PIL import Image
+
+    from pushbot.viz.render import GIF_MAX_FRAMES
+
+    # Camera frames (one lost in transport is skipped) and the bridge's monitor frames of the
+    # pushes, subsampled to at most GIF_MAX_FRAMES.
+    with Image.open(tmp_path / "episode.gif") as gif:
+        assert record["steps"] + 1 < gif.n_frames <= GIF_MAX_FRAMES
+    assert (tmp_path / "trajectory.png").stat().st_size > 10_000
 
 
 def test_demo_bag_reads_back_with_rosbags(demo_out) -> None:
