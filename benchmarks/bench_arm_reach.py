@@ -8,7 +8,7 @@ error are both below 1e-5) for each candidate arm base pose, and report the frac
 and the radial band (distance from the base axis) that is reachable. Measurement code only:
 the robot side (push_executor) plans with its own kinematics.
 
-Writes the ``bench_arm_reach`` section of ``docs/RESULTS.md``.
+Writes ``docs/results/bench_arm_reach.md``.
 
 Usage::
 
@@ -68,7 +68,7 @@ def reached(c: BulletClient, arm: ArmRobot, base: tuple, x: float, y: float) -> 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--no-write", action="store_true", help="do not update docs/RESULTS.md")
+    parser.add_argument("--no-write", action="store_true", help="do not write the result page")
     args = parser.parse_args(argv)
     c = BulletClient(connection_mode=p.DIRECT)
     with tempfile.NamedTemporaryFile("w", suffix=".urdf", delete=False) as f:

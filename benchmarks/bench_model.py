@@ -5,7 +5,7 @@ the analytical pushing model (numpy, the target: median <= 1 ms), the same call 
 (float64, for information), and ``push_core.rollout.rollout_push`` for B = 15 pushes of 10 substeps
 against the 637-vertex butter outline (for information: the planner's per-direction rollouts).
 Reports medians over many repeats (wall clock, one call per repeat, after a warm-up) and writes
-them into the ``bench_model`` section of ``docs/RESULTS.md``.
+them to ``docs/results/bench_model.md``.
 
 Usage::
 
@@ -57,7 +57,7 @@ def butter_outline() -> np.ndarray:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=2000, help="timed calls per case")
-    parser.add_argument("--no-write", action="store_true", help="do not update docs/RESULTS.md")
+    parser.add_argument("--no-write", action="store_true", help="do not write the result page")
     args = parser.parse_args(argv)
 
     outline = butter_outline()

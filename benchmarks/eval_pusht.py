@@ -5,7 +5,7 @@ agent position) and both object models (``env``: the T read from the env's body;
 the T unknown, its outline from the image, COM, limit surface and friction estimated online)
 over the benchmark's protocol (episodes with seeds 0..N-1, 300 control steps), keeps each run's
 ``results.json`` under ``--out`` (``<obs>`` for the env model, ``<obs>-estimated``), and writes
-the ``eval_pusht`` section of ``docs/RESULTS.md`` with LeRobot's Diffusion Policy figures beside
+``docs/results/eval_pusht.md`` with LeRobot's Diffusion Policy figures beside
 them and what each method is given.
 
 Usage::
@@ -282,7 +282,7 @@ def main() -> int:
     if not args.no_write:
         update_section("eval_pusht", format_section(
             "Push-T: push_core planner vs Diffusion Policy (`eval_pusht`)", command, body))
-        print("wrote section eval_pusht of docs/RESULTS.md")
+        print("wrote docs/results/eval_pusht.md")
     return 0
 
 

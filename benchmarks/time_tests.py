@@ -1,10 +1,10 @@
 """The test tiers, timed: wall time and outcome of ``make test-fast`` and ``make test``.
 
 Runs each tier once, as the Makefile does (``python -m pytest -m "not graph and not slow"`` and
-``python -m pytest``) in the repository, and writes the ``test_tiers`` section of
-``docs/RESULTS.md``: wall time, the pytest summary counts and the 1-minute load average before
-and after (the machine may be shared: a loaded machine stretches every figure). Not run by
-``run_all.py`` (it would run the whole suite inside ``make bench``).
+``python -m pytest``) in the repository, and writes
+``docs/results/test_tiers.md``: wall time, the pytest summary counts and the 1-minute load
+average before and after (the machine may be shared: a loaded machine stretches every figure). Not
+run by ``run_all.py`` (it would run the whole suite inside ``make bench``).
 
 With ``--ci-log FILE`` (repeatable) it also reads clean-clone CI runs: the output of
 ``(time bash .ci/run) > FILE 2>&1`` in a fresh clone (venv build, then ``make test``); each adds
@@ -90,7 +90,7 @@ def read_ci_log(path: Path) -> dict[str, object]:
 
 
 def section(results: list[dict[str, object]], command: str) -> str:
-    """The ``test_tiers`` section of docs/RESULTS.md."""
+    """The ``test_tiers`` section (``docs/results/test_tiers.md``)."""
     rows = ["| tier | command | wall time | pytest exit | outcome | load avg before / after |",
             "| --- | --- | --- | --- | --- | --- |"]
     for r in results:
