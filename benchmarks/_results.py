@@ -22,8 +22,8 @@ import os
 import re
 import subprocess
 import sys
-from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 from pushbot.experiments.machine import machine_info  # noqa: F401 - re-exported
 
@@ -103,9 +103,9 @@ def current_commit(repo: Path = REPO) -> str:
     return head + ("-dirty" if status.strip() else "")
 
 
-@dataclass(frozen=True)
-class Page:
-    """One result page, parsed: title, header fields and the figures' text."""
+class Page(NamedTuple):
+    """One result page, parsed: title, header fields and the figures' text (a named tuple, not a
+    dataclass: the source checkout's ``pushbot`` loads this file without registering a module)."""
 
     section_id: str
     title: str
@@ -258,6 +258,7 @@ def update_section(section_id: str, markdown: str, path: Path = RESULTS_PATH, *,
     """
     if not _ID.fullmatch(section_id):
         raise ValueError(f"section_id must match [A-Za-z0-9_.-]+, got {section_id!r}")
+    path = Path(path)
     page = parse_section(section_id, markdown)
     fields = dict(page.fields)
     fields.setdefault("commit", commit or current_commit())
