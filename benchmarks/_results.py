@@ -7,6 +7,12 @@ other than the results differ from it), the machine (:func:`machine_info`), a on
 and, where the benchmark keeps them, the file its figures were rendered from; then the figures
 with their targets. :func:`format_section` writes the title, command, date and machine.
 
+A benchmark that keeps its figures only in memory can save them beside its page with
+:func:`save_record` (``docs/results/<section_id>.json``: the figures with the command, date,
+machine and commit of the run) and render the page from that file with :func:`write_rendered`,
+at the end of a run and again from its ``--render`` option without measuring (:func:`publish`
+does both).
+
 ``docs/RESULTS.md`` is generated: one table row per page (title, summary, date, commit, link),
 grouped by :data:`GROUPS`; every :func:`update_section` rebuilds it from the pages, and
 ``python benchmarks/_results.py --index`` does so without writing a page. A page's summary is
@@ -18,12 +24,14 @@ from __future__ import annotations
 import argparse
 import datetime
 import fcntl
+import json
 import os
 import re
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 from pushbot.experiments.machine import machine_info  # noqa: F401 - re-exported
 
@@ -145,7 +153,7 @@ def first_sentence(body: str, limit: int = 160) -> str:
     for paragraph in re.split(r"\n\s*\n", body):
         text = " ".join(paragraph.split())
         if text and not text.startswith(("|", "#", "<!--")):
-            sentence = re.split(r"(?<=[.:;])\s", text, maxsplit=1)[0]
+            sentence = re.split(r"(?<=\.)\s", text, maxsplit=1)[0]
             return sentence if len(sentence) <= limit else sentence[:limit - 3].rstrip() + "..."
     return ""
 
@@ -275,6 +283,86 @@ def update_section(section_id: str, markdown: str, path: Path = RESULTS_PATH, *,
         _replace(target, Page(section_id, page.title, fields, page.body).render())
         _replace(path, render_index(read_pages(path)))
     return target
+
+
+def record_path(section_id: str, path: Path | None = None) -> Path:
+    """The saved figures of ``section_id`` for the index ``path`` (default
+    :data:`RESULTS_PATH`): beside its page."""
+    return pages_dir(Path(path) if path else RESULTS_PATH) / f"{section_id}.json"
+
+
+def save_record(section_id: str, command: str, figures: object,
+                path: Path | None = None) -> dict:
+    """Save a run's figures beside its page, with what :func:`format_section` and
+    :func:`update_section` record about the run.
+
+    Parameters
+    ----------
+    section_id : str
+        The section (as for :func:`update_section`).
+    command : str
+        The command that measured them.
+    figures : object
+        JSON-serialisable figures: what the benchmark renders its page from.
+    path : pathlib.Path, optional
+        The index file (default :data:`RESULTS_PATH`); the record goes to
+        ``results/<section_id>.json`` beside it.
+
+    Returns
+    -------
+    dict
+        ``{"section", "command", "date", "machine", "commit", "figures"}`` as written.
+    """
+    if not _ID.fullmatch(section_id):
+        raise ValueError(f"section_id must match [A-Za-z0-9_.-]+, got {section_id!r}")
+    record = {"section": section_id, "command": command, "date": today(),
+              "machine": machine_info(), "commit": current_commit(), "figures": figures}
+    target = record_path(section_id, path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    _replace(target, json.dumps(record, indent=1, sort_keys=True) + "\n")
+    return record
+
+
+def load_record(section_id: str, path: Path | None = None) -> dict:
+    """The record :func:`save_record` wrote for ``section_id``.
+
+    Raises
+    ------
+    FileNotFoundError
+        If the section has no saved figures.
+    """
+    return json.loads(record_path(section_id, path).read_text(encoding="utf-8"))
+
+
+def write_rendered(section_id: str, title: str, body: str, record: dict, render_command: str,
+                   path: Path | None = None, *, summary: str | None = None) -> Path:
+    """Write the page of ``record`` (from :func:`save_record` or :func:`load_record`): its
+    command, date, machine and commit, not those of this call, and a ``data`` line naming the
+    saved figures and ``render_command``, which writes the page again from them."""
+    markdown = format_section(title, record["command"], body, date=record["date"],
+                              machine=record["machine"])
+    data = (f"[`{section_id}.json`]({section_id}.json), rendered by `{render_command}`")
+    return update_section(section_id, markdown, Path(path) if path else RESULTS_PATH,
+                          summary=summary, data=data, commit=record["commit"])
+
+
+def add_page_options(parser: argparse.ArgumentParser) -> None:
+    """The ``--no-write`` and ``--render`` options of a benchmark that saves its figures."""
+    parser.add_argument("--no-write", action="store_true", help="do not write the result page")
+    parser.add_argument("--render", action="store_true",
+                        help="write the page again from the saved figures; measure nothing")
+
+
+def publish(section_id: str, title: str, render: Callable[[Any], str], render_command: str, *,
+            command: str | None = None, figures: object = None, path: Path | None = None,
+            summary: str | None = None) -> Path:
+    """Save ``figures`` measured by ``command`` (:func:`save_record`) and write the page
+    ``render`` makes of them (:func:`write_rendered`); without ``command``, write the page again
+    from the figures saved before (a benchmark's ``--render``)."""
+    record = (save_record(section_id, command, figures, path) if command is not None
+              else load_record(section_id, path))
+    return write_rendered(section_id, title, render(record["figures"]), record, render_command,
+                          path, summary=summary)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -142,7 +142,8 @@ def main() -> int:
                           "vs the free pusher (`arm`)", command, body)
     print(text)
     if not args.no_write:
-        update_section("arm", text)
+        update_section("arm", text, data="every record in `out/bench_arm/<robot>/records.json` "
+                                         "(kept outside the repository; no render path)")
     return 0
 
 

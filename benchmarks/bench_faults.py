@@ -205,7 +205,8 @@ def main() -> int:
     if not args.no_write:
         command = ("python benchmarks/bench_faults.py " + " ".join(sys.argv[1:])).strip()
         update_section("faults", format_section(
-            "Fault scenarios in graph mode (`faults`)", command, "\n".join(body)))
+            "Fault scenarios in graph mode (`faults`)", command, "\n".join(body)),
+            data=f"every record in `{args.json}` (no render path)" if args.json else None)
     return 0
 
 

@@ -261,7 +261,11 @@ def _run(name: str, opts: EvalOptions, workers: int) -> dict:
 def _write(section: str, title: str, command: str, body: str, write: bool) -> None:
     print(body)
     if write:
-        update_section(section, format_section(title, command, body))
+        name = section.removeprefix("eval_push_")
+        data = (f"`out/eval/{name}/results.json` and the saved runs it compares (kept outside "
+                "the repository); rendered again from them, with no new trials, by "
+                f"`python benchmarks/eval_push.py {name} --reuse`")
+        update_section(section, format_section(title, command, body), data=data)
         print(f"wrote section {section}")
 
 

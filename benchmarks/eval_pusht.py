@@ -280,8 +280,12 @@ def main() -> int:
              "(the machine is shared; wall times are indicative only).")
     print(body)
     if not args.no_write:
+        data = (f"`{args.out}/<obs>[-estimated]/results.json` (kept outside the repository); "
+                "`--reuse` renders the table rows again from them (the fidelity table is "
+                "measured again)")
         update_section("eval_pusht", format_section(
-            "Push-T: push_core planner vs Diffusion Policy (`eval_pusht`)", command, body))
+            "Push-T: push_core planner vs Diffusion Policy (`eval_pusht`)", command, body),
+            data=data)
         print("wrote docs/results/eval_pusht.md")
     return 0
 

@@ -236,7 +236,9 @@ def main(argv: list[str] | None = None) -> int:
         title = ("Shape classes with the lookahead planner and adaptation (`eval_shapes_variant`)"
                  if flags else "Shape classes: the full system on every flat object "
                  "(`eval_shapes`)")
-        update_section(name, format_section(title, command, body))
+        update_section(name, format_section(title, command, body),
+                       data=f"`{out}/com_<com>/results.json` and `{out}/summary.md` (kept outside "
+                            "the repository; no render path)")
         print(f"wrote section {name}")
     return 0
 

@@ -86,7 +86,9 @@ def compare(before: Path, after: Path, write: bool) -> int:
 
         command = f"python benchmarks/same_trials.py compare {before.name} {after.name}"
         update_section("same_trials", format_section(
-            "Same trials before and after a refactor (`same_trials`)", command, body))
+            "Same trials before and after a refactor (`same_trials`)", command, body),
+            data=f"`{before.name}` and `{after.name}` (`same_trials.py record`), rendered by "
+                 f"`{command}`")
     return 0 if all(same) else 1
 
 

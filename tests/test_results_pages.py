@@ -9,6 +9,7 @@ file, without registering it in ``sys.modules``.
 from __future__ import annotations
 
 import importlib.util
+import json
 import re
 import subprocess
 import sys
@@ -111,3 +112,30 @@ def test_the_committed_index_is_generated_from_the_committed_pages() -> None:
         missing = {"command", "date", "commit", "machine", "summary"} - set(page.fields)
         assert not missing, f"docs/results/{page.section_id}.md has no {sorted(missing)}"
         assert re.fullmatch(r"\d{4}-\d{2}-\d{2}", page.fields["date"]), page.section_id
+
+
+def test_a_benchmark_saves_its_figures_and_renders_its_page_from_them(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    spec = importlib.util.spec_from_file_location("time_tests_under_test",
+                                                  REPO / "benchmarks" / "time_tests.py")
+    assert spec is not None and spec.loader is not None
+    time_tests = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(time_tests)
+    monkeypatch.setattr(time_tests._results, "RESULTS_PATH", tmp_path / "RESULTS.md")
+    log = tmp_path / "cc1.log"
+    log.write_text("== 2 failed, 9 passed, 1 warning in 61.5s ==\nreal\t2m3.5s\n")
+    assert time_tests.main(["--tiers", "--ci-log", str(log)]) == 0  # reads the log, runs no tier
+    record = json.loads((tmp_path / "results" / "test_tiers.json").read_text())
+    assert record["figures"][0]["counts"] == {"failed": 2, "passed": 9}
+    assert record["command"] == "python benchmarks/time_tests.py --tiers --ci-log cc1.log"
+    page = tmp_path / "results" / "test_tiers.md"
+    first = page.read_text()
+    assert ("| full | `.ci/run` on a clean clone (cc1.log; 2.1 min with the venv build) | "
+            "1.0 min | 1 | 2 failed, 9 passed | - |") in first
+    fields = results.parse_section("test_tiers", first).fields
+    assert fields["data"] == ("[`test_tiers.json`](test_tiers.json), rendered by "
+                              "`python benchmarks/time_tests.py --render`")
+    assert (fields["date"], fields["commit"]) == (record["date"], record["commit"])
+    page.write_text("stale\n")
+    assert time_tests.main(["--render"]) == 0
+    assert page.read_text() == first
