@@ -15,8 +15,10 @@ does both).
 
 ``docs/RESULTS.md`` is generated: one table row per page (title, summary, date, commit, link),
 grouped by :data:`GROUPS`; every :func:`update_section` rebuilds it from the pages, and
-``python benchmarks/_results.py --index`` does so without writing a page. A page's summary is
-the caller's ``summary``, else the page's previous summary, else the first sentence of its text.
+``python benchmarks/_results.py --index`` does so without writing a page, and ``--import
+OLD_RESULTS_MD`` turns the sections of a results file in the former single-file format into
+pages. A page's summary is the caller's ``summary``, else the page's previous summary, else the
+first sentence of its text.
 """
 
 from __future__ import annotations
@@ -365,10 +367,58 @@ def publish(section_id: str, title: str, render: Callable[[Any], str], render_co
                           path, summary=summary)
 
 
+#: A section of the single-file results format this module replaced.
+_OLD_SECTION = re.compile(r"<!-- BEGIN ([A-Za-z0-9_.-]+) -->\n(.*?)\n<!-- END \1 -->", re.DOTALL)
+
+
+def import_sections(text: str, sections: list[str] | None = None, commit: str | None = None,
+                    path: Path | None = None) -> list[str]:
+    """Write pages for the sections of a results file in the old single-file format
+    (``<!-- BEGIN id -->`` ... ``<!-- END id -->``, as a branch made before the pages wrote it),
+    figures and dates as they are.
+
+    Parameters
+    ----------
+    text : str
+        The old file's text.
+    sections : list of str, optional
+        The sections to import; default: those that have no page yet.
+    commit : str, optional
+        The commit line of the imported pages; default ``not recorded (imported)``.
+    path : pathlib.Path, optional
+        The index file (default :data:`RESULTS_PATH`).
+
+    Returns
+    -------
+    list of str
+        The sections written.
+    """
+    index = Path(path) if path else RESULTS_PATH
+    found = {m[1]: m[2] for m in _OLD_SECTION.finditer(text)}
+    wanted = sections if sections is not None else [
+        s for s in found if not page_path(s, index).exists()]
+    missing = [s for s in wanted if s not in found]
+    if missing:
+        raise ValueError(f"no such section in the old file: {', '.join(missing)}")
+    for section_id in wanted:
+        update_section(section_id, found[section_id], index,
+                       commit=commit or "not recorded (imported)")
+    return wanted
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="Rebuild docs/RESULTS.md from the result pages.")
     parser.add_argument("--index", action="store_true", help="rebuild the index (the default)")
-    parser.parse_args(argv)
+    parser.add_argument("--import", dest="old", type=Path, metavar="OLD_RESULTS_MD",
+                        help="write pages for the sections of a results file in the old "
+                             "single-file format (default: those without a page), then the index")
+    parser.add_argument("--sections", nargs="+", help="with --import: these sections")
+    parser.add_argument("--commit", help="with --import: the commit line of the imported pages")
+    args = parser.parse_args(argv)
+    if args.old:
+        written = import_sections(args.old.read_text(encoding="utf-8"), args.sections,
+                                  args.commit)
+        print(f"imported {len(written)} sections: {' '.join(written) or '-'}")
     write_index()
     print(f"wrote {RESULTS_PATH.relative_to(REPO)} from {len(read_pages())} pages")
     return 0

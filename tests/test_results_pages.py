@@ -139,3 +139,25 @@ def test_a_benchmark_saves_its_figures_and_renders_its_page_from_them(
     page.write_text("stale\n")
     assert time_tests.main(["--render"]) == 0
     assert page.read_text() == first
+
+
+def test_sections_of_the_old_single_file_format_become_pages(tmp_path: Path) -> None:
+    index = tmp_path / "RESULTS.md"
+    results.update_section("kept", _section("Kept", "Already a page."), index, summary="Kept.")
+    old = "\n\n".join(f"<!-- BEGIN {sid} -->\n{_section(sid.title(), f'{sid} figures.')}\n"
+                      f"<!-- END {sid} -->" for sid in ("kept", "new_a", "new_b"))
+    assert results.import_sections("# pushbot results\n\n" + old, path=index) == ["new_a",
+                                                                                  "new_b"]
+    a = results.parse_section("new_a", results.page_path("new_a", index).read_text())
+    assert (a.title, a.body, a.fields["date"]) == ("New_A", "new_a figures.", "2026-01-02")
+    assert a.fields["commit"] == "not recorded (imported)"
+    kept = results.parse_section("kept", results.page_path("kept", index).read_text())
+    assert kept.body == "Already a page."
+    assert results.import_sections(old, ["kept"], commit="1234abc", path=index) == ["kept"]
+    kept = results.parse_section("kept", results.page_path("kept", index).read_text())
+    assert (kept.body, kept.fields["commit"], kept.fields["summary"]) == (
+        "kept figures.", "1234abc", "Kept.")
+    with pytest.raises(ValueError, match="no such section"):
+        results.import_sections(old, ["gone"], path=index)
+    assert set(re.findall(r"\(results/(\w+)\.md\)", index.read_text())) == {"kept", "new_a",
+                                                                            "new_b"}
