@@ -40,7 +40,7 @@ from pushbot.experiments.machine import machine_info  # noqa: F401 - re-exported
 REPO = Path(__file__).resolve().parent.parent
 RESULTS_PATH = REPO / "docs" / "RESULTS.md"
 #: Paths whose changes do not make a measurement "-dirty": the results themselves.
-RESULT_PATHS = ("docs/RESULTS.md", "docs/results", "benchmarks/results")
+RESULT_PATHS = ("docs/RESULTS.md", "docs/results")
 
 #: The index's headings and the section ids under each, in order; other pages go last.
 GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (
