@@ -4,9 +4,8 @@
 ``steps / n_min`` with ``n_min`` from :func:`push_core.reach.model_min_pushes` for the trial's
 goal offset, goal region, the planner's longest push (5 cm), the object's rotational symmetry
 and, where the trial fixes the COM (``com`` ``centre`` or ``spec``), the object's outline, COM
-and uniform-pressure ``l`` (definition: docs/ARCHITECTURE.md, "Pushes against the physical
-minimum"). With a random COM only the geometric bound (:func:`push_core.episode.min_pushes`)
-is used.
+and uniform-pressure ``l`` (definition: docs/design/physical-minimum.md). With a random COM
+only the geometric bound (:func:`push_core.episode.min_pushes`) is used.
 """
 
 from __future__ import annotations

@@ -23,7 +23,7 @@ issue's acceptance test, pushes at the contact region of an earlier push of the 
 outcome contradicted its prediction (:func:`push_core.episode.contradiction`, rule 8, on the
 state source's poses: what the loop could know).
 
-Writes the ``bench_adapt`` section of ``docs/RESULTS.md`` (``bench_adapt_filter`` with
+Writes ``docs/results/bench_adapt.md`` (``bench_adapt_filter`` with
 ``--state filter``).
 
 Usage::

@@ -5,7 +5,7 @@ For each held-out object and random pose (half with random appearance, camera ji
 noise), an episode reference frame and a displaced frame are rendered in both modes; reported:
 the fraction of pixels that differ between the modes, and the pose error (position, yaw) of
 :class:`push_perception.core.EpisodeTracker` against the ground-truth displacement in each
-mode. Writes the ``bench_arm_perception`` section of ``docs/RESULTS.md``.
+mode. Writes ``docs/results/bench_arm_perception.md``.
 
 Usage::
 

@@ -8,11 +8,13 @@ error are both below 1e-5) for each candidate arm base pose, and report the frac
 and the radial band (distance from the base axis) that is reachable. Measurement code only:
 the robot side (push_executor) plans with its own kinematics.
 
-Writes the ``bench_arm_reach`` section of ``docs/RESULTS.md``.
+Writes ``docs/results/bench_arm_reach.md``, rendered from the figures saved beside it
+(``bench_arm_reach.json``; ``--render`` writes the page again from them without measuring).
 
 Usage::
 
     .venv/bin/python benchmarks/bench_arm_reach.py [--no-write]
+    .venv/bin/python benchmarks/bench_arm_reach.py --render
 """
 
 from __future__ import annotations
@@ -27,11 +29,14 @@ import pybullet as p
 from pybullet_utils.bullet_client import BulletClient
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _results import format_section, update_section  # noqa: E402
+import _results  # noqa: E402
 
 from sim_bridge.arm_robot import DEFAULT_BASE_POSE, DEFAULT_PARK, ArmRobot, arm_urdf  # noqa: E402
 
 TIP_HEIGHT = 0.01
+SECTION = "bench_arm_reach"
+TITLE = "Arm reachability (simulator arm mode)"
+RENDER = "python benchmarks/bench_arm_reach.py --render"
 CANDIDATES = ((-0.55, 0.0, 0.0, 0.0), (-0.52, 0.0, 0.0, 0.0), DEFAULT_BASE_POSE)
 SEEDS = (DEFAULT_PARK, (0, 0.3, 0, -2.0, 0, 2.3, 0.785), (0, 0.8, 0, -1.0, 0, 1.8, 0.785),
          (0, -0.3, 0, -2.6, 0, 2.3, 0.785))
@@ -66,10 +71,22 @@ def reached(c: BulletClient, arm: ArmRobot, base: tuple, x: float, y: float) -> 
     return False
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--no-write", action="store_true", help="do not update docs/RESULTS.md")
-    args = parser.parse_args(argv)
+def render(figures: dict) -> str:
+    """The page's text from the saved figures (:func:`measure`)."""
+    lines = ["| base pose (x, y, z, yaw) in world | workspace reached | approach ring "
+             "reached | reachable distance from the base axis |", "|---|---|---|---|"]
+    lines += [f"| {tuple(b)} | {100 * w:.1f} % | {100 * r:.1f} % | {lo:.2f} - {hi:.2f} m |"
+              for b, w, r, lo, hi in figures["rows"]]
+    return "\n".join(lines) + (
+        f"\n\nTool tip {figures['tip_height']} m above the table, rod (0.20 m) vertical; "
+        f"workspace grid {figures['core_points']} points (2.5 cm) over [-0.25, 0.25]^2 m, "
+        f"approach ring {figures['ring_points']} points up to 6 cm outside it. The default "
+        f"`arm.base_pose` is {tuple(figures['default_base_pose'])} (a 0.15 m pedestal): on the "
+        "bare table (z = 0) the band is too narrow for the 0.5 m square.")
+
+
+def measure() -> dict:
+    """Reachability per candidate base; the figures :func:`render` writes the page from."""
     c = BulletClient(connection_mode=p.DIRECT)
     with tempfile.NamedTemporaryFile("w", suffix=".urdf", delete=False) as f:
         f.write(arm_urdf(0.0048))
@@ -87,25 +104,27 @@ def main(argv: list[str] | None = None) -> int:
         r_ring = [reached(c, arm, base, x, y) for x, y in ring_pts]
         radii = np.arange(0.08, 0.95, 0.01)
         band = [r for r in radii if reached(c, arm, base, base[0] + r, base[1])]
-        rows.append((base, np.mean(r_core), np.mean(r_ring), min(band), max(band)))
+        rows.append((base, float(np.mean(r_core)), float(np.mean(r_ring)), float(min(band)),
+                     float(max(band))))
         print(f"base {base}: workspace {100 * np.mean(r_core):.1f} % of {len(core_pts)}, "
               f"approach ring {100 * np.mean(r_ring):.1f} % of {len(ring_pts)}, radial band "
               f"[{min(band):.2f}, {max(band):.2f}] m", flush=True)
     Path(f.name).unlink()
+    return {"rows": rows, "core_points": len(core_pts), "ring_points": len(ring_pts),
+            "tip_height": TIP_HEIGHT, "default_base_pose": DEFAULT_BASE_POSE}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    _results.add_page_options(parser)
+    args = parser.parse_args(argv)
+    if args.render:
+        print(_results.publish(SECTION, TITLE, render, RENDER))
+        return 0
+    figures = measure()
     if not args.no_write:
-        lines = ["| base pose (x, y, z, yaw) in world | workspace reached | approach ring "
-                 "reached | reachable distance from the base axis |", "|---|---|---|---|"]
-        lines += [f"| {b} | {100 * w:.1f} % | {100 * r:.1f} % | {lo:.2f} - {hi:.2f} m |"
-                  for b, w, r, lo, hi in rows]
-        body = "\n".join(lines) + (
-            f"\n\nTool tip {TIP_HEIGHT} m above the table, rod (0.20 m) vertical; workspace grid "
-            f"{len(core_pts)} points (2.5 cm) over [-0.25, 0.25]^2 m, approach ring "
-            f"{len(ring_pts)} points up to 6 cm outside it. The default "
-            f"`arm.base_pose` is {DEFAULT_BASE_POSE} (a 0.15 m pedestal): on the bare table "
-            "(z = 0) the band is too narrow for the 0.5 m square.")
-        update_section("bench_arm_reach", format_section(
-            "Arm reachability (simulator arm mode)",
-            ".venv/bin/python benchmarks/bench_arm_reach.py", body))
+        print(_results.publish(SECTION, TITLE, render, RENDER, figures=figures,
+                               command=".venv/bin/python benchmarks/bench_arm_reach.py"))
     return 0
 
 

@@ -17,7 +17,7 @@ everyday commands (issue 14).
    ``topic info estimator/object_pose``, ``param get /sim_bridge_node object``, ``service call
    /planner_node/reset``.
 
-Writes the ``cli`` section of ``docs/RESULTS.md``. The machine is shared (2 cores): the load
+Writes ``docs/results/cli.md``. The machine is shared (2 cores): the load
 average is recorded with the figures.
 
 Usage::

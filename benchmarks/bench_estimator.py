@@ -108,7 +108,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeats", type=int, default=10, help="timed passes over the pushes")
     parser.add_argument("--episodes", type=int, default=100,
                         help="own-model Monte Carlo episodes per configuration")
-    parser.add_argument("--no-write", action="store_true", help="do not update docs/RESULTS.md")
+    parser.add_argument("--no-write", action="store_true", help="do not write the result page")
     args = parser.parse_args(argv)
 
     load_before = os.getloadavg()[0]

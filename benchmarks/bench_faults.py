@@ -12,7 +12,7 @@ scenario-specific counts (goal switches noted by the planner, goal left after a 
 bridge's dropped / delayed / reordered frames and refused pushes, re-anchored perceptions).
 Scenarios are described in :mod:`pushbot.runner.faults`.
 
-Writes the ``faults`` section of ``docs/RESULTS.md`` (``--no-write`` to only print). The
+Writes ``docs/results/faults.md`` (``--no-write`` to only print). The
 machine is shared (2 cores): the load average is recorded with the figures.
 
 Usage::
@@ -152,7 +152,7 @@ def main() -> int:
     parser.add_argument("--objects", default="butter",
                         help="comma-separated objects, each runs every scenario (default butter)")
     parser.add_argument("--json", type=Path, help="also write every record to this file")
-    parser.add_argument("--no-write", action="store_true", help="do not update docs/RESULTS.md")
+    parser.add_argument("--no-write", action="store_true", help="do not write the result page")
     args = parser.parse_args()
     names = [s for s in args.scenarios.split(",") if s]
     unknown = [s for s in names if s not in SCENARIOS]
@@ -205,7 +205,8 @@ def main() -> int:
     if not args.no_write:
         command = ("python benchmarks/bench_faults.py " + " ".join(sys.argv[1:])).strip()
         update_section("faults", format_section(
-            "Fault scenarios in graph mode (`faults`)", command, "\n".join(body)))
+            "Fault scenarios in graph mode (`faults`)", command, "\n".join(body)),
+            data=f"every record in `{args.json}` (no render path)" if args.json else None)
     return 0
 
 

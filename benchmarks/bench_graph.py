@@ -18,7 +18,7 @@ graph vs in-process agreement (issue 7).
    intervals and a two-sided two-proportion z-test, trial-by-trial outcome agreement, steps and true
    end errors.
 
-Writes the ``graph`` section of ``docs/RESULTS.md``. The machine is shared (2 cores): the load
+Writes ``docs/results/graph.md``. The machine is shared (2 cores): the load
 average is recorded with the figures.
 
 Usage::
@@ -158,7 +158,7 @@ def main() -> int:
     parser.add_argument("--demo-runs", type=int, default=3, help="make demo runs (default 3)")
     parser.add_argument("--seconds", type=float, default=10.0,
                         help="seconds of frame counting per configuration (default 10)")
-    parser.add_argument("--no-write", action="store_true", help="do not update docs/RESULTS.md")
+    parser.add_argument("--no-write", action="store_true", help="do not write the result page")
     args = parser.parse_args()
     load_before = os.getloadavg()
     domain = 150 + os.getpid() % 50

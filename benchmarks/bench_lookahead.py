@@ -15,7 +15,7 @@
    Columns: success, mean pushes of the successful trials, the physical minimum,
    ``pushes / min`` (benchmarks/_pushes.py) and the median planning time in the loop.
 
-Writes the ``bench_lookahead`` section of ``docs/RESULTS.md`` (``bench_lookahead_gt`` with
+Writes ``docs/results/bench_lookahead.md`` (``bench_lookahead_gt`` with
 ``--state gt``; ``bench_lookahead_speed`` with ``--speed-only``).
 
 Usage::
@@ -176,7 +176,8 @@ def main(argv: list[str] | None = None) -> int:
         f"{', '.join(TASKS)} x {args.trials} trials = {n} per variant, the protocol's "
         "trials (COM at the centre, randomised mass and frictions, 0.75 cm / 5 deg, 30 pushes"
         f" max); lookahead H = {args.horizon}. `min` is the physical minimum "
-        "(docs/ARCHITECTURE.md), `pushes / min` the mean of pushes / min over the successes.",
+        "([physical minimum](../design/physical-minimum.md)), `pushes / min` the mean of "
+        "pushes / min over the successes.",
         "",
         *table(results),
         "",

@@ -12,7 +12,7 @@
 3. **Closed loop** on the held-out objects with ground-truth state (as ``bench_planner``):
    ana vs lrn, k = 1 and 3, and lrn direct.
 
-Writes the ``bench_lrn`` section of ``docs/RESULTS.md``.
+Writes ``docs/results/bench_lrn.md``.
 
 Usage::
 

@@ -5,11 +5,13 @@ the analytical pushing model (numpy, the target: median <= 1 ms), the same call 
 (float64, for information), and ``push_core.rollout.rollout_push`` for B = 15 pushes of 10 substeps
 against the 637-vertex butter outline (for information: the planner's per-direction rollouts).
 Reports medians over many repeats (wall clock, one call per repeat, after a warm-up) and writes
-them into the ``bench_model`` section of ``docs/RESULTS.md``.
+them to ``docs/results/bench_model.md``, rendered from the figures saved beside it
+(``bench_model.json``; ``--render`` writes the page again from them without measuring).
 
 Usage::
 
     .venv/bin/python benchmarks/bench_model.py [--repeats N] [--no-write]
+    .venv/bin/python benchmarks/bench_model.py --render
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ import numpy as np
 import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _results import format_section, update_section  # noqa: E402
+import _results  # noqa: E402
 
 from push_core.geometry import closest_point_on_polyline  # noqa: E402
 from push_core.model import predict_motion, representative_pushes  # noqa: E402
@@ -35,6 +37,9 @@ from push_core.rollout import rollout_push  # noqa: E402
 TARGET_MS = 1.0
 N_POINTS = 300
 BATCH = 15
+SECTION = "bench_model"
+TITLE = "Pushing model speed (`bench_model`)"
+RENDER = "python benchmarks/bench_model.py --render"
 
 
 def time_ms(fn: Callable[[], object], repeats: int, warmup: int = 20) -> np.ndarray:
@@ -54,12 +59,40 @@ def butter_outline() -> np.ndarray:
     return np.array(json.loads(path.read_text())["objects"]["butter"]["polygon_m"])
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repeats", type=int, default=2000, help="timed calls per case")
-    parser.add_argument("--no-write", action="store_true", help="do not update docs/RESULTS.md")
-    args = parser.parse_args(argv)
+def stats(times: np.ndarray) -> dict[str, float]:
+    """Median, 10th and 90th percentile (ms) and the number of timed calls."""
+    p10, p50, p90 = np.percentile(times, [10, 50, 90])
+    return {"p10": float(p10), "p50": float(p50), "p90": float(p90), "n": len(times)}
 
+
+def render(figures: dict) -> str:
+    """The page's text from the saved figures (:func:`measure`)."""
+    def row(name: str, s: dict, target: str) -> str:
+        return (f"| {name} | {s['p50']:.3f} | {s['p10']:.3f} | {s['p90']:.3f} | {s['n']} | "
+                f"{target} |")
+
+    n_points, batch, n_sub, target = (figures[k] for k in ("n_points", "batch", "n_sub",
+                                                           "target_ms"))
+    verdict = "met" if figures["numpy"]["p50"] <= target else "NOT met"
+    return "\n".join([
+        f"Affordances: `predict_motion` for {n_points} contact points x 10 representative pushes "
+        f"(one call, float64). Rollout: `rollout_push`, B = {batch}, {n_sub} substeps, "
+        f"{figures['outline_vertices']}-vertex butter outline. Wall clock per call in ms; one "
+        f"call per repeat after a warm-up; torch with {figures['torch_threads']} intra-op "
+        "thread. The machine is shared, so the tails (p90) are noisy; the median is the figure.",
+        "",
+        "| case | median ms | p10 ms | p90 ms | repeats | target |",
+        "| --- | --- | --- | --- | --- | --- |",
+        row(f"predict_motion numpy {n_points} x 10", figures["numpy"],
+            f"<= {target:g} ms: {verdict}"),
+        row(f"predict_motion torch {n_points} x 10", figures["torch"], "for information"),
+        row(f"rollout_push numpy B={batch}, {n_sub} substeps", figures["rollout"],
+            "for information"),
+    ])
+
+
+def measure(repeats: int) -> dict:
+    """Time the three cases; the figures :func:`render` writes the page from."""
     outline = butter_outline()
     outline = outline - outline.mean(axis=0)
     # 300 contact points spread over the outline, with outward normals from the outline itself.
@@ -72,47 +105,41 @@ def main(argv: list[str] | None = None) -> int:
     com, l, m = np.array([0.003, -0.002]), 0.04, 0.3  # noqa: E741
     assert predict_motion(points, normals, pushes, com, l, m).shape == (N_POINTS, 10, 3)
 
-    np_ms = time_ms(lambda: predict_motion(points, normals, pushes, com, l, m), args.repeats)
+    np_ms = time_ms(lambda: predict_motion(points, normals, pushes, com, l, m), repeats)
     # One intra-op thread: 3000-element ops gain nothing from more, and on a shared machine extra
     # threads only add scheduling stalls to the tail.
     torch.set_num_threads(1)
     tp, tn, tu, tc = (torch.tensor(a) for a in (points, normals, pushes, com))
     with torch.no_grad():
-        torch_ms = time_ms(lambda: predict_motion(tp, tn, tu, tc, l, m), args.repeats)
+        torch_ms = time_ms(lambda: predict_motion(tp, tn, tu, tc, l, m), repeats)
 
     # B = 15 pushes of 5 cm (10 substeps of 5 mm) from 15 outline points along 5 directions.
     idx = np.arange(BATCH) * (N_POINTS // BATCH)
     starts = points[idx] + 0.0048 * normals[idx]
     push = pushes[idx, 5 + np.arange(BATCH) % 5]  # the 5 cm pushes
     pose0 = np.zeros(3)
-    rollout_repeats = max(args.repeats // 10, 20)
+    rollout_repeats = max(repeats // 10, 20)
     roll_ms = time_ms(lambda: rollout_push(outline, pose0, com, l, m, starts, push),
                       rollout_repeats, warmup=5)
     n_sub = int(rollout_push(outline, pose0, com, l, m, starts, push).n_steps.max())
+    return {"n_points": N_POINTS, "batch": BATCH, "n_sub": n_sub, "target_ms": TARGET_MS,
+            "outline_vertices": len(outline), "torch_threads": torch.get_num_threads(),
+            "numpy": stats(np_ms), "torch": stats(torch_ms), "rollout": stats(roll_ms)}
 
-    def row(name: str, times: np.ndarray, target: str) -> str:
-        p10, p50, p90 = np.percentile(times, [10, 50, 90])
-        return f"| {name} | {p50:.3f} | {p10:.3f} | {p90:.3f} | {len(times)} | {target} |"
 
-    verdict = "met" if np.median(np_ms) <= TARGET_MS else "NOT met"
-    body = "\n".join([
-        f"Affordances: `predict_motion` for {N_POINTS} contact points x 10 representative pushes "
-        f"(one call, float64). Rollout: `rollout_push`, B = {BATCH}, {n_sub} substeps, "
-        f"{len(outline)}-vertex butter outline. Wall clock per call in ms; one call per repeat "
-        f"after a warm-up; torch with {torch.get_num_threads()} intra-op thread. The machine is "
-        "shared, so the tails (p90) are noisy; the median is the figure.",
-        "",
-        "| case | median ms | p10 ms | p90 ms | repeats | target |",
-        "| --- | --- | --- | --- | --- | --- |",
-        row(f"predict_motion numpy {N_POINTS} x 10", np_ms, f"<= {TARGET_MS:g} ms: {verdict}"),
-        row(f"predict_motion torch {N_POINTS} x 10", torch_ms, "for information"),
-        row(f"rollout_push numpy B={BATCH}, {n_sub} substeps", roll_ms, "for information"),
-    ])
-    command = " ".join(["python benchmarks/bench_model.py", *(argv or sys.argv[1:])])
-    section = format_section("Pushing model speed (`bench_model`)", command, body)
-    print(section)
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=2000, help="timed calls per case")
+    _results.add_page_options(parser)
+    args = parser.parse_args(argv)
+    if args.render:
+        print(_results.publish(SECTION, TITLE, render, RENDER))
+        return 0
+    figures = measure(args.repeats)
+    print(render(figures))
     if not args.no_write:
-        update_section("bench_model", section)
+        command = " ".join(["python benchmarks/bench_model.py", *(argv or sys.argv[1:])])
+        print(_results.publish(SECTION, TITLE, render, RENDER, command=command, figures=figures))
     return 0
 
 

@@ -176,7 +176,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--objects", default="rect1,butter", help="comma-separated objects")
     parser.add_argument("--seed", type=int, default=SEED)
     parser.add_argument("--repeats", type=int, default=None, help="ignored (run_all.py)")
-    parser.add_argument("--no-write", action="store_true", help="do not update docs/RESULTS.md")
+    parser.add_argument("--no-write", action="store_true", help="do not write the result page")
     args = parser.parse_args(argv)
 
     runs = [run_object(name, args.pushes, args.seed) for name in args.objects.split(",")]

@@ -11,7 +11,7 @@ for each frame, stage by stage, on one torch thread and one OpenCV thread:
 - encode: the pose (PoseWithCovarianceStamped) and mask (mono8) messages.
 
 The tracker's reference is the object's first frame, so every timed call runs the rotation
-search. Writes the ``bench_perception`` section of ``docs/RESULTS.md``.
+search. Writes ``docs/results/bench_perception.md``.
 
 Usage::
 
@@ -77,7 +77,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeats", type=int, default=10,
                         help="timed runs per frame (default 10)")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--no-write", action="store_true", help="do not update docs/RESULTS.md")
+    parser.add_argument("--no-write", action="store_true", help="do not write the result page")
     args = parser.parse_args(argv)
 
     torch.set_num_threads(1)

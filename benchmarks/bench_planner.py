@@ -16,7 +16,7 @@
 3. **Methods** at the chosen lambda (same trials): ana, geo and rdn with k = 1 and 3, ana
    direct with k = 3, and the softmax temperature at k = 1.
 
-Writes the ``bench_planner`` section of ``docs/RESULTS.md``.
+Writes ``docs/results/bench_planner.md``.
 
 Usage::
 
@@ -158,7 +158,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--lambda", dest="lam", type=float, default=None,
                         help="lambda of the method comparison (default: the tuned one)")
     parser.add_argument("--quick", action="store_true", help="2 trials, 50 repeats")
-    parser.add_argument("--no-write", action="store_true", help="do not update docs/RESULTS.md")
+    parser.add_argument("--no-write", action="store_true", help="do not write the result page")
     args = parser.parse_args(argv)
     trials, repeats = (2, 50) if args.quick else (args.trials, args.repeats)
     t_start = time.perf_counter()

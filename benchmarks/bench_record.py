@@ -156,7 +156,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--no-demo", action="store_true", help="skip parts 2 and 3")
     parser.add_argument("--demo-runs", type=int, default=2,
                         help="demo runs with and without the monitor each (part 3)")
-    parser.add_argument("--no-write", action="store_true", help="do not update docs/RESULTS.md")
+    parser.add_argument("--no-write", action="store_true", help="do not write the result page")
     args = parser.parse_args(argv)
     from push_ros import dds
 

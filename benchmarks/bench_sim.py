@@ -133,7 +133,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeats", type=int, default=15, help="timed cycles per object")
     parser.add_argument("--conv-pushes", type=int, default=12, help="pushes per object")
     parser.add_argument("--no-convergence", action="store_true")
-    parser.add_argument("--no-write", action="store_true", help="do not update docs/RESULTS.md")
+    parser.add_argument("--no-write", action="store_true", help="do not write the result page")
     args = parser.parse_args(argv)
 
     rows = ["| object | physics ms | render ms (640x480) | total ms | target | sim s per push "

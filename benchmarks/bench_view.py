@@ -114,7 +114,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rates", type=float, nargs="+", default=[5.0, 15.0, 30.0])
     parser.add_argument("--seconds", type=float, default=10.0)
-    parser.add_argument("--no-write", action="store_true", help="do not update docs/RESULTS.md")
+    parser.add_argument("--no-write", action="store_true", help="do not write the result page")
     args = parser.parse_args(argv)
     rows = []
     for rate in args.rates:

@@ -6,7 +6,7 @@ truth" in 1 of 7 runs before the confident stop rule), each a fresh graph of fou
 processes, and reads every run's ``episode.json``: success by ground truth, pushes, true end
 error, reason, wall time. Graph runs are not bit-reproducible (DDS timing), so the runs differ.
 
-Writes the ``demo_repeat`` section of ``docs/RESULTS.md`` (with the load average: the machine
+Writes ``docs/results/demo_repeat.md`` (with the load average: the machine
 is shared).
 
 Usage::
@@ -88,7 +88,7 @@ def main() -> int:
     body = "\n".join([
         f"`pushbot demo --object {args.object} --com {args.com}` run {args.runs} times in a row "
         "(each: doctor, four node processes, one mixed-task episode; the confident stop rule "
-        'of docs/ARCHITECTURE.md, "Stopping").',
+        "of [Stopping](../design/stopping.md)).",
         "",
         f"**{ok} of {args.runs} succeeded by ground truth; {consecutive} consecutive from the "
         f"first** (target: 20 of 20). Pushes median {statistics.median(steps):g} "

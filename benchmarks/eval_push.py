@@ -1,6 +1,6 @@
-"""The closed-loop measurements of issue 7 (``pushbot eval push``), written to docs/RESULTS.md.
+"""The closed-loop measurements of issue 7 (``pushbot eval push``), written to docs/results/.
 
-Experiments (each writes its own section ``eval_push_<name>`` and ``out/eval/<name>/``; the
+Experiments (each writes its page ``docs/results/eval_push_<name>.md`` and ``out/eval/<name>/``; the
 figures are copied to ``docs/figures/``):
 
 - ``full``: the full protocol, 3 objects x 3 tasks x 60 trials, ``filter``, ana, k = 3, COM at
@@ -261,7 +261,11 @@ def _run(name: str, opts: EvalOptions, workers: int) -> dict:
 def _write(section: str, title: str, command: str, body: str, write: bool) -> None:
     print(body)
     if write:
-        update_section(section, format_section(title, command, body))
+        name = section.removeprefix("eval_push_")
+        data = (f"`out/eval/{name}/results.json` and the saved runs it compares (kept outside "
+                "the repository); rendered again from them, with no new trials, by "
+                f"`python benchmarks/eval_push.py {name} --reuse`")
+        update_section(section, format_section(title, command, body), data=data)
         print(f"wrote section {section}")
 
 
@@ -290,7 +294,7 @@ def exp_full(trials: int, workers: int, seed: int) -> tuple[str, str]:
         "",
         "Stop rule (issue 12): `goal reached` needs the estimate inside the goal region shrunk "
         "by z = 2.33 standard deviations of the EKF's pose covariance (confidence 0.99, "
-        'docs/ARCHITECTURE.md, "Stopping"). The same 540 trials with the point rule (stop '
+        "[Stopping](../design/stopping.md)). The same 540 trials with the point rule (stop "
         "when the estimate is inside the region; commit 3475b3e, measured 2026-12-01): success "
         '0.987, 4.1 +- 1.9 pushes, all 7 failures "estimate within tolerance, truth not" '
         "(tri1 translation 3, tri1 rotation 2, hex translation 1, butter mixed 1). The pushes "
@@ -699,9 +703,9 @@ def exp_limits(trials: int, workers: int, seed: int) -> tuple[str, str]:
         "(`--com-estimation off`: c fixed at the centre, where the protocol puts it), with "
         "k = 10 sampled contact points instead of 3, and with the ground-truth state "
         "(`eval_push_gt`: true pose, COM and friction, l of uniform pressure, k = 1). `min`: "
-        "the physical minimum (docs/ARCHITECTURE.md). `at the min`: the share of the first "
-        "column's trials that succeeded in `min` pushes. Where the minimum is 2 "
-        "(rotation of butter and hex) a mean of 2.0 needs every trial at it.",
+        "the physical minimum ([physical minimum](../design/physical-minimum.md)). `at the min`: "
+        "the share of the first column's trials that succeeded in `min` pushes. Where the "
+        "minimum is 2 (rotation of butter and hex) a mean of 2.0 needs every trial at it.",
         "",
         *lines,
         "",

@@ -5,7 +5,7 @@ agent position) and both object models (``env``: the T read from the env's body;
 the T unknown, its outline from the image, COM, limit surface and friction estimated online)
 over the benchmark's protocol (episodes with seeds 0..N-1, 300 control steps), keeps each run's
 ``results.json`` under ``--out`` (``<obs>`` for the env model, ``<obs>-estimated``), and writes
-the ``eval_pusht`` section of ``docs/RESULTS.md`` with LeRobot's Diffusion Policy figures beside
+``docs/results/eval_pusht.md`` with LeRobot's Diffusion Policy figures beside
 them and what each method is given.
 
 Usage::
@@ -280,9 +280,13 @@ def main() -> int:
              "(the machine is shared; wall times are indicative only).")
     print(body)
     if not args.no_write:
+        data = (f"`{args.out}/<obs>[-estimated]/results.json` (kept outside the repository); "
+                "`--reuse` renders the table rows again from them (the fidelity table is "
+                "measured again)")
         update_section("eval_pusht", format_section(
-            "Push-T: push_core planner vs Diffusion Policy (`eval_pusht`)", command, body))
-        print("wrote section eval_pusht of docs/RESULTS.md")
+            "Push-T: push_core planner vs Diffusion Policy (`eval_pusht`)", command, body),
+            data=data)
+        print("wrote docs/results/eval_pusht.md")
     return 0
 
 

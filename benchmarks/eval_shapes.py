@@ -1,4 +1,4 @@
-"""The shape-class benchmark of issue 12 ("Every flat object"), written to docs/RESULTS.md.
+"""The shape-class benchmark of issue 12 ("Every flat object"), written to docs/results/.
 
 The full system (``state filter``: rendered 640 x 480 RGB-D -> segmentation CNN -> perception
 core -> EKF with COM estimation -> planner), method ana, k = 3, the translation and mixed tasks,
@@ -13,10 +13,10 @@ Runs through the in-process evaluation API (:class:`pushbot.experiments.evaluate
 :func:`pushbot.experiments.evaluate.evaluate`) like ``benchmarks/eval_push.py``; the objects are
 given as spec-file paths relative to the repository root (the script works from there). Output:
 ``--out`` (default ``out/eval/shapes``) holds ``com_random/`` and ``com_spec/`` (the
-``results.json`` of each evaluation) and ``summary.md``; the section ``eval_shapes`` of
-docs/RESULTS.md gets a table per class (per object and task: success with its Wilson 95 %
-interval, mean steps of the successful trials, true end error mm / deg over all trials, trials
-whose *estimate* reached the goal but whose true pose did not, failure reasons), an overall
+``results.json`` of each evaluation) and ``summary.md``; the page
+``docs/results/eval_shapes.md`` gets a table per class (per object and task: success with its
+Wilson 95 % interval, mean steps of the successful trials, true end error mm / deg over all trials,
+trials whose *estimate* reached the goal but whose true pose did not, failure reasons), an overall
 table and the comparison with the source's 10.6-13.9 pushes (Table 5.2).
 
 With ``--horizon H`` (H > 1), ``--avoid-contradicted`` or ``--relearn`` the planner and filter
@@ -185,7 +185,7 @@ def main(argv: list[str] | None = None) -> int:
                     choices=list(SHAPE_CLASSES), metavar="CLASS",
                     help=f"shape classes (default: all: {' '.join(SHAPE_CLASSES)})")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--no-write", action="store_true", help="do not write docs/RESULTS.md")
+    ap.add_argument("--no-write", action="store_true", help="do not write the result page")
     ap.add_argument("--out", type=Path, default=Path("out/eval/shapes"),
                     help="output directory, relative to the repository root")
     ap.add_argument("--horizon", type=int, default=1,
@@ -236,7 +236,9 @@ def main(argv: list[str] | None = None) -> int:
         title = ("Shape classes with the lookahead planner and adaptation (`eval_shapes_variant`)"
                  if flags else "Shape classes: the full system on every flat object "
                  "(`eval_shapes`)")
-        update_section(name, format_section(title, command, body))
+        update_section(name, format_section(title, command, body),
+                       data=f"`{out}/com_<com>/results.json` and `{out}/summary.md` (kept outside "
+                            "the repository; no render path)")
         print(f"wrote section {name}")
     return 0
 

@@ -1,7 +1,8 @@
 """Run every benchmark in this folder (``bench_*.py``), one process each, in name order.
 
-Each benchmark writes its own section of ``docs/RESULTS.md``. Extra arguments are passed to
-every benchmark (for example ``--no-write``). Exits non-zero if any benchmark failed.
+Each benchmark writes its own page under ``docs/results/`` (indexed by ``docs/RESULTS.md``).
+Extra arguments are passed to every benchmark (for example ``--no-write``). Exits non-zero if
+any benchmark failed.
 
 Usage::
 

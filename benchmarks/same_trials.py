@@ -1,13 +1,14 @@
 """Same trials before and after a change: a sample of the protocol's trials, in-process.
 
 Behaviour-unchanged check of a refactor (issue 21): run ``record`` at two commits (a checkout
-each, same machine), then ``compare`` the two files; ``compare`` writes the RESULTS section
-``same_trials``. The sample: the first ``--per-cell`` trials of every cell of the full protocol
-(tri1, butter, hex x translation, rotation, mixed, full system ``filter``, COM at the centre),
-every Table 5.2 cell's first trial (ana and lrn, with and without COM estimation, random COM),
-and the first trial of every fourth shape-benchmark object on translation and mixed. A trial is
-the same when its pushes (approach, contact and end points, bit for bit) and its true end error
-are. Works with the old flat ``pushbot`` layout too (``pushbot.episode`` / ``pushbot.protocol``).
+each, same machine), then ``compare`` the two files; ``compare`` writes
+``docs/results/same_trials.md``. The sample: the first ``--per-cell`` trials of every cell of
+the full protocol (tri1, butter, hex x translation, rotation, mixed, full system ``filter``, COM at
+the centre), every Table 5.2 cell's first trial (ana and lrn, with and without COM estimation,
+random COM), and the first trial of every fourth shape-benchmark object on translation and mixed. A
+trial is the same when its pushes (approach, contact and end points, bit for bit) and its true end
+error are. Works with the old flat ``pushbot`` layout too (``pushbot.episode`` /
+``pushbot.protocol``).
 
 Usage::
 
@@ -85,7 +86,9 @@ def compare(before: Path, after: Path, write: bool) -> int:
 
         command = f"python benchmarks/same_trials.py compare {before.name} {after.name}"
         update_section("same_trials", format_section(
-            "Same trials before and after a refactor (`same_trials`)", command, body))
+            "Same trials before and after a refactor (`same_trials`)", command, body),
+            data=f"`{before.name}` and `{after.name}` (`same_trials.py record`), rendered by "
+                 f"`{command}`")
     return 0 if all(same) else 1
 
 

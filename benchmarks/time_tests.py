@@ -1,20 +1,24 @@
 """The test tiers, timed: wall time and outcome of ``make test-fast`` and ``make test``.
 
 Runs each tier once, as the Makefile does (``python -m pytest -m "not graph and not slow"`` and
-``python -m pytest``) in the repository, and writes the ``test_tiers`` section of
-``docs/RESULTS.md``: wall time, the pytest summary counts and the 1-minute load average before
-and after (the machine may be shared: a loaded machine stretches every figure). Not run by
-``run_all.py`` (it would run the whole suite inside ``make bench``).
+``python -m pytest``) in the repository, and writes
+``docs/results/test_tiers.md``: wall time, the pytest summary counts and the 1-minute load
+average before and after (the machine may be shared: a loaded machine stretches every figure). Not
+run by ``run_all.py`` (it would run the whole suite inside ``make bench``).
 
 With ``--ci-log FILE`` (repeatable) it also reads clean-clone CI runs: the output of
 ``(time bash .ci/run) > FILE 2>&1`` in a fresh clone (venv build, then ``make test``); each adds
 a row with pytest's own wall time, its summary counts and the whole run's time (``real``, the
 venv build included).
 
+The figures are saved beside the page (``docs/results/test_tiers.json``); ``--render`` writes
+the page again from them without running anything.
+
 Usage::
 
     .venv/bin/python benchmarks/time_tests.py [--tiers fast full] [--ci-log FILE ...]
         [--no-write]
+    .venv/bin/python benchmarks/time_tests.py --render
 """
 
 from __future__ import annotations
@@ -28,7 +32,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _results import format_section, update_section  # noqa: E402
+import _results  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 #: tier -> (make target, pytest arguments)
@@ -89,8 +93,13 @@ def read_ci_log(path: Path) -> dict[str, object]:
             "status": 0 if "failed" not in summary_counts(summary[-1]) else 1}
 
 
-def section(results: list[dict[str, object]], command: str) -> str:
-    """The ``test_tiers`` section of docs/RESULTS.md."""
+SECTION = "test_tiers"
+TITLE = "Test tiers (`time_tests`)"
+RENDER = "python benchmarks/time_tests.py --render"
+
+
+def section(results: list[dict[str, object]]) -> str:
+    """The figures of the ``test_tiers`` page (``docs/results/test_tiers.md``)."""
     rows = ["| tier | command | wall time | pytest exit | outcome | load avg before / after |",
             "| --- | --- | --- | --- | --- | --- |"]
     for r in results:
@@ -109,7 +118,7 @@ def section(results: list[dict[str, object]], command: str) -> str:
             "out the `graph` and `slow` markers), and clean-clone CI runs read from their logs. "
             "Wall time from start to exit of pytest; the load average shows how busy the "
             "machine was.\n\n" + "\n".join(rows))
-    return format_section("Test tiers (`time_tests`)", command, body)
+    return body
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -117,18 +126,21 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--tiers", nargs="*", choices=sorted(TIERS), default=["fast", "full"])
     parser.add_argument("--ci-log", type=Path, action="append", default=[],
                         help="log of a clean-clone `(time bash .ci/run)` run (repeatable)")
-    parser.add_argument("--no-write", action="store_true", help="print, do not write")
+    _results.add_page_options(parser)
     args = parser.parse_args(argv)
+    if args.render:
+        print(_results.publish(SECTION, TITLE, section, RENDER))
+        return 0
     results: list[dict[str, object]] = [read_ci_log(path) for path in args.ci_log]
     for name in args.tiers:
         print(f"== {name}", flush=True)
         results.append(run_tier(name))
         print(results[-1], flush=True)
-    text = section(results, "python benchmarks/time_tests.py " + " ".join(
-        ["--tiers", *args.tiers, *(f"--ci-log {p.name}" for p in args.ci_log)]))
-    print(text)
+    command = "python benchmarks/time_tests.py " + " ".join(
+        ["--tiers", *args.tiers, *(f"--ci-log {p.name}" for p in args.ci_log)])
+    print(section(results))
     if not args.no_write:
-        update_section("test_tiers", text)
+        print(_results.publish(SECTION, TITLE, section, RENDER, command=command, figures=results))
     return 0
 
 

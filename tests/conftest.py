@@ -12,7 +12,7 @@ so for every child process, which inherits ``os.environ``):
 - ``FASTDDS_BUILTIN_TRANSPORTS=UDPv4``: only for participants that do not use the bundled
   profile (a profile set by the user); the bundled profile declares its own transports (shared
   memory with 32 MB segments and UDPv4 with 4 MB buffers, so camera images reach other
-  processes) and Fast DDS then ignores this variable (docs/ARCHITECTURE.md, "DDS profile");
+  processes) and Fast DDS then ignores this variable (docs/design/dds.md);
 - ``ROS_LOCALHOST_ONLY`` removed (deprecated in Jazzy; it conflicts with the range above);
 - ``FASTRTPS_DEFAULT_PROFILES_FILE`` = the bundled profile (``push_ros.dds``) unless set: the
   transports above, and reliable writers heartbeat every 100 ms, so a sample lost behind

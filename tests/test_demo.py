@@ -82,7 +82,8 @@ def test_demo_runs_doctor_then_the_closed_loop_through_the_graph(demo_run) -> No
     assert float(match.group(1)) <= 7.5 and float(match.group(2)) <= 5.0
     assert re.search(r"^centre of mass \(object frame, mm\): estimated \(.*\), true \(.*\), "
                      r"error [\d.]+ mm$", out, re.M), out
-    assert re.search(r"^wall time: ([\d.]+) s in all", out, re.M), out  # figures: RESULTS.md
+    # figures: docs/results/graph.md
+    assert re.search(r"^wall time: ([\d.]+) s in all", out, re.M), out
     from PIL import Image
 
     from pushbot.viz.render import GIF_MAX_FRAMES

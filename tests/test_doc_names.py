@@ -1,10 +1,11 @@
 """Every first-party dotted name the documentation quotes resolves (issue 21, item 4).
 
-Scanned: ``README.md``, ``docs/*.md`` and the docstrings of every module, class and function
-under ``src/`` (launch files included). A name counts when it is quoted in backticks (Markdown
-`` `x` ``, reStructuredText ````x````, Sphinx roles such as ``:class:`~x```) and starts with a
-first-party package followed by at least one dotted part (``push_core.planner.Planner``,
-``pushbot.protocol.Trial.goal``); file names (``pushbot.launch.py``) are not names. A name
+Scanned: ``README.md``, ``docs/**/*.md`` (the map, design and result pages) and the docstrings
+of every module, class and function under ``src/`` (launch files included). A name counts when
+it is quoted in backticks (Markdown `` `x` ``, reStructuredText ````x````, Sphinx roles such as
+``:class:`~x```) and starts with a first-party package followed by at least one dotted part
+(``push_core.planner.Planner``, ``pushbot.protocol.Trial.goal``); file names
+(``pushbot.launch.py``) are not names. A name
 resolves when its longest importable prefix is a module and the rest are attributes (a
 dataclass field or an annotated attribute counts as an attribute of its class). Nothing is
 skipped: a moved module fails here until every reference to it is updated.
@@ -56,11 +57,11 @@ def _docstrings(path: Path) -> Iterator[str]:
 
 
 def quoted_names() -> dict[str, set[str]]:
-    """``{name: {where it is quoted}}`` over the README, docs/*.md and the docstrings of src/."""
+    """``{name: {where it is quoted}}`` over the README, docs/**/*.md and the docstrings of src/."""
     found: dict[str, set[str]] = {}
     sources: list[tuple[str, str]] = [
         (str(p.relative_to(REPO)), p.read_text(encoding="utf-8"))
-        for p in [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]]
+        for p in [REPO / "README.md", *sorted((REPO / "docs").rglob("*.md"))]]
     for path in sorted((REPO / "src").rglob("*.py")):
         sources += [(str(path.relative_to(REPO)), doc) for doc in _docstrings(path)]
     for where, text in sources:

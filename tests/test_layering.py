@@ -1,4 +1,4 @@
-"""The layering of docs/ARCHITECTURE.md, enforced over every first-party import.
+"""The layering of docs/ARCHITECTURE.md#packages, enforced over every first-party import.
 
 Every ``import`` of the source tree counts, lazy ones inside functions included; only imports
 under ``if TYPE_CHECKING:`` are left out (they never run). Checked:
@@ -7,7 +7,7 @@ under ``if TYPE_CHECKING:`` are left out (they never run). Checked:
   itself and packages of a lower layer; the node packages never import each other; the
   deployment package ``pushbot_bringup`` (launch file included) imports no ``pushbot`` module
   and no node package, only ``push_ros``;
-- inside ``pushbot``, the direction between its subpackages (docs/ARCHITECTURE.md, "Packages"):
+- inside ``pushbot``, the direction between its subpackages (docs/ARCHITECTURE.md#packages):
   ``ros2cli <- viz <- runner <- experiments <- pushbot.cli``; the one exception is the trial
   definition ``pushbot.experiments.protocol`` (it imports no ``pushbot`` module), which the
   runner runs;

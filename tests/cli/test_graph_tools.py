@@ -26,8 +26,8 @@ import yaml
 pytestmark = [pytest.mark.ros, pytest.mark.graph, pytest.mark.slow]
 
 GRAPH = ("/ekf_node", "/planner_node", "/segmentation_node", "/sim_bridge_node")
-#: Close translation goal for rect1 at the origin (ARCHITECTURE "Goal frame": yaw since the
-#: episode's first frame).
+#: Close translation goal for rect1 at the origin (docs/design/evaluation.md#goal-frame: yaw
+#: since the episode's first frame).
 CLOSE_GOAL = ("0.03", "0.0", "0.0")
 Graph = tuple[subprocess.Popen, Callable[[], str]]
 

@@ -3,7 +3,7 @@
 A 640 x 480 frame is 0.9 MB (rgb8) + 1.2 MB (32FC1 depth). With Fast DDS's default transports
 (512 KB shared-memory segments, 208 KB UDP socket buffers) about half of the depth images never
 reached another process; the bundled profile declares 32 MB shared-memory segments and 4 MB
-UDP buffers (docs/ARCHITECTURE.md, "DDS profile"). These tests run sim_bridge_node as its own
+UDP buffers (docs/design/dds.md). These tests run sim_bridge_node as its own
 process and count what arrives here, and check that shared-memory segments left behind by a
 killed process do not break discovery or delivery for the next one, and that a node started by
 its own console script (as ``ros2 run`` starts it, without ``pushbot`` setting the profile) gets

@@ -187,7 +187,7 @@ def test_rotation_search_recovers_known_rotations(turn_deg: float) -> None:
     result = rotation_search(ref, ref_pts, cur, cur_pts, 0.0, CFG)
     err = (result.theta - turn + math.pi) % (2 * math.pi) - math.pi
     # The 1 mm top-down raster of a 1.3 mm sampling limits the precision to a few tenths of a
-    # degree for a 10 cm object (rendered frames: docs/RESULTS.md).
+    # degree for a 10 cm object (rendered frames: docs/results/eval_perception.md).
     assert abs(math.degrees(err)) < 0.5
     assert len(result.candidates) == 1  # asymmetric: one answer
     assert result.cost < 1e-3

@@ -24,7 +24,7 @@ from pushbot.experiments.pusht_vision import fit_outline  # noqa: E402
 #: below: the mean distance between the two outlines and the largest (Hausdorff). Over the
 #: first frames of seeds 0-399 the mean was 0.58 mm median, 1.04 mm 95th percentile, 1.64 mm at
 #: most, the largest 2.7 / 5.7 / 13 mm (a corner hidden by the agent disc or cut by the walls);
-#: the benchmark's figures are in docs/RESULTS.md (section eval_pusht).
+#: the benchmark's figures are in docs/results/eval_pusht.md.
 OUTLINE_MEAN_TOL = 1.0
 OUTLINE_MAX_TOL = 6.0
 

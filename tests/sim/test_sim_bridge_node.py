@@ -328,7 +328,7 @@ def test_topics_services_types_and_qos(bridge: BridgeClient) -> None:
     assert services[f"/{BRIDGE}/reset"] == ["std_srvs/srv/Trigger"]
     try:
         import tf2_msgs  # noqa: F401
-    except ImportError:  # pip install: no tf2_msgs, so no /tf (ARCHITECTURE.md, tf note)
+    except ImportError:  # pip install: no tf2_msgs, so no /tf (docs/design/topics.md#tf-note)
         assert not [i for i in node.get_publishers_info_by_topic("/tf")
                     if i.node_name == BRIDGE]
 

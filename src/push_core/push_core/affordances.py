@@ -1,6 +1,6 @@
 """Affordances: predicted object motion for every outline point x representative push.
 
-docs/ARCHITECTURE.md, "Planner". An affordance model maps an outline (points with outward normals in
+docs/design/planner.md. An affordance model maps an outline (points with outward normals in
 the object frame), the COM offset ``c`` and the pushing-model parameters ``l``, ``m`` to the
 predicted motion of the object for each of the 10 representative pushes
 (:func:`push_core.model.representative_pushes`: directions 0, +-30, +-60 degrees relative to the

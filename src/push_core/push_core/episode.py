@@ -8,7 +8,7 @@ asks :meth:`EpisodeEngine.step` what to do; the engine never blocks, never reads
 never talks to a simulator. Times are float seconds of whatever clock stamps the estimates and
 pushes (simulated time in the pipeline).
 
-Rules (docs/ARCHITECTURE.md, "Episode engine"):
+Rules (docs/design/episode-engine.md):
 
 1. **Stale-estimate rule.** An estimate is *usable* when it is
 
@@ -450,7 +450,7 @@ def true_errors(pose: ArrayLike, goal: ArrayLike, order: int) -> tuple[float, fl
 
 
 def new_record(trial: dict[str, Any], **extra: Any) -> dict[str, Any]:
-    """An empty episode record (docs/ARCHITECTURE.md, "Episode record") for ``trial`` (the
+    """An empty episode record (docs/design/evaluation.md#episode-record) for ``trial`` (the
     trial as a dict), with ``extra`` keys of the engine that fills it."""
     rec: dict[str, Any] = {"trial": trial, "success": False, "steps": 0, "end_error_xy": None,
                            "end_error_theta": None, "com_error": None, "planning_ms": [],
@@ -496,8 +496,7 @@ def check_goal_offset(offset: ArrayLike, tolerances: tuple[float, float],
 
 def min_pushes(offset: ArrayLike, tolerances: tuple[float, float], max_push_length: float,
                order: int = 1) -> int:
-    """The physical minimum of pushes for a goal ``offset`` (docs/ARCHITECTURE.md, "Pushes
-    against the physical minimum")::
+    """The physical minimum of pushes for a goal ``offset`` (docs/design/physical-minimum.md)::
 
         n_min = max(ceil((d - tol_xy) / L_max), 1 if |theta| > tol_theta else 0)
 

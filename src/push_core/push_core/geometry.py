@@ -1,6 +1,7 @@
 """Rigid 2-D geometry for planar pushing: rotations, poses, closest points on outlines.
 
-Conventions (see ``docs/ARCHITECTURE.md``): SI units (metres, radians), right-handed, z up.
+Conventions (see ``docs/ARCHITECTURE.md#units-frames-conventions``): SI units (metres,
+radians), right-handed, z up.
 A planar pose is an array ``(..., 3)`` = ``(x, y, theta)``: the position of the object frame
 origin in the world frame and the rotation of the object frame about z. Points are arrays
 ``(..., 2)``. Leading dimensions broadcast in the numpy way.

@@ -1,4 +1,4 @@
-"""Learned affordance model (``lrn``; docs/ARCHITECTURE.md, "Planner"): a CNN from shape encoding,
+"""Learned affordance model (``lrn``; docs/design/planner.md): a CNN from shape encoding,
 COM and pushes to the object motion of every outline point x representative push.
 
 Architecture (:class:`AffordanceNet`):

@@ -1,16 +1,16 @@
 """Analytical quasi-static pushing model (Lynch et al. 1992, ellipsoidal limit surface).
 
-Implements the model (docs/ARCHITECTURE.md, "The pushing model") once, generic over numpy and torch:
+Implements the model (docs/design/pushing-model.md) once, generic over numpy and torch:
 every function computes in torch (differentiable, e.g. for ``torch.func.jacfwd``) when any input is
 a ``torch.Tensor`` and in numpy float64 otherwise (:func:`push_core.geometry.array_namespace`). All
 inputs broadcast over leading dimensions.
 
-Conventions (``docs/ARCHITECTURE.md``): the contact point ``r``, the centre of mass ``c`` and the
-normal ``n`` are given in one common frame (usually the object frame) and ``n`` points **into**
-the object. ``l`` (metres) is the limit-surface parameter (maximum friction torque over maximum
-friction force), ``m`` the pusher-object Coulomb friction coefficient. The model is homogeneous
-of degree one in the push, so a pusher displacement (metres) yields the displacement twist of
-the object (metres, radians).
+Conventions (``docs/design/pushing-model.md``): the contact point ``r``, the centre of mass
+``c`` and the normal ``n`` are given in one common frame (usually the object frame) and ``n`` points
+**into** the object. ``l`` (metres) is the limit-surface parameter (maximum friction torque over
+maximum friction force), ``m`` the pusher-object Coulomb friction coefficient. The model is
+homogeneous of degree one in the push, so a pusher displacement (metres) yields the displacement
+twist of the object (metres, radians).
 
 Contact modes. With ``alpha = atan(m)``, the friction-cone edges ``f_r = R(+alpha) n`` and
 ``f_l = R(-alpha) n`` map to the boundary contact velocities ``v_pb = l^2 f_b + tau_b (k x r')``,
@@ -43,7 +43,7 @@ ALPHA_MAX = float(np.deg2rad(89.9))
 NORMAL_EPS2 = 1e-24
 
 #: Representative push set of the affordances: directions relative to the inward normal (deg)
-#: and lengths (m), 10 pushes (Kloss et al. 2020; docs/ARCHITECTURE.md, "Planner").
+#: and lengths (m), 10 pushes (Kloss et al. 2020; docs/design/planner.md).
 REPRESENTATIVE_ANGLES_DEG = (0.0, 30.0, -30.0, 60.0, -60.0)
 REPRESENTATIVE_LENGTHS = (0.01, 0.05)
 

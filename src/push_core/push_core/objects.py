@@ -3,7 +3,7 @@
 ``load_object(name_or_path)`` is the one way every pushbot tool turns an object argument into an
 :class:`ObjectSpec`: a library name (the MIT pushing dataset objects bundled in
 ``push_core/data/mit_push_objects.json``) or a path to a JSON/YAML object specification file
-(format in ``docs/ARCHITECTURE.md``).
+(format in ``docs/design/objects.md``).
 
 Frames and units: SI. Every shape is re-centred on its area centroid, which becomes the object
 frame origin; ``ObjectSpec.com`` is the centre of mass in that frame (zero for uniform density).
@@ -175,7 +175,7 @@ def load_object(name_or_path: str | Path) -> ObjectSpec:
 
 
 def object_from_dict(data: dict[str, Any], name: str = "object", source: str = "") -> ObjectSpec:
-    """Build an :class:`ObjectSpec` from a parsed specification file (see ARCHITECTURE.md)."""
+    """Build an :class:`ObjectSpec` from a parsed specification file (docs/design/objects.md)."""
     if not isinstance(data, dict):
         raise ValueError(f"{source or name}: an object specification must be a mapping")
     known = {"name", "shape", "thickness", "mass", "density", "com_offset", "friction_table",

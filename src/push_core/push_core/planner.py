@@ -1,4 +1,4 @@
-"""Greedy affordance-based push planner (docs/ARCHITECTURE.md, "Planner"): one push per cycle.
+"""Greedy affordance-based push planner (docs/design/planner.md): one push per cycle.
 
 ROS-free, numpy, seeded. One planning step (:meth:`Planner.plan`):
 
@@ -12,7 +12,7 @@ ROS-free, numpy, seeded. One planning step (:meth:`Planner.plan`):
    in the object frame, the rotation wrapped to (-pi, pi]). **Units: the translation error in
    millimetres, the rotation error in degrees; lambda in millimetres per degree.** A score is
    therefore "millimetres of remaining error" and so is the sampling temperature.
-   (``lambda = 2`` mm/deg is the tuned default, see ``docs/RESULTS.md``, section bench_planner.)
+   (``lambda = 2`` mm/deg is the tuned default, see ``docs/results/bench_planner.md``.)
 3. **Contact proposal**: ``k`` points sampled without replacement from the softmax
    ``p_i ~ exp(-(s_i - min s) / T)`` (Gumbel top-k, exact for any k); baselines ``rdn``
    (uniform over the outline) and ``geo`` (:func:`geo_mask`). Points within ``AVOID_RADIUS``
@@ -36,7 +36,7 @@ ROS-free, numpy, seeded. One planning step (:meth:`Planner.plan`):
    Implementation note: the rollouts of d-e run in the *same* batched rollout call as a
    (speculatively for every gap between neighbouring base directions, 13 directions per
    point), because a rollout call costs ~4 ms of per-substep overhead almost independent of
-   the batch size (docs/RESULTS.md, bench_planner); afterwards only the interpolated directions
+   the batch size (docs/results/bench_planner.md); afterwards only the interpolated directions
    next to each point's best base direction are admitted, so the answer is that of the
    sequential procedure at half the time.
    The best admitted push over all candidates is returned.
@@ -238,10 +238,10 @@ def desired_motion(pose: ArrayLike, goal: ArrayLike) -> NDArray[np.float64]:
 def goal_reached(pose: ArrayLike, goal: ArrayLike, tolerance_xy: float,
                  tolerance_theta: float, covariance: ArrayLike | None = None,
                  confidence: float = STOP_CONFIDENCE, orientation: bool = True) -> bool:
-    """The stop rule: is the goal reached, with confidence (docs/ARCHITECTURE.md, "Stopping")?
+    """The stop rule: is the goal reached, with confidence (docs/design/stopping.md)?
 
     With no covariance this is the evaluation's "small" goal region (0.75 cm and 5 degrees by
-    default; docs/ARCHITECTURE.md, "Closed loop and evaluation") around the pose. With the
+    default; docs/design/evaluation.md) around the pose. With the
     estimator's covariance the region is shrunk by ``z`` standard deviations, ``z =
     Phi^-1(confidence)`` (2.33 at the default 0.99)::
 
@@ -386,7 +386,7 @@ def sample_contacts(scores: ArrayLike, k: int, temperature: float,
 
 
 def geo_mask(points: ArrayLike, normals_out: ArrayLike, desired: ArrayLike) -> NDArray[np.bool_]:
-    """The ``geo`` baseline's eligible contact points (docs/ARCHITECTURE.md, "Planner").
+    """The ``geo`` baseline's eligible contact points (docs/design/planner.md).
 
     With ``u`` the unit direction of the desired translation (object frame) and ``d_i`` the
     signed distance of point ``i`` from the line through the current position along ``u``

@@ -1,7 +1,7 @@
 """Procedural flat objects: object specification dicts for shape classes and random shapes.
 
 ROS-free. Every generator returns the dict of an object specification file (format in
-``docs/ARCHITECTURE.md``, "Object library and object specification files"), valid for
+``docs/design/objects.md``), valid for
 :func:`push_core.objects.object_from_dict`; write it as YAML or JSON to get a spec file that
 every pushbot tool accepts as an object.
 

@@ -1,6 +1,6 @@
 """A Push-Net-style sampling baseline (Li et al., RSS 2018), ROS-free.
 
-Its place in the evaluation: docs/ARCHITECTURE.md, "Closed loop and evaluation".
+Its place in the evaluation: docs/design/evaluation.md.
 
 Push-Net samples many random pushes from the object's segmentation mask at every step, predicts
 the outcome of each and executes the one whose predicted pose is closest to a nearby sub-goal.

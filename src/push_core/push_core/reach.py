@@ -2,7 +2,7 @@
 
 :func:`push_core.episode.min_pushes` bounds the pushes of a goal by geometry alone: the distance
 over the longest push, and one push for a rotation. One push cannot turn an object by any amount
-*in place*, though. In the analytical model (docs/ARCHITECTURE.md, "The pushing model") the
+*in place*, though. In the analytical model (docs/design/pushing-model.md) the
 object's angular velocity is ``omega = (r' x v_o) / l^2`` with ``r'`` the contact relative to the
 COM, so its COM moves at least ``l^2 / rho`` per radian turned (``rho`` the farthest outline
 point from the COM, :func:`turn_radius`): a push that turns a flat object by 0.5 rad drags its
@@ -18,7 +18,7 @@ column: the geometric bound, raised from 1 to 2 when no single push of the model
 goal.
 
 The model is the optimistic case for a simulator whose supports resist turning more than a
-uniform pressure does (docs/RESULTS.md, ``eval_push_support``): with the uniform-pressure ``l``
+uniform pressure does (docs/results/eval_push_support.md): with the uniform-pressure ``l``
 of the outline, a larger true ``l`` only moves the COM farther per turn. Friction is unknown, so
 any of ``REACH_FRICTIONS`` counts.
 

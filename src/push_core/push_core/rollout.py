@@ -1,6 +1,6 @@
 """Multi-step rollout of a straight-line push with a cylindrical pusher.
 
-The model and its conventions: docs/ARCHITECTURE.md, "The pushing model".
+The model and its conventions: docs/design/pushing-model.md.
 
 The pusher, a disc of radius ``pusher_radius`` centred on its axis, moves along a straight
 line in the world frame in substeps. At every substep the contact point and normal are found

@@ -3,7 +3,7 @@
 ROS-free, numpy. One rule, used by the perception (is the orientation observable?), the
 estimator (fuse the orientation or not), the planner (does the goal orientation matter?) and the
 scoring of episodes (is the orientation error counted?), so they always agree
-(docs/ARCHITECTURE.md, "Rotational symmetry"):
+(docs/design/symmetry.md):
 
 **Continuous symmetry.** An outline is *continuously symmetric* (a disc, a cylinder lying on its
 base, or a regular polygon with so many sides that a camera cannot tell its facets) when

@@ -124,7 +124,7 @@ YAML_EXTRA = (SIM_TIME,)
 #: Comment at the top of the bundled parameter file (pushbot_bringup/config/push_estimator.yaml).
 YAML_HEADER = """
 Parameters of push_estimator's ekf_node: the EKF over the object pose, centre of mass (COM),
-limit-surface parameter l and pusher-object friction m (docs/ARCHITECTURE.md, "Estimator"; the
+limit-surface parameter l and pusher-object friction m (docs/design/estimator.md; the
 table is also in docs/INTERFACES.md).
 Load with: pushbot run ekf_node --ros-args --params-file \\
   src/pushbot_bringup/config/push_estimator.yaml
@@ -150,7 +150,7 @@ YAML_NOTES = {
                                   "part plus a part per metre of pusher travel in contact (the "
                                   "model's error grows with the motion), and a random walk of "
                                   "the slowly varying parameters. Tuned on the pybullet "
-                                  "benchmark (docs/RESULTS.md, eval_estimator).",
+                                  "benchmark (docs/results/eval_estimator.md).",
 }
 _FIELDS: dict[str, str] = {
     "observation.position_sigma": "position_sigma",

@@ -12,7 +12,7 @@ its snapshot); no exception leaves a callback; health, refusals and counters are
 :mod:`push_ros` codec; it never imports the simulator.
 
 Topics, services and parameters: docs/INTERFACES.md (generated parameter table); the filter and
-the rules: docs/ARCHITECTURE.md, "Estimator" and "Node runtime: health and stamp rules".
+the rules: docs/design/estimator.md and docs/design/node-runtime.md.
 """
 
 from __future__ import annotations

@@ -143,7 +143,7 @@ NODE_NAME = "push_executor_node"
 #: Comment at the top of the bundled parameter file (pushbot_bringup/config/push_executor.yaml).
 YAML_HEADER = """
 Parameters of push_executor_node (package push_executor): planner/push -> a joint trajectory of
-a ros2_control arm (docs/ROBOT.md, docs/ARCHITECTURE.md "Pushing with an arm"; the table is also in
+a ros2_control arm (docs/ROBOT.md, docs/design/arm.md; the table is also in
 docs/INTERFACES.md). The defaults describe the simulated Panda; on your arm set at least
 controller_topic, base_frame, base_pose, tool.*, park_positions and the workspace (docs/ROBOT.md).
 The launch file sets use_sim_time and start_enabled (true in simulation, false on a robot: a dry run

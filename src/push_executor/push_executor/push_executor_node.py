@@ -13,7 +13,7 @@ watchdogs run on the steady clock; no exception leaves a callback; it never impo
 sim_bridge.
 
 Topics, services and parameters: docs/INTERFACES.md; states, refusal kinds and timing:
-docs/ARCHITECTURE.md, "Pushing with an arm".
+docs/design/arm.md.
 """
 
 from __future__ import annotations
@@ -50,7 +50,7 @@ from push_ros.stamps import check_not_ahead, clock_seconds, seconds_from_stamp, 
 
 __all__ = ["PARAMETERS", "ExecutorParams", "PushExecutorNode", "main"]
 
-#: Joint states: reliable, depth 50 (docs/ARCHITECTURE.md).
+#: Joint states: reliable, depth 50 (docs/design/arm.md#push_executor).
 JOINT_STATE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50,
                              reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.VOLATILE)

@@ -74,7 +74,7 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               "this on the image border: object out of view, no pose.", (0, 10**7)),
     ParamSpec("sigma_position", _GEOMETRY["sigma_position"], "Base standard deviation of x "
               "and y at 5000 mask pixels with full depth, m; grows with fewer pixels, missing "
-              'depth and footprint mismatch (docs/ARCHITECTURE.md, "Perception").',
+              "depth and footprint mismatch (docs/design/perception.md).",
               (1e-6, 1.0)),
     ParamSpec("sigma_theta", _GEOMETRY["sigma_theta"], "Base standard deviation of the "
               "relative yaw, rad; grows likewise and with the residual of the rotation search "
@@ -93,7 +93,7 @@ YAML_EXTRA = (SIM_TIME,)
 YAML_HEADER = """
 Parameters of segmentation_node (package push_perception): CNN segmentation of the object,
 its pose from mask + depth, the orientation relative to the episode's first frame and the
-outline with normals (docs/ARCHITECTURE.md, "Perception"; the table is also in
+outline with normals (docs/design/perception.md; the table is also in
 docs/INTERFACES.md). Values below are the defaults. Units SI (REP 103): metres, radians.
 
   pushbot run segmentation_node --ros-args --params-file \\

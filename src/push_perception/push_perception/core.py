@@ -1,8 +1,8 @@
 """From an object mask and depth to the object's state: pose, relative orientation, outline.
 
 ROS-free (numpy, OpenCV, scipy); the node (``segmentation_node``) and the evaluation wrap it.
-The pipeline's segmentation and pose steps (docs/ARCHITECTURE.md, "Perception"); the frames
-are those of ``docs/ARCHITECTURE.md``.
+The pipeline's segmentation and pose steps (docs/design/perception.md); the frames
+are those of ``docs/ARCHITECTURE.md#units-frames-conventions``.
 
 Pipeline for one frame (:class:`EpisodeTracker.update`)
 -------------------------------------------------------
@@ -57,7 +57,7 @@ leaves (the raster and depth noise: 0.3 mm on clean frames, 0.6 mm with depth no
 ``r_0`` the footprint's radius of gyration (an outline misfit of d metres at radius r is an
 angle of about d / r). The base values
 ``sigma_position`` and ``sigma_theta`` are the measured median errors on the held-out objects
-(docs/RESULTS.md). x and y are uncorrelated and share one variance.
+(docs/results/eval_perception.md). x and y are uncorrelated and share one variance.
 
 Bounded work per frame
 ----------------------

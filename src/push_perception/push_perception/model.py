@@ -28,7 +28,7 @@ Two stages
 
 The result is the largest connected component of the fine mask. Batch norm is folded into
 the convolutions for inference (:meth:`SegmentationNet.fused`). Sizes and timings: the model
-card next to the weights (``models/segmentation.md``) and docs/RESULTS.md.
+card next to the weights (``models/segmentation.md``) and docs/results/bench_perception.md.
 """
 
 from __future__ import annotations

@@ -15,8 +15,7 @@ leaves a callback (:class:`push_ros.health.NodeHealth` on ``/diagnostics``); it 
 simulator.
 
 Topics, services and parameters: docs/INTERFACES.md; the pipeline and re-anchoring:
-docs/ARCHITECTURE.md, "Perception", "Faults and recovery" and "Node runtime: health and stamp
-rules".
+docs/design/perception.md, docs/design/faults.md and docs/design/node-runtime.md.
 """
 
 from __future__ import annotations

@@ -35,7 +35,7 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               (1, 1000)),
     ParamSpec("lambda", 2.0, "Rotation weight of eq. 5.1 (score = translation error in mm + "
               "lambda x rotation error in deg), millimetres per degree; tuned on bench_planner "
-              "(docs/RESULTS.md).", (0.0, 1000.0)),
+              "(docs/results/bench_planner.md).", (0.0, 1000.0)),
     ParamSpec("temperature", 2.0, "Softmax temperature of the contact sampling, millimetres "
               "(score units), > 0: small = nearly the best-scoring points only, large = nearly "
               "uniform.", (0.0, 1e6)),
@@ -101,7 +101,7 @@ YAML_EXTRA = (SIM_TIME,)
 #: Comment at the top of the bundled parameter file (pushbot_bringup/config/push_planner.yaml).
 YAML_HEADER = """
 Parameters of planner_node (package push_planner): the greedy affordance-based push planner
-(docs/ARCHITECTURE.md, "Planner"; algorithm and units in push_core/planner.py). Values below
+(docs/design/planner.md; algorithm and units in push_core/planner.py). Values below
 are the defaults. Units SI (REP 103: metres, radians, seconds) except where a line says mm or
 deg; the table is also in docs/INTERFACES.md.
 
@@ -121,7 +121,7 @@ YAML_NOTES = {
     "use_sim_time": "The node's clock only stamps the plans; the stale-estimate rule compares "
                     "the stamps of the estimates and of pusher/executed, and the push timeout "
                     "runs on the steady clock.",
-    "goal_tolerance.xy": 'Stop rule (docs/ARCHITECTURE.md, "Stopping").',
+    "goal_tolerance.xy": "Stop rule (docs/design/stopping.md).",
     "push_speed": "Structural parameters (read-only).",
 }
 

@@ -13,8 +13,8 @@ strictly increase; a refused input changes nothing; no exception leaves a callba
 never imports the simulator.
 
 Topics, services, status values and parameters: docs/INTERFACES.md; the rules:
-docs/ARCHITECTURE.md, "Episode engine", "Node runtime: health and stamp rules" and "Pushing with
-an arm".
+docs/design/planner-node.md, docs/design/episode-engine.md, docs/design/node-runtime.md
+and docs/design/arm.md#refusals-for-every-executor.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The frame names of the pipeline (docs/ARCHITECTURE.md, Frames), defined once."""
+"""The frame names of the pipeline (docs/ARCHITECTURE.md#units-frames-conventions), defined once."""
 
 __all__ = ["CAMERA_FRAME", "OBJECT_FRAME", "PUSHER_FRAME", "WORLD_FRAME"]
 

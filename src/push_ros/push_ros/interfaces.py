@@ -16,7 +16,7 @@ every one of them is current:
   a parameter).
 
 The documents name the modules they are generated from; this module names no node package, so
-``push_ros`` stays below the node packages (docs/ARCHITECTURE.md, "Packages"). Regenerate after
+``push_ros`` stays below the node packages (docs/ARCHITECTURE.md#packages). Regenerate after
 changing a table::
 
     .venv/bin/python -m push_ros.interfaces docs/INTERFACES.md src/pushbot_bringup/config/*.yaml

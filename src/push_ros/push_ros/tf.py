@@ -1,6 +1,6 @@
 """``/tf`` and ``/tf_static`` publishers where ``tf2_msgs`` exists.
 
-``tf2_msgs`` has no PyPI wheel (docs/ARCHITECTURE.md, the tf note): on a pip-only install the
+``tf2_msgs`` has no PyPI wheel (docs/design/topics.md#tf-note): on a pip-only install the
 nodes run without tf output; on a full ROS install they publish it. The optional import is
 written here once; a node asks :func:`tf_publisher` and gets None where tf cannot be published.
 

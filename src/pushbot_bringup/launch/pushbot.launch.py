@@ -36,7 +36,7 @@ camera images never reach segmentation_node in another process, and which binds 
 127.0.0.1 only, with ``ROS_AUTOMATIC_DISCOVERY_RANGE=SYSTEM_DEFAULT`` unless a range is set: a
 closed graph. ``PUSHBOT_DDS_NETWORK=1`` (or ``ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET``) in the
 environment of ``ros2 launch`` opens it to the network, without DDS-Security (README,
-"Security"; docs/ARCHITECTURE.md, "DDS profile"). Under SROS2 Enforce each ``Node`` would also
+"Security"; docs/design/dds.md). Under SROS2 Enforce each ``Node`` would also
 need ``ros_arguments=['--enclave', '/pushbot/<executable>']`` (not passed today).
 """
 

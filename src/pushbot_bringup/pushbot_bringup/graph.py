@@ -211,8 +211,8 @@ def graph_nodes(sim: bool, object_name: str = "", config_dir: str | None = None,
 
 def dds_environment(environ: Mapping[str, str] | None = None) -> dict[str, str]:
     """The DDS variables every node gets: :func:`push_ros.dds.dds_environment`, the one rule
-    for the launch file, ``pushbot`` and every node's ``main()`` (docs/ARCHITECTURE.md, "DDS
-    profile"); ``push_ros`` is installed wherever a node is, so a robot install without
+    for the launch file, ``pushbot`` and every node's ``main()`` (docs/design/dds.md);
+    ``push_ros`` is installed wherever a node is, so a robot install without
     ``pushbot`` gets the same profile. {} when the environment already names a profile.
     """
     from push_ros.dds import dds_environment as rule

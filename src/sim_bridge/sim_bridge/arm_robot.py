@@ -53,7 +53,7 @@ ARM_JOINTS = tuple(f"panda_joint{i}" for i in range(1, 8))
 ROD_LENGTH = 0.20
 #: Pose (x, y, z, yaw) of ``panda_link0`` in ``world`` (m, rad): behind the workspace on a
 #: 0.15 m pedestal (on the bare table no base pose reaches the whole workspace with the rod
-#: vertical; docs/RESULTS.md, section bench_arm_reach).
+#: vertical; docs/results/bench_arm_reach.md).
 DEFAULT_BASE_POSE = (-0.47, 0.0, 0.15, 0.0)
 #: Park posture (rad): the arm folded back over its base, rod pointing down, out of the
 #: camera's view (the parked arm covers < 1 % of the image; bench_arm_perception).

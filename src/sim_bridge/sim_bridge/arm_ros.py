@@ -1,6 +1,6 @@
 """The arm mode's ROS endpoints of ``sim_bridge_node`` (composed by the node; no physics here).
 
-Endpoints (only with ``robot: arm``; docs/ARCHITECTURE.md, "Arm mode of the simulator"):
+Endpoints (only with ``robot: arm``; docs/design/arm.md#arm-mode-of-the-simulator):
 
 - ``/joint_states`` (sensor_msgs/JointState; reliable, depth 10): the 7 Panda joints
   (positions rad, velocities rad/s, efforts N m), stamp = sim time. At ``arm.joint_state_rate``

@@ -4,7 +4,8 @@ Pure numpy helpers used by :mod:`sim_bridge.world`; no pybullet state lives here
 
 Frames and conventions
 ----------------------
-- ``world``: table frame, z up, origin on the table at the workspace centre (ARCHITECTURE.md).
+- ``world``: table frame, z up, origin on the table at the workspace centre
+  (docs/ARCHITECTURE.md#units-frames-conventions).
 - ``camera_color_optical_frame``: REP 103 optical frame, z forward along the optical axis,
   x right in the image, y down in the image. ``T_world_camera`` (4, 4) maps points from this
   frame to ``world``: ``p_world = T[:3, :3] @ p_cam + T[:3, 3]``.

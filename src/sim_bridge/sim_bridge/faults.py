@@ -1,5 +1,5 @@
 """Fault injection of ``sim_bridge_node``: which camera frames are dropped, held back or
-reordered and which pushes are refused (docs/ARCHITECTURE.md, "Faults"). ROS-free: the node
+reordered and which pushes are refused (docs/design/faults.md). ROS-free: the node
 passes its frames (any object) and publishes what :meth:`FaultInjector.frames` returns."""
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ T = TypeVar("T")
 
 @dataclass(frozen=True)
 class FaultConfig:
-    """Fault injection of the bridge (docs/ARCHITECTURE.md, "Faults"); all off by default.
+    """Fault injection of the bridge (docs/design/faults.md); all off by default.
 
     Attributes
     ----------

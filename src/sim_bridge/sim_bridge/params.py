@@ -39,7 +39,7 @@ _UNSET_OR_NEGATIVE = "negative = the object spec's value"
 PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec("object", "butter", "Object library name (the MIT pushing dataset objects, e.g. "
               "butter, rect1, tri1, ellip1, hex) or a path to a .json/.yaml/.yml object "
-              "specification file of at most 1 MiB (docs/ARCHITECTURE.md); nothing else is "
+              "specification file of at most 1 MiB (docs/design/objects.md); nothing else is "
               "read, and errors never quote the file."),
     ParamSpec("initial_pose.x", 0.0, "Initial x of the object frame (area centroid) in world, "
               "m; must lie in the workspace.", (-1.0, 1.0)),
@@ -157,9 +157,9 @@ YAML_NOTES = {
                          "refused push is reported on pusher/refused. The object can also be "
                          "displaced on sim/knock (docs/INTERFACES.md).",
     "monitor.rate": "Monitor stream: a visualisation of the simulator, not an input of the "
-                    "pipeline (docs/INTERFACES.md, sim/monitor/*). Its cost: docs/RESULTS.md, "
-                    '"record".',
-    "robot": 'Arm mode: docs/ARCHITECTURE.md, "Pushing with an arm".',
+                    "pipeline (docs/INTERFACES.md, sim/monitor/*). Its cost: "
+                    "docs/results/record.md.",
+    "robot": "Arm mode: docs/design/arm.md.",
 }
 
 

@@ -10,7 +10,7 @@ simulated time.
   by the solver, the pusher is never teleported through the object.
 - Time: fixed step ``WorldConfig.time_step`` (default 1/240 s), ``solver_iterations`` (default
   10) sequential-impulse iterations; ``sim_time`` is ``steps * time_step``. The settings are
-  justified by the convergence study in docs/RESULTS.md, section bench_sim (against a
+  justified by the convergence study in docs/results/bench_sim.md (against a
   1/960 s, 100-iteration reference the defaults deviate about as much as moving the push
   sideways by 0.1 mm does at fixed settings: the contact dynamics are that sensitive).
 

@@ -10,7 +10,7 @@ light direction (azimuth uniform, elevation 30-90 deg), light colour (each chann
 [0.8, 1]), ambient/diffuse/specular coefficients, shadows on or off, and Gaussian colour noise
 (sigma 2 grey levels) per frame. ``depth_noise``: RealSense-like depth noise and dropouts
 (:func:`sim_bridge.camera.add_depth_noise`), fresh per frame. Speed per frame:
-docs/RESULTS.md, section bench_sim.
+docs/results/bench_sim.md.
 
 Monitor (:class:`MonitorConfig`): a visualisation stream rendered *during* a push (the pusher
 in view) from the same camera pose, usually smaller (:func:`monitor_view` scales the

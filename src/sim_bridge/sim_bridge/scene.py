@@ -1,8 +1,8 @@
 """The pybullet scene of the sim bridge: table, one flat object (convex pieces), pusher.
 
 ROS-free; :class:`sim_bridge.world.PushWorld` is the entry point (this module builds its
-bodies). Frames and units: ``docs/ARCHITECTURE.md`` and :mod:`sim_bridge.world`; SI
-throughout, quaternions (x, y, z, w).
+bodies). Frames and units: ``docs/ARCHITECTURE.md#units-frames-conventions`` and
+:mod:`sim_bridge.world`; SI throughout, quaternions (x, y, z, w).
 
 Bodies
 ------
@@ -14,16 +14,16 @@ Bodies
   outline by 1 mm). With ``WorldConfig.support_cell`` > 0 every piece is further cut into
   cells of that size (:func:`support_cells`): bullet keeps at most 4 contact points per pair of
   convex shapes, so a single convex piece rests on 3 or 4 of its corners and its friction acts
-  there, not over the footprint (the resting contacts of both: docs/RESULTS.md, section
-  eval_push_support); cells spread the support over the footprint. 0 (default) keeps the
-  pieces whole. Visual: a mesh of the true outline (top face triangulated, side walls; within
-  0.02 mm), so images show the exact outline. Mass from the spec; inertia diagonal
-  ``(I_xx, I_yy, I_zz)`` about the COM with ``I_zz = ObjectSpec.moment_of_inertia`` and the
-  tilt inertias of the uniform plate. The COM enters pybullet through the base inertial frame
+  there, not over the footprint (the resting contacts of both:
+  docs/results/eval_push_support.md); cells spread the support over the footprint. 0 (default)
+  keeps the pieces whole. Visual: a mesh of the true outline (top face triangulated, side walls;
+  within 0.02 mm), so images show the exact outline. Mass from the spec; inertia diagonal ``(I_xx,
+  I_yy, I_zz)`` about the COM with ``I_zz = ObjectSpec.moment_of_inertia`` and the tilt inertias of
+  the uniform plate. The COM enters pybullet through the base inertial frame
   (``baseInertialFramePosition``), so collision and visual shapes stay in the object frame.
   Linear/angular damping 0, restitution 0, spinning and rolling friction 0. The object has a
-  friction anchor (``changeDynamics(frictionAnchor=1)``): without it a resting object creeps
-  on the table with nothing touching it (bullet's support contacts switch between corners).
+  friction anchor (``changeDynamics(frictionAnchor=1)``): without it a resting object creeps on the
+  table with nothing touching it (bullet's support contacts switch between corners).
 - Friction: bullet combines the lateral friction coefficients of two touching bodies by
   multiplying them. The object's coefficient is therefore 1.0, the table's is
   ``friction_table`` and the pusher's is ``friction_pusher``, so the object-table pair sees
@@ -102,7 +102,7 @@ PUSHER_PARK = (-0.45, 0.0, 0.30)  # parked pusher: axis x, y and bottom height, 
 #: Largest deviation of the collision outline from the true outline (Douglas-Peucker tolerance
 #: passed to ``Polygon.convex_pieces``), m. push_core's default, 0.3 mm, cuts butter into many
 #: slivers along its concave waist; 0.5 mm gives about half as many pieces and makes butter's
-#: physics markedly faster (push + frame timings: docs/RESULTS.md, section bench_sim).
+#: physics markedly faster (push + frame timings: docs/results/bench_sim.md).
 #: Convex polygons and ellipses are not simplified.
 COLLISION_TOLERANCE = 5e-4
 #: Largest deviation of the visual mesh's outline from the true outline, m.
@@ -401,7 +401,7 @@ def _extruded_mesh(shape: Polygon | Ellipse,
 
     Dense measured outlines are simplified to within ``VISUAL_TOLERANCE`` (0.02 mm, a small
     fraction of a pixel at the default viewpoint), which makes their frames cheaper to render
-    and their scenes faster to build (render timings: docs/RESULTS.md, section bench_sim).
+    and their scenes faster to build (render timings: docs/results/bench_sim.md).
 
     Returns vertices (N, 3), per-vertex normals (N, 3) and triangle indices (3 T,) with
     counter-clockwise (outward) winding.

@@ -15,8 +15,7 @@ Invariants:
   :class:`push_ros.health.NodeHealth`'s (``/diagnostics``).
 
 Topics, services, fault injection and parameters: docs/INTERFACES.md; the simulator:
-docs/ARCHITECTURE.md, "sim_bridge internals", "Node runtime: health and stamp rules" and
-"Pushing with an arm".
+docs/design/sim-world.md, docs/design/node-runtime.md and docs/design/arm.md.
 """
 
 from __future__ import annotations
@@ -340,7 +339,7 @@ class SimBridgeNode(Node):
     # ---- arm mode (endpoints in sim_bridge.arm_ros, physics in sim_bridge.arm_motion) -----
     def _run_arm(self) -> None:
         """Step the physics while the arm follows trajectories, then publish the tool tip path,
-        a fresh frame and the ground truth (ARCHITECTURE.md, arm mode)."""
+        a fresh frame and the ground truth (docs/design/arm.md#arm-mode-of-the-simulator)."""
         self._pushing = True
         params = self._params
         try:

@@ -2,8 +2,7 @@
 
 ROS-free. The sim bridge node, the perception data generator and the evaluation run it in
 their own process (pybullet DIRECT mode through ``pybullet_utils.bullet_client``, so several
-worlds can live in one process). API contract: ``docs/ARCHITECTURE.md``, section
-"sim_bridge internals: the in-process world".
+worlds can live in one process). API contract: ``docs/design/sim-world.md``.
 
 Frames and units
 ----------------
@@ -38,7 +37,7 @@ delegate to
 
 Every public name of these (``PushResult``, ``Frame``, ``MIN_PUSH_LENGTH``, the randomisation
 ranges, ...) is importable from here as before. Speed and the choice of the physics settings:
-docs/RESULTS.md, section bench_sim.
+docs/results/bench_sim.md.
 
 Randomisation (``WorldConfig.randomize``; explicit overrides always win)
 ------------------------------------------------------------------------
@@ -447,7 +446,7 @@ class PushWorld:
     def support_contacts(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """The object's contacts with the table now: points ``(K, 2)`` in ``world`` (m, on
         the object) and their normal forces ``(K,)`` (N) (addition: a diagnostic of how the
-        simulator supports the object, docs/RESULTS.md ``eval_push_support``)."""
+        simulator supports the object, docs/results/eval_push_support.md)."""
         points = self._client.getContactPoints(bodyA=self._object, bodyB=self._scene.table)
         xy = np.array([c[5][:2] for c in points], dtype=np.float64).reshape(-1, 2)
         return xy, np.array([c[9] for c in points], dtype=np.float64)

@@ -1,6 +1,6 @@
 """The push EKF: pose, centre of mass, limit surface and friction from pushes and poses.
 
-docs/ARCHITECTURE.md, "Estimator". ROS-free: numpy in, numpy out, float seconds where time appears.
+docs/design/estimator.md. ROS-free: numpy in, numpy out, float seconds where time appears.
 This package's top level is the estimator's public face (``from push_core.estimator import
 PushEKF``); its modules hold the parts:
 
@@ -22,7 +22,7 @@ PushEKF``); its modules hold the parts:
 
 Measured figures (cost per push and per active push choice, the closed-form Jacobian against
 autodiff, NEES / NIS and COM error with 1 and 2 iterations on the filter's own model) are in
-``docs/RESULTS.md``, section ``bench_estimator``; COM, ``l`` and ``m`` estimation on pybullet
+``docs/results/bench_estimator.md``; COM, ``l`` and ``m`` estimation on pybullet
 physics in section ``eval_estimator``.
 """
 

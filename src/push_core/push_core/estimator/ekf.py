@@ -1,6 +1,6 @@
 """The push EKF: pose, centre of mass, limit surface and friction from pushes and poses.
 
-docs/ARCHITECTURE.md, "Estimator". ROS-free: numpy in, numpy out. :class:`PushEKF` is an
+docs/design/estimator.md. ROS-free: numpy in, numpy out. :class:`PushEKF` is an
 :class:`~push_core.estimator.kalman.EKFBase` over the state of :mod:`push_core.estimator.config`;
 its prediction is the process model :func:`push_core.estimator.process_model.predict_push` on the
 perceived outline (:class:`push_core.estimator.contact.ContactOutline`) with the per-push process
@@ -27,7 +27,7 @@ update, the push is linearised again at the smoothed pre-push state (one Rauch-T
 Gauss-Newton step, :meth:`PushEKF._iterate`) and the update is redone from the pre-push
 estimate: an iterated EKF for the process nonlinearity. It doubles the cost of a push (two
 model evaluations with Jacobian and two updates). Costs and the NEES / COM error with 1 and 2
-iterations on the filter's own model: ``docs/RESULTS.md``, section ``bench_estimator``; on
+iterations on the filter's own model: ``docs/results/bench_estimator.md``; on
 pybullet physics the default is section ``eval_estimator`` and ``pushbot eval estimator
 --iterations 1`` runs the plain EKF for comparison.
 

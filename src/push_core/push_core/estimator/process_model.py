@@ -19,7 +19,7 @@ partial derivatives (the contact point and normal on the touched segment or vert
 of the pose, the touch fraction, both contact modes of the motion cone, the twist about the COM
 and its application to the pose) and chained over the substeps. It runs on Python floats,
 written out per component, because numpy calls on 2-vectors cost more than the arithmetic
-(timings: ``docs/RESULTS.md``, ``bench_estimator``). Tests check it against central finite
+(timings: ``docs/results/bench_estimator.md``). Tests check it against central finite
 differences and the model part against ``torch.func.jacfwd`` through
 :func:`push_core.model.push_twist`; the values equal ``push_twist`` / ``apply_twist`` to
 rounding.

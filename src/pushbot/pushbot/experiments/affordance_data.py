@@ -1,4 +1,4 @@
-"""Training data for the learned affordance model: pybullet pushes (docs/ARCHITECTURE.md).
+"""Training data for the learned affordance model: pybullet pushes (docs/design/planner.md).
 
 ROS-free; uses the sim bridge's pybullet world (:class:`sim_bridge.world.PushWorld`, default
 physics) in this process. ``pushbot data affordances --n N --out DIR`` is the command line.

@@ -32,8 +32,8 @@ the "without estimation" baseline |c_true| (COM assumed at the centroid) and the
 <= 10 mm after 10 pushes on butter and tri1; the source: 17.7 +- 8.5 mm); l (no ground truth in
 a physics engine: final / initial and its change over the last 3 pushes) and m (error to the
 simulated pusher friction); NEES over (x, y, theta, c_x, c_y, m) and NIS with their chi-square
-bands; gated observations. ``--write`` puts the report into ``docs/RESULTS.md`` (section
-``eval_estimator``) of the source checkout. The work is in
+bands; gated observations. ``--write`` puts the report into
+``docs/results/eval_estimator.md`` of the source checkout. The work is in
 :mod:`pushbot.experiments.estimator_episodes`.
 """
 
@@ -82,7 +82,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="linearisations per push (EKFConfig.iterations; default: the "
                              "filter's default, 2; 1 = plain EKF)")
     parser.add_argument("--write", action="store_true",
-                        help=f"write the report into docs/RESULTS.md (section {SECTION_ID})")
+                        help=f"write the report into docs/results/{SECTION_ID}.md")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 

@@ -17,7 +17,8 @@ Output in ``--out`` (default ``out/eval``):
   trials, true end errors ``end_error_xy_*`` (m) / ``end_error_theta_*`` (rad) mean and std over
   all trials, ``com_error_*`` (m, ``filter``), ``reasons``, and ``timing`` with the
   planning-time median and the mean episode wall time), ``trials`` (the episode records of
-  docs/ARCHITECTURE.md, in trial order) and ``timing`` (total wall time, workers, load).
+  docs/design/evaluation.md#episode-record, in trial order) and ``timing`` (total wall time,
+  workers, load).
   Wall times are only in ``timing`` keys and the records' ``wall_s`` / ``planning_ms``; the rest
   is a deterministic function of the options (:func:`deterministic_view`), so the same seed
   gives the same JSON.

@@ -2,7 +2,7 @@
 
 :func:`run_trial` builds the scene of a :class:`pushbot.experiments.protocol.Trial` in the pybullet
 world (``sim_bridge.world.PushWorld``), runs the closed loop and returns the *episode record* of
-docs/ARCHITECTURE.md ("Closed loop and evaluation"). Each cycle:
+docs/design/evaluation.md. Each cycle:
 
 1. **State.** ``gt``: the true pose, the simulated COM and pusher friction and
    ``l = spec.limit_surface_guess()``; the outline is the
@@ -136,7 +136,8 @@ class EpisodeRunner:
                                      workspace=world.workspace), model)
 
     def run(self, trial: Trial) -> dict[str, Any]:
-        """Run one trial; returns the episode record (module docstring, ARCHITECTURE)."""
+        """Run one trial; returns the episode record (module docstring,
+        docs/design/evaluation.md#episode-record)."""
         if not isinstance(trial, Trial):
             raise ValueError(f"trial: expected a pushbot.experiments.protocol.Trial, got "
                              f"{type(trial).__name__}")

@@ -4,8 +4,8 @@ ROS-free: renders frames with the sim bridge's pybullet world in this process an
 same code as the node (:class:`~push_perception.model.Segmenter` then
 :class:`~push_perception.core.EpisodeTracker`) on them.
 
-Protocol (seeded; the default reproduces docs/RESULTS.md)
----------------------------------------------------------
+Protocol (seeded; the default reproduces docs/results/eval_perception.md)
+------------------------------------------------------------------------
 - Objects: the held-out test objects ``TEST_OBJECTS`` (tri1, butter, hex), never seen in
   training. Per object ``--episodes`` episodes of ``--frames`` frames at 640 x 480.
 - Episodes alternate between two conditions: *nominal* (the sim bridge's defaults: plain
@@ -368,7 +368,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--threads", type=int, default=d.threads,
                         help=f"torch threads (default {d.threads})")
     parser.add_argument("--write", action="store_true",
-                        help=f"write the report into docs/RESULTS.md (section {SECTION_ID})")
+                        help=f"write the report into docs/results/{SECTION_ID}.md")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -389,5 +389,5 @@ def run(args: argparse.Namespace) -> int:
             "pushbot eval perception --write"
         results.update_section(SECTION_ID, results.format_section(
             "Perception accuracy on held-out objects (`eval_perception`)", command, body))
-        print(f"wrote section {SECTION_ID} of {results.RESULTS_PATH}")
+        print(f"wrote {results.page_path(SECTION_ID)}")
     return 0

@@ -355,8 +355,8 @@ def model_card(report: dict[str, Any], weights: Path) -> str:
 Two-stage encoder-decoder on RGB + height above the table (`push_perception.model`): a coarse
 net on the frame downscaled to 160 x 120 locates the object, a fine net refines a full-resolution
 crop around it. {report["parameters"]} parameters, {size_kb:.0f} KB. Inference and preprocessing:
-`push_perception.model.Segmenter`; design and accuracy: docs/ARCHITECTURE.md (Perception) and
-docs/RESULTS.md (`eval_perception`, `bench_perception`).
+`push_perception.model.Segmenter`; design and accuracy: docs/design/perception.md and
+docs/results/eval_perception.md and docs/results/bench_perception.md.
 
 ## Data
 
@@ -389,8 +389,8 @@ Validation (full two-stage pipeline on full frames of the held-out shard): mask 
 {v["iou_median"]:.4f}, mean {v["iou_mean"]:.4f}, 10th percentile {v["iou_p10"]:.4f} over
 {v["frames"]} frames; empty frames predicted empty: {v["empty_correct"]:.2f}.
 
-Held-out test objects (tri1, butter, hex): `pushbot eval perception`, docs/RESULTS.md section
-`eval_perception`.
+Held-out test objects (tri1, butter, hex): `pushbot eval perception`,
+docs/results/eval_perception.md.
 
 ## Limits
 

@@ -1,5 +1,5 @@
-"""The source's evaluation protocol (Kloss et al. 2020, thesis ch. 5; docs/ARCHITECTURE.md,
-"Closed loop and evaluation") as data: tasks, goal regions, methods and trials.
+"""The source's evaluation protocol (Kloss et al. 2020, thesis ch. 5;
+docs/design/evaluation.md) as data: tasks, goal regions, methods and trials.
 
 One :class:`Trial` is one episode: an object at the workspace centre with an initial
 orientation, a goal relative to the initial pose, a method, a state source and the physics
@@ -7,7 +7,7 @@ seed. The in-process evaluation (``pushbot eval``), the ROS-graph runs (``--grap
 demo all build their episodes from it, so the same trial means the same scene, goal and planner
 seed everywhere.
 
-Definitions (docs/ARCHITECTURE.md, "Closed loop and evaluation"):
+Definitions (docs/design/evaluation.md):
 
 - Tasks: ``translation`` moves 20 cm and keeps the orientation, ``rotation`` turns by
   0.5 rad and keeps the position, ``mixed`` moves 10 cm and turns by 0.35 rad. The direction of

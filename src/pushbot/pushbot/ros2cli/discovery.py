@@ -156,8 +156,8 @@ def call_until_answered(client: Any, request: Any, executor: Executor | None, de
 
 #: The discovery rule of the graph commands (see :func:`wait_for_stable_graph`): at least
 #: MIN_DISCOVERY_TIME seconds, then until nothing changed for SETTLE_TIME seconds. Chosen from
-#: discovery timelines on the ``pushbot up`` graph (benchmarks/bench_cli.py, docs/RESULTS.md
-#: section ``cli``, where shorter rules are replayed on the same timelines).
+#: discovery timelines on the ``pushbot up`` graph (benchmarks/bench_cli.py,
+#: docs/results/cli.md, where shorter rules are replayed on the same timelines).
 MIN_DISCOVERY_TIME = 3.0
 SETTLE_TIME = 2.0
 #: Default bound (seconds) of the graph commands' discovery wait (``--spin-time``).

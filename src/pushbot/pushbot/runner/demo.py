@@ -23,7 +23,7 @@
    replay``; it runs at twice sim time during pushes), ``episode.gif`` (the same, at most 60
    frames, smaller), ``episode_estimate.png`` (estimate vs ground truth over
    time), ``trajectory.png`` (true and estimated poses, goal, pushes; top view),
-   ``episode.json`` (the episode record of docs/ARCHITECTURE.md) and the node logs
+   ``episode.json`` (the episode record of docs/design/evaluation.md) and the node logs
    (``graph_logs/``). ``--no-record`` skips the recording and the video.
 
 Ctrl-C (or SIGTERM) stops every node process (SIGINT, then SIGTERM, then SIGKILL to each

@@ -21,10 +21,10 @@ this process drives the episodes only through the nodes' public interfaces:
    scene's).
 3. **Goal.** The first ``estimator/object_pose`` at or after the new scene's reference frame
    (the new ``perception/outline``'s stamp) plus
-   :meth:`Trial.goal_offset` (ARCHITECTURE "Goal frame": yaw in the episode frame) on
+   :meth:`Trial.goal_offset` (docs/design/evaluation.md#goal-frame: yaw in the episode frame) on
    ``goal_pose``.
 4. **Run** until ``planner/status`` (with this goal) says ``goal reached`` or ``failed``.
-5. **Record** (ARCHITECTURE "Episode record"): ground truth from ``sim/object_pose`` (the
+5. **Record** (docs/design/evaluation.md#episode-record): ground truth from ``sim/object_pose`` (the
    pose at the stamp of each frame the pipeline saw), estimates from
    ``estimator/object_pose``, pushes from ``planner/push``; success from the *true* pose
    against the true initial pose plus the offset, orientation modulo the object's symmetry
@@ -586,9 +586,9 @@ def run_graph_trials(trials: list[Trial], *, out_dir: Path | str | None = None,
     Returns
     -------
     list of dict
-        One episode record per trial (docs/ARCHITECTURE.md). A trial that breaks the graph (a
-        timeout, a node that died) gets ``success=False`` and the error as ``reason``; the
-        graph is then restarted for the next trial.
+        One episode record per trial (docs/design/evaluation.md#episode-record). A trial that
+        breaks the graph (a timeout, a node that died) gets ``success=False`` and the error as
+        ``reason``; the graph is then restarted for the next trial.
     """
     for trial in trials:
         check_trial(trial)

@@ -7,8 +7,8 @@ the graph's public interfaces or by killing a process) and accepts an end status
 :meth:`Fault.accepts_end` agrees. Everything is real: node processes killed with SIGKILL and
 started again with ``pushbot run``, messages through DDS.
 
-Scenarios (:data:`SCENARIOS`, ``benchmarks/bench_faults.py`` runs them; docs/ARCHITECTURE.md,
-"Faults and recovery"):
+Scenarios (:data:`SCENARIOS`, ``benchmarks/bench_faults.py`` runs them;
+docs/design/faults.md#scenarios):
 
 - ``kill-<node>`` (:class:`KillRestart`): after the episode's first executed push, SIGKILL
   ``segmentation_node``, ``ekf_node`` or ``planner_node`` and start it again (a restarted

@@ -4,8 +4,8 @@ The goal goes out once on ``goal_pose`` (geometry_msgs/PoseStamped, built by
 ``push_ros.poses.pose_stamped_msg``; QoS ``push_ros.qos.GOAL_QOS``, reliable + transient
 local, which matches the planner's subscription whether it is volatile or transient local) in
 ``--frame`` (default ``world``). X and Y are the goal position in metres in that frame; YAW is
-the rotation in radians wanted since the episode's first camera frame (ARCHITECTURE, "Goal
-frame"), e.g.::
+the rotation in radians wanted since the episode's first camera frame
+(docs/design/evaluation.md#goal-frame), e.g.::
 
     pushbot goal 0.05 0.03 0.3 --wait
 

@@ -611,8 +611,8 @@ def plot_estimate(ep: Episode, path: Path) -> Path | None:
             ax.fill_between(te, scale[j] * (est[:, j] - 2 * sig[:, j]),
                             scale[j] * (est[:, j] + 2 * sig[:, j]), color="tab:red",
                             alpha=0.15, label="estimate +- 2 sigma")
-        # The goal's yaw is relative to the episode's first frame (ARCHITECTURE "Goal
-        # frame"), so only its position is drawn.
+        # The goal's yaw is relative to the episode's first frame
+        # (docs/design/evaluation.md#goal-frame), so only its position is drawn.
         for g in {tuple(g) for _, g in ep.goals} if j < 2 else ():
             ax.axhline(scale[j] * g[j], color="m", ls="--", lw=1,
                        label="goal" if j == 0 else None)

@@ -26,7 +26,7 @@ server time (sim time), and logs every message at its header stamp (a message wi
 header: at the last ``/clock``; without ``/clock``: at the wall clock), so Foxglove's timeline
 and the message stamps agree (:mod:`pushbot.viz.view_frames`).
 
-Frames: the pip install has no ``/tf`` (docs/ARCHITECTURE.md, the tf note), so the view sends
+Frames: the pip install has no ``/tf`` (docs/design/topics.md#tf-note), so the view sends
 Foxglove ``FrameTransforms`` on the channel ``/pushbot/frames``: ``world`` -> ``object`` from
 ``estimator/object_pose`` (the estimate), ``world`` -> ``camera_color_optical_frame`` from
 ``camera/color/extrinsics`` and ``world`` -> ``pusher`` from the end pose of the last

@@ -8,7 +8,7 @@
 - :class:`FrameTree`: the latest transform per child frame (parent, translation in metres,
   rotation as a unit quaternion (x, y, z, w)), what the view sends as Foxglove
   ``FrameTransforms`` so a 3D panel places the ``object``, ``pusher`` and camera frames in
-  ``world`` on the pip install (no ``/tf`` there: docs/ARCHITECTURE.md, the tf note).
+  ``world`` on the pip install (no ``/tf`` there: docs/design/topics.md#tf-note).
 """
 
 from __future__ import annotations
