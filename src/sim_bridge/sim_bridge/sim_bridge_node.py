@@ -20,6 +20,7 @@ docs/design/sim-world.md, docs/design/node-runtime.md and docs/design/arm.md.
 
 from __future__ import annotations
 
+import time
 import traceback
 from typing import Any
 
@@ -76,6 +77,7 @@ class SimBridgeNode(Node):
                                     lambda c: self.faults.frames(c, c.time), self.health.log)
         self.timeline = self.scene.timeline
         self._capture: Capture | None = None
+        self._next_idle_clock = 0.0  # monotonic s: the next resting /clock is due then
         self.worker = Worker()  # every pybullet call happens in its one thread
         self.rest = Rest(self.worker)  # time and still frames while no job runs
         try:
@@ -167,13 +169,23 @@ class SimBridgeNode(Node):
     def _on_clock_timer(self) -> None:
         """``/clock`` at ``clock_rate``: the physics' time while it runs (``sim_time`` is plain
         arithmetic on a step counter, safe to read while the worker steps); while the world
-        rests, time passes as wall time does (:mod:`sim_bridge.resting`). Never goes back."""
+        rests, time passes as wall time does at every tick (:mod:`sim_bridge.resting`) and is
+        published at ``idle_clock_rate``. Never goes back."""
         rested = self.rest.elapsed()
         if self._pushing:
             self.scene.clock(self.timeline.at(self._world.sim_time))
         elif self._capture is not None and not self._closing:
-            self.rest.run(lambda: self.scene.clock(self.timeline.idle(rested,
-                                                                      self._world.sim_time)))
+            now = time.monotonic()
+            publish = now >= self._next_idle_clock
+            if publish:
+                self._next_idle_clock = now + 1.0 / self._params.idle_clock_rate
+            self.rest.run(lambda: self._rest_tick(rested, publish))
+
+    def _rest_tick(self, rested: float, publish: bool) -> None:
+        """Resting time passes by ``rested`` s; ``/clock`` at the new time if ``publish``."""
+        t = self.timeline.idle(rested, self._world.sim_time)
+        if publish:
+            self.scene.clock(t)
 
     def _on_idle_timer(self) -> None:
         """The camera streams while the world rests: a still frame (fresh sensor noise) with
