@@ -379,7 +379,9 @@ def test_record_all_catches_a_short_lived_publisher(tmp_path: Path, processes) -
                                 "--keep-alive", "2"],
                                name="pub")
         assert proc.wait(timeout=60) == 0, processes.output(proc)
-        time.sleep(0.5)  # the last sample's way to the recorder
+        deadline = time.monotonic() + 30.0  # the sample's way to the recorder
+        while recorder.counts().get(topic, 0) < 1 and time.monotonic() < deadline:
+            time.sleep(0.05)
         counts = recorder.counts()
     assert counts.get(topic) == 1, (counts, processes.output(proc))
     with Reader(tmp_path / "bag") as reader:
