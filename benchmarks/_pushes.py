@@ -22,7 +22,7 @@ from push_core.objects import load_object
 from push_core.planner import PlannerConfig
 from push_core.reach import model_min_pushes
 from push_core.symmetry import symmetry_order_of_polygon
-from pushbot.experiments.protocol import Trial
+from pushbot.runner.protocol import Trial
 
 #: The planner's longest push past the contact (m), the L_max of the minimum.
 MAX_PUSH_LENGTH = PlannerConfig().max_push_length

@@ -53,7 +53,7 @@ from push_core.geometry import world_to_object  # noqa: E402
 from push_core.objects import load_object  # noqa: E402
 from push_core.planner import AVOID_RADIUS, motion_score  # noqa: E402
 from pushbot.experiments.inprocess import EpisodeRunner  # noqa: E402
-from pushbot.experiments.protocol import Trial, make_trials  # noqa: E402
+from pushbot.runner.protocol import Trial, make_trials  # noqa: E402
 from sim_bridge.world import PushWorld, WorldConfig, quiet_stdout  # noqa: E402
 
 WORLDS = ("friction_jump", "sticky_patch", "com_edge")

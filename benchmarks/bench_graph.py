@@ -134,8 +134,8 @@ def two_proportion_p(s1: int, s2: int, n: int) -> float:
 
 def agreement(n: int, out_dir: Path) -> tuple[list[dict], list[dict]]:
     from pushbot.experiments.inprocess import run_trial
-    from pushbot.experiments.protocol import Trial
     from pushbot.runner.episode import run_graph_trials
+    from pushbot.runner.protocol import Trial
 
     trials = [Trial(object="butter", task="mixed", method="ana", k=3, state="filter",
                     com="random", index=i, seed=0) for i in range(n)]

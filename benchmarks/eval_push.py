@@ -275,7 +275,7 @@ def exp_full(trials: int, workers: int, seed: int) -> tuple[str, str]:
     verdict = ("met" if wall <= 30 else "NOT met") if len(doc["trials"]) == n_full else \
         f"not applicable ({len(doc['trials'])} of {n_full} trials)"
     body = "\n".join([
-        "Full protocol (`pushbot.experiments.protocol`): "
+        "Full protocol (`pushbot.runner.protocol`): "
         f"{', '.join(OBJECTS)} x {', '.join(TASKS)} x {trials} trials, "
         "full system (`filter`: rendered 640 x 480 RGB-D -> segmentation CNN -> perception core "
         "-> EKF -> planner), ana, k = 3, COM at the geometric centre, randomised mass and "

@@ -29,7 +29,7 @@ from push_core.estimator import EKFConfig, PushEKF
 from push_core.objects import load_object
 from push_core.planner import Planner, PlannerConfig, prepare_outline
 from push_core.procedural import RANDOM_KINDS, random_simple_polygon
-from pushbot.experiments.protocol import Trial
+from pushbot.runner.protocol import Trial
 
 N_SHAPES = 320
 SEED = 2024

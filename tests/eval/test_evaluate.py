@@ -85,7 +85,7 @@ def test_planner_and_filter_variants_reach_every_layer_and_keep_the_scenes():
     the cell, not of the trial's seed (the same scenes, goals and planner seeds)."""
     from push_planner.config import PARAMETERS as PLANNER_PARAMETERS
     from pushbot.experiments.inprocess import EpisodeRunner
-    from pushbot.experiments.protocol import Trial, planner_episode_params
+    from pushbot.runner.protocol import Trial, planner_episode_params
 
     base = build_trials(EvalOptions(objects=["rect1"], tasks=["mixed"], trials=2))
     opts = EvalOptions(objects=["rect1"], tasks=["mixed"], trials=2, horizon=3,
@@ -117,7 +117,7 @@ def test_planner_and_filter_variants_reach_every_layer_and_keep_the_scenes():
 
 def test_the_support_cell_is_a_world_variant_of_the_same_scenes():
     from pushbot.experiments.evaluate import variant_label
-    from pushbot.experiments.protocol import Trial
+    from pushbot.runner.protocol import Trial
 
     base = build_trials(EvalOptions(objects=["rect1"], tasks=["mixed"], trials=2))
     cut = build_trials(EvalOptions(objects=["rect1"], tasks=["mixed"], trials=2,

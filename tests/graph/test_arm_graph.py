@@ -20,9 +20,9 @@ from collections.abc import Iterator
 import numpy as np
 import pytest
 
-from pushbot.experiments.protocol import Trial
 from pushbot.runner.episode import GraphRunner
 from pushbot.runner.graph_nodes import GraphError
+from pushbot.runner.protocol import Trial
 
 pytestmark = [pytest.mark.ros, pytest.mark.graph, pytest.mark.slow]
 

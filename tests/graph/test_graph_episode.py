@@ -31,9 +31,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pushbot.experiments.protocol import Trial
-from pushbot.runner.episode import GraphRunner, _same_goal, check_trial, run_graph_trials
+from pushbot.runner.episode import GraphRunner, check_trial, run_graph_trials
 from pushbot.runner.faults import KillRestart, Knock
+from pushbot.runner.graph_record import same_goal
+from pushbot.runner.protocol import Trial
 
 pytestmark = [pytest.mark.ros, pytest.mark.graph, pytest.mark.slow]
 
@@ -111,7 +112,7 @@ def test_a_disc_is_pushed_to_its_goal_position_with_its_orientation_ignored(
     goal = rec["goal"]
     goal_text = " ".join(f"{v:.4f}" for v in (goal[0], goal[1], math.remainder(goal[2],
                                                                              2 * math.pi)))
-    mine = [s for s in graph.rec.status[n_status:] if _same_goal(s.get("goal", ""), goal_text)]
+    mine = [s for s in graph.rec.status[n_status:] if same_goal(s.get("goal", ""), goal_text)]
     messages = [s["_message"] for s in mine]
     assert all(s.get("orientation") == "ignored" for s in mine
                if s.get("state") in ("pushing", "reached")), messages

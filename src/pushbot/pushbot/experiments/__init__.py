@@ -12,7 +12,7 @@ the node packages imports them, so the nodes run without the simulator.
 - :mod:`.estimator_episodes`, :mod:`.estimator_evaluation`: own-model and pybullet episodes of
   the EKF (``push_core.estimator``) and ``pushbot eval estimator``;
 - :mod:`.planner_loop`: the planner's closed loop on ground-truth state in pybullet;
-- :mod:`.protocol` (the trial definition), :mod:`.inprocess` (one trial in-process),
+- :mod:`.inprocess` (one trial of :mod:`pushbot.runner.protocol` in-process),
   :mod:`.evaluate` (``pushbot eval push``: the closed-loop experiments, in-process, on Ray or
   through the graph runner :mod:`pushbot.runner.episode`);
 - :mod:`.replay`: ``pushbot replay``, a recorded episode bag to video (:mod:`pushbot.viz.render`).

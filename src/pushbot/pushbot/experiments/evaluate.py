@@ -2,7 +2,7 @@
 
 Every combination of the list options (objects x tasks x methods x k x state x com x region x
 COM estimation) is a *cell*; each cell runs ``--trials`` trials of
-:mod:`pushbot.experiments.protocol` (index i: initial orientation 2 pi (i mod 20) / 20, run i // 20;
+:mod:`pushbot.runner.protocol` (index i: initial orientation 2 pi (i mod 20) / 20, run i // 20;
 physics, goal and planner seeds from ``--seed``). Trials run in worker processes (``--workers``,
 default: the usable cores; ``forkserver`` start method, one torch/OpenCV thread each) with the same
 cores as the nodes (:mod:`pushbot.experiments.inprocess`), on a Ray cluster (``--ray ADDRESS``,
@@ -54,7 +54,7 @@ from typing import Any
 
 import numpy as np
 
-from pushbot.experiments.protocol import COM_MODES, METHODS, REGIONS, STATE_SOURCES, TASKS, Trial
+from pushbot.runner.protocol import COM_MODES, METHODS, REGIONS, STATE_SOURCES, TASKS, Trial
 
 __all__ = [
     "EvalOptions",

@@ -46,6 +46,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = [
+    "COM_MODES",
     "METHODS",
     "REGIONS",
     "STATE_SOURCES",
@@ -172,7 +173,7 @@ class Trial:
             raise ValueError(f"horizon must be an integer >= 1, got {self.horizon!r}")
         object.__setattr__(self, "horizon", int(self.horizon))
         if not (isinstance(self.support_cell, float) and self.support_cell == 0.0):
-            from sim_bridge.scene import check_support_cell  # the simulator's rule
+            from sim_bridge.config import check_support_cell  # the simulator's rule
 
             object.__setattr__(self, "support_cell", check_support_cell(self.support_cell))
         for name in ("estimate_com", "avoid_contradicted", "relearn"):
