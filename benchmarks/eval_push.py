@@ -55,15 +55,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _pushes import pushes_over_minimum, trial_minimum  # noqa: E402
 from _results import format_section, update_section  # noqa: E402
 
-from pushbot.experiments.evaluate import (  # noqa: E402
+from pushbot.experiments.eval_report import (  # noqa: E402
     SOURCE_TABLE_5_2,
-    EvalOptions,
-    evaluate,
     stats,
     table_5_1,
     table_5_2,
     write_outputs,
 )
+from pushbot.experiments.evaluate import EvalOptions, evaluate  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "out" / "eval"

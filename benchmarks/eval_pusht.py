@@ -83,7 +83,8 @@ def fidelity_errors(trials: int, seed: int, two_faces: bool) -> dict[bool, list]
 
     from push_core.rollout import rollout_push
     from push_core.transit import point_polygon_distance
-    from pushbot.experiments.pusht_adapter import PushTRunner, tee_body
+    from pushbot.experiments.pusht_adapter import PushTRunner
+    from pushbot.experiments.pusht_world import tee_body
 
     r = PushTRunner("state")
     ring = tee_body(r.env)[0]

@@ -47,13 +47,8 @@ from _results import format_section, update_section  # noqa: E402
 from bench_graph import wilson  # noqa: E402
 
 from push_core.procedural import SHAPE_CLASSES  # noqa: E402
-from pushbot.experiments.evaluate import (  # noqa: E402
-    EvalOptions,
-    evaluate,
-    stats,
-    usable_cores,
-    write_outputs,
-)
+from pushbot.experiments.eval_report import stats, write_outputs  # noqa: E402
+from pushbot.experiments.evaluate import EvalOptions, evaluate, usable_cores  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 OBJECTS_DIR = Path("benchmarks") / "objects"  # relative to ROOT

@@ -76,7 +76,7 @@ def write_episode_bag(path: Path, *, with_extrinsics: bool = True,
     from push_ros.paths import push_path
     from push_ros.poses import pose_stamped_msg, pose_with_covariance_msg, transform_msg
     from push_ros.stamps import stamp_from_seconds
-    from pushbot.ros2cli.bag import message_definition
+    from pushbot.ros2cli.bag_store import message_definition
     from sim_bridge.camera import CameraConfig, intrinsics, look_at_pose, project
 
     cfg = CameraConfig(width=160, height=120)

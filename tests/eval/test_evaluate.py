@@ -11,17 +11,15 @@ import sys
 import pytest
 
 from pushbot import cli
-from pushbot.experiments.evaluate import (
-    EvalOptions,
-    build_trials,
+from pushbot.experiments.eval_report import (
     deterministic_view,
-    evaluate,
     stats,
     summarise,
     table_5_1,
     table_5_2,
     write_outputs,
 )
+from pushbot.experiments.evaluate import EvalOptions, build_trials, evaluate
 
 SMALL = dict(objects=["rect1"], tasks=["mixed", "rotation"], methods=["ana", "pushnet"],
              k=[1], trials=2, seed=5)
@@ -116,7 +114,7 @@ def test_planner_and_filter_variants_reach_every_layer_and_keep_the_scenes():
 
 
 def test_the_support_cell_is_a_world_variant_of_the_same_scenes():
-    from pushbot.experiments.evaluate import variant_label
+    from pushbot.experiments.eval_report import variant_label
     from pushbot.runner.protocol import Trial
 
     base = build_trials(EvalOptions(objects=["rect1"], tasks=["mixed"], trials=2))

@@ -14,6 +14,7 @@ the node packages imports them, so the nodes run without the simulator.
 - :mod:`.planner_loop`: the planner's closed loop on ground-truth state in pybullet;
 - :mod:`.inprocess` (one trial of :mod:`pushbot.runner.protocol` in-process),
   :mod:`.evaluate` (``pushbot eval push``: the closed-loop experiments, in-process, on Ray or
-  through the graph runner :mod:`pushbot.runner.episode`);
+  through the graph runner :mod:`pushbot.runner.episode`) and its report
+  :mod:`.eval_report` (statistics, Tables 5.1 and 5.2, Figs. 5.5-5.7);
 - :mod:`.replay`: ``pushbot replay``, a recorded episode bag to video (:mod:`pushbot.viz.render`).
 """

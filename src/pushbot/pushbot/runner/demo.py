@@ -48,7 +48,8 @@ from typing import Any
 
 import numpy as np
 
-from pushbot.ros2cli.bag import BagError, BagRecorder, TopicSelection
+from pushbot.ros2cli.bag_record import BagRecorder, TopicSelection
+from pushbot.ros2cli.bag_store import BagError
 from pushbot.runner.doctor import add_arguments as add_doctor_arguments
 from pushbot.runner.doctor import run_doctor
 from pushbot.runner.protocol import METHODS, TASKS, Trial

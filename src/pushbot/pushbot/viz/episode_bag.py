@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from pushbot.ros2cli.bag import open_reader, read_messages
+from pushbot.ros2cli.bag_store import open_reader, read_messages
 
 __all__ = ["AFFORDANCES", "CAMERA_INFO", "DEPTH", "ESTIMATE", "EXTRINSICS", "GOAL", "IMAGE",
            "MASK", "MAX_PENDING", "MONITOR", "OUTLINE", "PUSH", "STATUS", "TOPICS", "TRUTH",

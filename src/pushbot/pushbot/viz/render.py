@@ -46,7 +46,7 @@ from typing import Any
 
 import numpy as np
 
-from pushbot.ros2cli.bag import BagError
+from pushbot.ros2cli.bag_store import BagError
 from pushbot.viz.episode_bag import (
     CAMERA_INFO,
     ESTIMATE,
