@@ -1,4 +1,4 @@
-"""Shared helper of the closed-loop benchmarks: pushes against the physical minimum (issue 22).
+"""Shared helper of the closed-loop benchmarks: pushes against the physical minimum.
 
 ``pushes / min`` of a set of episode records is the mean, over the successful trials, of
 ``steps / n_min`` with ``n_min`` from :func:`push_core.reach.model_min_pushes` for the trial's

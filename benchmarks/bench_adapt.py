@@ -1,4 +1,4 @@
-"""Worlds that contradict the model (issue 22): does the loop recover, and does it repeat
+"""Worlds that contradict the model: does the loop recover, and does it repeat
 futile pushes?
 
 The protocol's in-process episodes (``pushbot.experiments.inprocess.EpisodeRunner``, mixed task,
@@ -17,9 +17,9 @@ Variants: ``greedy`` (the current loop) and ``lookahead+adapt`` (``horizon`` 2,
 ``avoid_contradicted`` and, with ``filter``, the estimator's ``relearn``), as in
 ``bench_lookahead``. ``futile repeats``: pushes made at the same contact region (object frame,
 within ``push_core.planner.AVOID_RADIUS``) as the previous push after that push gained less
-than a quarter of the true eq. (5.1) score to the goal (lambda 2 mm/deg) - the issue's "the
-same useless push again", whether or not the model predicted it. ``contradicted repeats``: the
-issue's acceptance test, pushes at the contact region of an earlier push of the episode whose
+than a quarter of the true eq. (5.1) score to the goal (lambda 2 mm/deg) - "the same
+useless push again", whether or not the model predicted it. ``contradicted repeats``: the
+adaptation's acceptance test, pushes at the contact region of an earlier push of the episode whose
 outcome contradicted its prediction (:func:`push_core.episode.contradiction`, rule 8, on the
 state source's poses: what the loop could know).
 

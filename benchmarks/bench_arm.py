@@ -1,4 +1,4 @@
-"""Pushing with the arm (issue 20): the graph with push_executor_node and the simulated Panda
+"""Pushing with the arm: the graph with push_executor_node and the simulated Panda
 against the free pusher, on the same trials; writes docs/RESULTS.md section ``arm``.
 
 Both engines run ``pushbot eval push --graph`` trials (full system: rendered RGB-D -> CNN ->
@@ -63,7 +63,7 @@ def paired(a: list[float], b: list[float]) -> str:
 
 def trials_for(objects: list[str], n: int) -> list[Trial]:
     """The trials of ``pushbot eval push --graph --robot arm --objects OBJECTS --tasks mixed
-    --state filter --com random --trials N`` (the acceptance command of issue 20), built by the
+    --state filter --com random --trials N`` (the arm's acceptance command), built by the
     same function the command uses."""
     return build_trials(EvalOptions(objects=list(objects), tasks=["mixed"], state=["filter"],
                                     com=["random"], trials=n))

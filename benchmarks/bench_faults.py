@@ -1,4 +1,4 @@
-"""Fault scenarios in graph mode, repeated (issue 15, item 5).
+"""Fault scenarios in graph mode, repeated (docs/ARCHITECTURE.md, "Faults and recovery").
 
 Every scenario of :data:`pushbot.runner.faults.SCENARIOS` runs protocol trials (each object of
 ``--objects``, default butter; mixed task, random COM, ana, k = 3, state ``filter``, trial

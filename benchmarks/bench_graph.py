@@ -1,5 +1,5 @@
 """The ROS graph, measured: camera frames across processes, the demo, per-step latency, and
-graph vs in-process agreement (issue 7).
+graph vs in-process agreement.
 
 1. **Camera frames across processes.** ``sim_bridge_node`` (640 x 480, re-publishing its frame
    at 5 Hz while idle) in one process, a subscriber counting ``camera/color/image_raw`` (rgb8,

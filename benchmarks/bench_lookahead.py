@@ -1,4 +1,4 @@
-"""Lookahead and adaptation (issue 22): planning time and closed-loop pushes against greedy.
+"""Lookahead and adaptation: planning time and closed-loop pushes against greedy.
 
 1. **Planning time** per step (``Planner.plan``) with ``horizon`` 1 (greedy), 2 and 3 on
    butter's and tri1's outlines (1.5 mm spacing), random poses and goals as

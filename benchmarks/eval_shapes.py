@@ -1,4 +1,4 @@
-"""The shape-class benchmark of issue 12 ("Every flat object"), written to docs/RESULTS.md.
+"""The shape-class benchmark (every flat object the library can make), written to docs/RESULTS.md.
 
 The full system (``state filter``: rendered 640 x 480 RGB-D -> segmentation CNN -> perception
 core -> EKF with COM estimation -> planner), method ana, k = 3, the translation and mixed tasks,
@@ -20,8 +20,9 @@ whose *estimate* reached the goal but whose true pose did not, failure reasons),
 table and the comparison with the source's 10.6-13.9 pushes (Table 5.2).
 
 With ``--horizon H`` (H > 1), ``--avoid-contradicted`` or ``--relearn`` the planner and filter
-variants of issue 22 run (``pushbot eval push`` has the same options); their results go to the
-section ``eval_shapes_variant`` and ``--out``'s ``variant/`` folder, so the greedy section stays.
+variants run (lookahead, contradicted pushes avoided, re-learning; ``pushbot eval push`` has
+the same options); their results go to the section ``eval_shapes_variant`` and ``--out``'s
+``variant/`` folder, so the greedy section stays.
 
 Usage::
 

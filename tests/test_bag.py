@@ -1,4 +1,4 @@
-"""``pushbot bag record|info|play`` on real DDS messages (issue 14, item 4).
+"""``pushbot bag record|info|play`` on real DDS messages.
 
 A publisher in this process, ``pushbot bag record`` / ``bag play`` as child processes (the
 way a user runs them): record until Ctrl-C, read the bag back with ``rosbags`` (counts, a
@@ -293,7 +293,7 @@ def test_a_failing_write_is_counted_not_silent(tmp_path: Path, ros_context, wait
         assert reader.message_count == 2
 
 
-# --- bag play leaves command topics out (issue 23, item 7) ---------------------------------
+# --- bag play leaves command topics out ----------------------------------------------------
 
 def _write_bag(path: Path, topics: dict[str, tuple[str, Any]]) -> None:
     """A bag of one message per topic (``{topic: (msgtype, message)}``), written as ``bag
@@ -361,7 +361,7 @@ def test_play_leaves_command_topics_out_unless_asked(tmp_path: Path, capsys) -> 
     assert "published 1 messages: /goal_pose 1" in captured.out and "leaving" not in captured.err
 
 
-# --- record: short-lived publishers and the default folder (issue 23, item 10) -------------
+# --- record: short-lived publishers and the default folder ---------------------------------
 
 def test_record_all_catches_a_short_lived_publisher(tmp_path: Path, processes) -> None:
     # What `pushbot goal` does: a new process, a new topic, one message once a subscriber

@@ -1,4 +1,4 @@
-"""The demo's recording (issue 14 acceptance): ``pushbot demo`` writes an MCAP bag of its
+"""The demo's recording: ``pushbot demo`` writes an MCAP bag of its
 episode that reads back with ``rosbags`` (topics, types, counts consistent with the episode
 record), a video with one frame per camera frame of the episode and one per monitor frame of
 the bridge (on in the demo: rendered during the pushes, so the video has more frames than

@@ -1,4 +1,4 @@
-"""Bags written by ``pushbot.ros2cli.bag_mcap`` as rosbag2 Jazzy writes them (issue 23, item 13).
+"""Bags written by ``pushbot.ros2cli.bag_mcap`` as rosbag2 Jazzy writes them.
 
 ROS-free: messages serialized with the ``rosbags`` Jazzy type store are written with
 :class:`~pushbot.ros2cli.bag_mcap.Rosbag2McapWriter` at chosen times, then read back with the

@@ -1,4 +1,4 @@
-"""``pushbot replay`` (issue 14, item 5) on a small synthesised episode bag.
+"""``pushbot replay`` on a small synthesised episode bag.
 
 The bag holds real CDR (``rclpy.serialization`` of messages built with the ``push_ros``
 codecs the nodes use), written with ``rosbags`` as ``pushbot bag record`` writes it: small

@@ -400,7 +400,7 @@ def test_a_closed_stdout_ends_quietly_with_141() -> None:
     assert result.stderr == ""
 
 
-# --- what ros2 prints (issue 23, item 4) ----------------------------------------------------
+# --- what ros2 prints -----------------------------------------------------------------------
 
 def test_byte_fields_print_as_ros2_prints_them() -> None:
     from diagnostic_msgs.msg import DiagnosticStatus

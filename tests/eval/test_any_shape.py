@@ -1,4 +1,4 @@
-"""The closed loop's cores on any flat object (issue 12): no crash on 320 random shapes.
+"""The closed loop's cores on any flat object: no crash on 320 random shapes.
 
 Each shape (``push_core.procedural.random_simple_polygon``: 40 each of convex polygons,
 ellipses and discs, stars, blobs, L/T shapes, random radial polygons, U shapes and crosses) goes

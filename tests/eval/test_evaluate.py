@@ -78,7 +78,7 @@ def test_build_trials_cross_product_and_deduplication():
 
 
 def test_planner_and_filter_variants_reach_every_layer_and_keep_the_scenes():
-    """--horizon / --avoid-contradicted / --relearn (issue 22): carried by every trial into
+    """--horizon / --avoid-contradicted / --relearn: carried by every trial into
     the in-process planner and filter and the graph's node parameters; the variant is part of
     the cell, not of the trial's seed (the same scenes, goals and planner seeds)."""
     from push_planner.config import PARAMETERS as PLANNER_PARAMETERS

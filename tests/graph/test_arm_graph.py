@@ -1,4 +1,4 @@
-"""The arm through the real graph (issue 20): push_executor_node drives the simulated Panda.
+"""The arm through the real graph: push_executor_node drives the simulated Panda.
 
 Real processes (sim_bridge_node with ``robot:=arm``, segmentation_node, ekf_node, planner_node,
 push_executor_node) over DDS on simulated time; no mocks. One graph serves the module.

@@ -1,4 +1,4 @@
-"""Push-T with the object unknown (``--object-model estimated``, issue 24), on the real env.
+"""Push-T with the object unknown (``--object-model estimated``), on the real env.
 
 The outline perceived in the 96 x 96 image against the true T (stated tolerance), the goal
 fitted in the image, the perceived frame's pose algebra, the seal on the env's bodies and

@@ -1,4 +1,4 @@
-"""One protocol trial in-process: the nodes' cores without DDS (``pushbot eval``, issue 7).
+"""One protocol trial in-process: the nodes' cores without DDS (``pushbot eval``).
 
 :func:`run_trial` builds the scene of a :class:`pushbot.runner.protocol.Trial` in the pybullet
 world (``sim_bridge.world.PushWorld``), runs the closed loop and returns the *episode record* of

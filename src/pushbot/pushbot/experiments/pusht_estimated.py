@@ -1,4 +1,4 @@
-"""Push-T with the object unknown (``--object-model estimated``, issue 24): the T perceived.
+"""Push-T with the object unknown (``--object-model estimated``): the T perceived.
 
 Nothing of the object comes from the env's physics (:mod:`pushbot.experiments.pusht_guard`
 seals it): the outline and its normals from the first 96 x 96 image of the episode

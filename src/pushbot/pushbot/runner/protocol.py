@@ -123,7 +123,7 @@ class Trial:
         ``filter``: the EKF estimates the COM (True) or keeps it at the geometric centre.
         Ignored by ``gt``.
     horizon : int
-        Pushes the planner looks ahead (``PlannerConfig.horizon``, issue 22; 1 = greedy, the
+        Pushes the planner looks ahead (``PlannerConfig.horizon``; 1 = greedy, the
         source's planner). Ignored by ``pushnet``.
     avoid_contradicted : bool
         The planner avoids the contact region of a push whose observed outcome contradicted
