@@ -1,4 +1,4 @@
-"""The closed loop's cores on any flat object (issue 12): no crash on 320 random shapes.
+"""The closed loop's cores on any flat object: no crash on 320 random shapes.
 
 Each shape (``push_core.procedural.random_simple_polygon``: 40 each of convex polygons,
 ellipses and discs, stars, blobs, L/T shapes, random radial polygons, U shapes and crosses) goes
@@ -29,7 +29,7 @@ from push_core.estimator import EKFConfig, PushEKF
 from push_core.objects import load_object
 from push_core.planner import Planner, PlannerConfig, prepare_outline
 from push_core.procedural import RANDOM_KINDS, random_simple_polygon
-from pushbot.experiments.protocol import Trial
+from pushbot.runner.protocol import Trial
 
 N_SHAPES = 320
 #: Shapes per test (the 320 run as 8 tests, spread over the suite's workers).

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from pushbot.experiments.inprocess import run_trial, true_errors
-from pushbot.experiments.protocol import Trial
+from pushbot.runner.protocol import Trial
 
 RECORD_KEYS = {"trial", "success", "steps", "end_error_xy", "end_error_theta", "com_error",
                "planning_ms", "poses_true", "poses_est", "pushes", "wall_s", "reason"}

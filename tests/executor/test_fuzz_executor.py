@@ -1,4 +1,4 @@
-"""Fuzz tests of push_executor_node: hostile messages on every subscribed topic (issue 20).
+"""Fuzz tests of push_executor_node: hostile messages on every subscribed topic.
 
 The project's fuzz pattern (tests/ros/test_fuzz_planner.py): in-process against the real node
 class, the test calls the guarded callbacks the node subscribed (found by topic) with real

@@ -4,7 +4,7 @@ No rclpy. The trajectory of :func:`push_executor.motion.plan_push` is followed t
 joint_trajectory_controller does it (cubic Hermite between the points, positions + velocities
 as targets of pybullet's joint position control at 240 Hz); the measured tool tip (pybullet's
 panda_link8 + the rod) must stay within 1 mm of the commanded contact line during contact (the
-acceptance figure of issue 20) and :class:`push_executor.tracking.Execution` must report the
+arm's acceptance figure) and :class:`push_executor.tracking.Execution` must report the
 run ``done`` with the same contact-line error from the measured joints.
 """
 

@@ -1,4 +1,4 @@
-"""The arm through the real graph (issue 20): push_executor_node drives the simulated Panda.
+"""The arm through the real graph: push_executor_node drives the simulated Panda.
 
 Real processes (sim_bridge_node with ``robot:=arm``, segmentation_node, ekf_node, planner_node,
 push_executor_node) over DDS on simulated time; no mocks. One graph serves the module.
@@ -20,9 +20,9 @@ from collections.abc import Iterator
 import numpy as np
 import pytest
 
-from pushbot.experiments.protocol import Trial
 from pushbot.runner.episode import GraphRunner
 from pushbot.runner.graph_nodes import GraphError
+from pushbot.runner.protocol import Trial
 
 pytestmark = [pytest.mark.ros, pytest.mark.graph, pytest.mark.slow]
 

@@ -195,7 +195,7 @@ def test_parameter_yaml_documents_every_parameter_with_its_default() -> None:
 def test_rendered_frames_give_pose_outline_and_mask(harness: Harness,
                                                     frames: dict[str, Rendered]) -> None:
     h, a, b = harness, frames["a"], frames["b"]
-    # Real-robot default (issue 13): wall time unless use_sim_time is set (YAML, graph runner).
+    # Real-robot default: wall time unless use_sim_time is set (YAML, graph runner).
     assert h.node.get_parameter("use_sim_time").value is False
     h.send_extrinsics(a.t)
     first = h.pose_for(a)
@@ -234,7 +234,7 @@ def test_rendered_frames_give_pose_outline_and_mask(harness: Harness,
 def test_frames_of_the_previous_episode_are_skipped_after_reset(
         harness: Harness, frames: dict[str, Rendered]) -> None:
     # The simulator re-publishes its last frame (same stamp) while idle; after ~/reset such a
-    # frame must not become the new episode's reference (found running the graph, issue 7).
+    # frame must not become the new episode's reference (found running the graph).
     h, a, b = harness, frames["a"], frames["b"]
     h.send_extrinsics(a.t)
     old = h.frame_messages(a)
@@ -371,7 +371,7 @@ def test_object_out_of_view_gives_no_pose(name: str, kind: str, harness: Harness
 
 def test_a_restarted_node_re_anchors_to_the_estimators_episode(
         ros_context: Any, frames: dict[str, Rendered]) -> None:
-    # Issue 15: a perception restarted mid-episode keeps the episode's orientation reference:
+    # A perception restarted mid-episode keeps the episode's orientation reference:
     # it matches its first frame against the estimator's latched outline (near the latched
     # estimate's yaw) instead of starting a new yaw 0, and re-publishes that outline unchanged.
     a, b = frames["a"], frames["b"]

@@ -1,4 +1,4 @@
-"""The episode engine: one goal, pushed for until it is reached, ROS-free (issue 13).
+"""The episode engine: one goal, pushed for until it is reached, ROS-free.
 
 One set of rules for every closed loop: ``planner_node`` (events from DDS), the in-process
 evaluation (``pushbot.experiments.inprocess``) and the ground-truth planner loop all drive an
@@ -36,7 +36,7 @@ Rules (docs/design/episode-engine.md):
    newest estimate becomes usable again (nothing moved, so it is not stale).
 6. A new goal starts a new episode (step 0) and re-opens the newest estimate once (the same
    pose, a new question). A new outline clears the avoid list.
-7. **Watching after the goal** (issue 15). Once ``reached``, every further usable estimate
+7. **Watching after the goal**. Once ``reached``, every further usable estimate
    (rule 1) is checked against the goal region by the *point* estimate (the stop rule without
    the covariance, :meth:`Planner.reached` with ``covariance=None``): entering needs the
    confident rule, leaving needs the point estimate outside the full region, so uncertainty
@@ -49,12 +49,13 @@ Rules (docs/design/episode-engine.md):
      later estimate that satisfies the stop rule again gives ``reached``.
 
    The in-process loops end at the first ``reached``, so this changes nothing for them.
-8. **Contradicted pushes** (issue 22; only with ``PlannerConfig.avoid_contradicted``). The first
+8. **Contradicted pushes** (only with ``PlannerConfig.avoid_contradicted``). The first
    usable estimate after an executed push is compared with the push's predicted pose
    (``PushPlan.predicted_pose``): the push *contradicted its prediction* when the estimate is
    more than ``CONTRADICTION_MISS`` (eq. 5.1 units) from the prediction and the score to the
-   goal improved by less than ``CONTRADICTION_GAIN`` of the predicted improvement (the issue's
-   depth-noise stall: predicted 163 -> 108 mm, observed a 3.6 mm move, 27 times). Its outline
+   goal improved by less than ``CONTRADICTION_GAIN`` of the predicted improvement (a
+   depth-noise stall seen in evaluation: predicted 163 -> 108 mm, observed a 3.6 mm move, 27
+   times). Its outline
    point joins a second avoid list (the ``MAX_CONTRADICTED`` newest; kept until a new goal or
    outline, unlike refused pushes the object did move), counted as ``contradicted`` and said
    by :meth:`EpisodeEngine.status_text` until the next push is planned: the same push is not

@@ -139,14 +139,18 @@ class PlannerNode(Node):
         self._publish_status()
 
     def _set_note(self, note: str, level: bytes = DiagnosticStatus.OK) -> None:
-        self._note, self._level = note, level
+        """The note and level ``planner/status`` shows until the next one."""
+        self._note = note
+        self._level = level
 
     def _info(self, kind: str, text: str) -> None:
         """An info line, at most one of ``kind`` every ``LOG_THROTTLE_S``."""
         log, suppressed = self.health.log.allow(kind)
-        if log:
-            self.get_logger().info(text + (f" ({suppressed} similar message(s) suppressed)"
-                                           if suppressed else ""))
+        if not log:
+            return
+        if suppressed:
+            text += f" ({suppressed} similar message(s) suppressed)"
+        self.get_logger().info(text)
 
     def _check_stamp(self, stamp: float) -> None:
         """``ValueError`` if ``stamp`` (s) is more than ``max_future_stamp`` ahead of the
@@ -174,10 +178,13 @@ class PlannerNode(Node):
                 model = load_learned_model(params.lrn_weights)
             planner = Planner(params.planner, affordance_model=model)
         except ValueError as exc:
-            response.success, response.message = False, f"reset refused: {exc}"
+            response.success = False
+            response.message = f"reset refused: {exc}"
             self.get_logger().error(response.message)
             return response
-        self.params, self._model, self._planner = params, model, planner
+        self.params = params
+        self._model = model
+        self._planner = planner
         outline = self._engine.outline
         self._engine = EpisodeEngine(planner, params.max_steps, after_goal=params.after_goal,
                                      counts=self._engine.counts)
@@ -297,8 +304,8 @@ class PlannerNode(Node):
         self._lost(note, wait=refusal.kind in MOVING_KINDS)
 
     def _on_timer(self) -> None:
-        if self._engine.in_flight and (self._steady.now().nanoseconds * 1e-9 - self._in_flight_since
-                                       > self.params.push_timeout):
+        waited = self._steady.now().nanoseconds * 1e-9 - self._in_flight_since
+        if self._engine.in_flight and waited > self.params.push_timeout:
             note = (f"push of step {self._engine.steps} not reported on pusher/executed within "
                     f"{self.params.push_timeout} s; counted as a step; its contact region is "
                     f"avoided until a push is executed")
@@ -312,8 +319,10 @@ class PlannerNode(Node):
         (a push clears it) or, with ``after``, kept when planning set none."""
         self._push_key = ""
         self._engine.push_lost(wait)
-        self._set_note("" if after else note, DiagnosticStatus.OK if after else
-                       DiagnosticStatus.WARN)
+        if after:
+            self._set_note("")
+        else:
+            self._set_note(note, DiagnosticStatus.WARN)
         self._try_plan()
         if after and not self._note:
             self._set_note(note, DiagnosticStatus.WARN)
@@ -367,13 +376,20 @@ class PlannerNode(Node):
         engine = self._engine
         message = status_message(engine.status_text(), self._note, engine.goal is not None)
         counts = {k: v for k, v in engine.counts.items() if k != "left"}
+        goal = "" if engine.goal is None else " ".join(f"{v:.4f}" for v in engine.goal)
         return message, {
-            "state": engine.phase, "step": engine.steps, "max_steps": self.params.max_steps,
-            "goal": "" if engine.goal is None else " ".join(f"{v:.4f}" for v in engine.goal),
-            "orientation": "used" if engine.orientation_matters else "ignored", **counts,
+            "state": engine.phase,
+            "step": engine.steps,
+            "max_steps": self.params.max_steps,
+            "goal": goal,
+            "orientation": "used" if engine.orientation_matters else "ignored",
+            **counts,
             "last_push_end": f"{engine.last_push_end:.6f}",
-            "outline_stamp": f"{self._outline_stamp:.6f}", "left_goal": engine.counts["left"],
-            "after_goal": self.params.after_goal, "goal_source": self._goals.source}
+            "outline_stamp": f"{self._outline_stamp:.6f}",
+            "left_goal": engine.counts["left"],
+            "after_goal": self.params.after_goal,
+            "goal_source": self._goals.source,
+        }
 
     def _status(self) -> DiagnosticStatus:
         return self.health.status(self._level, *self._status_text())

@@ -20,11 +20,12 @@ and perception's camera inputs are remapped to the topics of the Intel RealSense
 (``realsense2_camera``, ``ros2 launch realsense2_camera rs_launch.py align_depth.enable:=true``):
 its topics are ``/<camera_namespace>/<camera_name>/<stream>/...`` with both defaults
 ``camera`` (realsense-ros README, ros2-development branch, the ``camera_namespace`` and
-``camera_name`` parameters; IntelRealSense/realsense-ros issue 2866, "Apply camera name in
-topics", PR 2857). Its aligned depth is ``16UC1``
-millimetres, which ``push_perception`` decodes. ``push_executor_node`` takes ``planner/push`` and
-publishes ``pusher/executed`` in place of the bridge; the camera extrinsics
-(``camera/color/extrinsics``, or tf where available) come from the robot's calibration.
+``camera_name`` parameters; "Apply camera name in topics",
+https://github.com/IntelRealSense/realsense-ros/issues/2866 and its pull request 2857). Its
+aligned depth is ``16UC1`` millimetres, which ``push_perception`` decodes.
+``push_executor_node`` takes ``planner/push`` and publishes ``pusher/executed`` in place of the
+bridge; the camera extrinsics (``camera/color/extrinsics``, or tf where available) come from
+the robot's calibration.
 
 Parameter files: ``<config_dir>/<package>.yaml`` when it exists, else the file of the same
 name in the default directory (``share/pushbot_bringup/config`` once installed,

@@ -7,8 +7,9 @@ with :func:`check_trajectory` and hands the accepted :class:`Trajectory` to a
 :class:`TrajectoryFollower`, which the physics loop samples every step.
 
 Acceptance (the Jazzy controller's ``validate_trajectory_msg`` with its defaults,
-``allow_partial_joints_goal`` and ``allow_nonzero_velocity_at_trajectory_end`` false;
-``/work/shared/ROBOT.md``); each rejection raises :class:`TrajectoryRejected` with a ``kind``:
+``allow_partial_joints_goal`` and ``allow_nonzero_velocity_at_trajectory_end`` false; source:
+upstream ros2_controllers jazzy, ``joint_trajectory_controller``; docs/ROBOT.md); each
+rejection raises :class:`TrajectoryRejected` with a ``kind``:
 
 - ``joints``: the joint names do not cover all controller joints exactly once (order is free:
   the trajectory is re-sorted into the controller's order; unknown or repeated names are

@@ -19,8 +19,8 @@ import numpy as np
 from push_core.objects import library_names, load_object
 from push_ros.node import ParamSpec
 from sim_bridge.arm_robot import DEFAULT_BASE_POSE, DEFAULT_PARK
+from sim_bridge.config import SUPPORT_CELL_RANGE
 from sim_bridge.faults import FaultConfig
-from sim_bridge.scene import SUPPORT_CELL_RANGE
 from sim_bridge.world import CameraConfig, MonitorConfig, WorldConfig
 
 __all__ = ["NODE_NAME", "PARAMETERS", "YAML_EXTRA", "YAML_HEADER", "YAML_NOTES", "FaultConfig",

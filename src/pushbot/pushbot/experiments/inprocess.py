@@ -1,6 +1,6 @@
-"""One protocol trial in-process: the nodes' cores without DDS (``pushbot eval``, issue 7).
+"""One protocol trial in-process: the nodes' cores without DDS (``pushbot eval``).
 
-:func:`run_trial` builds the scene of a :class:`pushbot.experiments.protocol.Trial` in the pybullet
+:func:`run_trial` builds the scene of a :class:`pushbot.runner.protocol.Trial` in the pybullet
 world (``sim_bridge.world.PushWorld``), runs the closed loop and returns the *episode record* of
 docs/design/evaluation.md. Each cycle:
 
@@ -58,7 +58,7 @@ from push_core.geometry import rot2, wrap_angle
 from push_core.planner import Planner, PlannerConfig, prepare_outline
 from push_core.pushnet import PushNetConfig, PushNetPlanner
 from push_core.symmetry import symmetry_order_of_polygon
-from pushbot.experiments.protocol import Trial
+from pushbot.runner.protocol import Trial
 
 __all__ = ["EpisodeRunner", "end_score", "run_trial", "true_errors"]
 
@@ -139,7 +139,7 @@ class EpisodeRunner:
         """Run one trial; returns the episode record (module docstring,
         docs/design/evaluation.md#episode-record)."""
         if not isinstance(trial, Trial):
-            raise ValueError(f"trial: expected a pushbot.experiments.protocol.Trial, got "
+            raise ValueError(f"trial: expected a pushbot.runner.protocol.Trial, got "
                              f"{type(trial).__name__}")
         t_start = time.perf_counter()
         world = self._make_world(trial)

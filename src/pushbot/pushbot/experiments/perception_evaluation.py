@@ -55,7 +55,8 @@ __all__ = ["EvalConfig", "add_arguments", "evaluate", "format_report", "run",
            "symmetry_order"]
 
 SECTION_ID = "eval_perception"
-#: Acceptance targets of issue 4: (metric key, comparison, value, unit).
+#: What the perception must meet on held-out objects, each reported as met or not:
+#: (metric key, comparison, value, unit).
 TARGETS = {
     "iou": (">=", 0.95, ""),
     "position_mm": ("<=", 3.0, "mm"),

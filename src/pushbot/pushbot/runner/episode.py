@@ -1,4 +1,4 @@
-"""Protocol trials through the real ROS graph: four node processes over DDS (issue 7).
+"""Protocol trials through the real ROS graph: four node processes over DDS.
 
 :func:`run_graph_trials` (``pushbot eval push --graph``) and the demo (``pushbot demo``) start
 ``sim_bridge_node``, ``segmentation_node``, ``ekf_node`` and ``planner_node`` as separate
@@ -8,7 +8,7 @@ this process drives the episodes only through the nodes' public interfaces:
 
 1. **Episode parameters.** ``planner_node``: ``method``, ``direct``, ``k``,
    ``goal_tolerance.{xy,theta}``, ``max_steps``, ``seed``, ``lookahead.horizon``,
-   ``avoid_contradicted`` (:func:`pushbot.experiments.protocol.planner_episode_params`);
+   ``avoid_contradicted`` (:func:`pushbot.runner.protocol.planner_episode_params`);
    ``ekf_node``: ``relearn.enabled`` (:attr:`Trial.relearn`), via their
    ``set_parameters`` services; then ``/segmentation_node/reset`` (the next *new* frame
    becomes the episode's reference; repeated frames of the old scene are skipped),
@@ -28,13 +28,13 @@ this process drives the episodes only through the nodes' public interfaces:
    pose at the stamp of each frame the pipeline saw), estimates from
    ``estimator/object_pose``, pushes from ``planner/push``; success from the *true* pose
    against the true initial pose plus the offset, orientation modulo the object's symmetry
-   (:func:`pushbot.experiments.inprocess.end_score`); ``com_error`` from
+   (:func:`push_core.episode.end_score`); ``com_error`` from
    ``estimator/center_of_mass`` against the true COM (parsed from the bridge's reset message, 0.1 mm
    resolution) turned into the episode frame. ``planning_ms`` is empty (planning happens inside
    ``planner_node``); ``step_latency_ms`` holds, per step, the wall time from ``pusher/executed`` to
    the next ``planner/push`` as seen here (perception + estimation + planning + DDS).
 
-Fault scenarios (issue 15): ``GraphRunner.run(trial, fault)`` with a
+Fault scenarios: ``GraphRunner.run(trial, fault)`` with a
 :class:`pushbot.runner.faults.Fault` adds its episode parameters (the bridge's ``faults.*``,
 the planner's ``after_goal``), lets it act on every spin of the end wait (kill and restart a
 node, knock the object, send a push or a second goal) and ends the episode only at an end
@@ -65,14 +65,23 @@ from typing import Any
 import numpy as np
 
 from push_core.episode import new_record
-from pushbot.experiments.protocol import Trial, planner_episode_params
 from pushbot.ros2cli.discovery import sigterm_as_keyboard_interrupt
 from pushbot.runner.client import GraphClient, Recorded
-from pushbot.runner.faults import Episode, Fault
+from pushbot.runner.faults import Fault
 from pushbot.runner.graph_nodes import NODES, GraphError, GraphNodes
+from pushbot.runner.graph_record import (
+    end_reason,
+    first_estimate,
+    latencies,
+    line_deviation,
+    same_goal,
+    status_seconds,
+)
+from pushbot.runner.protocol import Trial, planner_episode_params
+from pushbot.runner.scenario import Episode
 
 __all__ = ["NODES", "GraphError", "GraphNodes", "GraphRunner", "Recorded", "check_trial",
-           "line_deviation", "run_graph_trials"]
+           "run_graph_trials"]
 
 #: Seconds from the scene reset to the first estimate (segmentation of the first frame), and
 #: how often the episode set-up is repeated when none arrives.
@@ -241,7 +250,7 @@ class GraphRunner:
         # The planner must hold this scene's outline (stamped with its reference frame) before
         # the goal: with the previous scene's outline it would plan, or declare the goal
         # reached, for the wrong object.
-        self.wait(lambda: any(_status_seconds(s, "outline_stamp") >= reference - 1e-6
+        self.wait(lambda: any(status_seconds(s, "outline_stamp") >= reference - 1e-6
                                 for s in self.rec.status),
                   STEP_TIMEOUT, f"planner_node to hold the outline of the frame at "
                   f"{reference:.3f} s")
@@ -258,7 +267,7 @@ class GraphRunner:
         executed = [e for e in self.rec.executed[n_exec:] if e[1] >= first_stamp]
         rec["steps"] = int(status.get("step", len(pushes)))
         rec["refused"] = max(0, rec["steps"] - len(executed))
-        rec["reason"] = _reason(status["_message"])
+        rec["reason"] = end_reason(status["_message"])
         if executed:  # the truth after the last push has arrived too
             t_last = executed[-1][2]
             self.wait(lambda: any(s >= t_last for s, _ in self.rec.true), STEP_TIMEOUT,
@@ -271,7 +280,7 @@ class GraphRunner:
         # Stamps of the camera frames the estimates came from (before the first push, after each).
         rec["frame_stamps"] = [first_stamp] + [
             next((st for st, _ in self.rec.est if st >= t1), t1) for _, _, t1 in executed]
-        rec["step_latency_ms"] = _latencies(executed, pushes)
+        rec["step_latency_ms"] = latencies(executed, pushes)
         if self.robot == "arm":
             rec["contact_line_error_mm"] = self._line_errors(executed, pushes)
         end_true = self._true_after(executed[-1][2]) if executed else pose0_true
@@ -407,7 +416,7 @@ class GraphRunner:
             fault.poll(self, episode)
             mine = [(i, s) for i, s in enumerate(self.rec.status[episode.n_status:],
                                                  episode.n_status)
-                    if _same_goal(s.get("goal", ""), episode.goal_text)]
+                    if same_goal(s.get("goal", ""), episode.goal_text)]
             key = (len(self.rec.pushes), len(self.rec.executed), len(mine))
             if key != progress[0]:
                 progress[0], progress[1] = key, time.monotonic()
@@ -431,7 +440,7 @@ class GraphRunner:
         They come from other publishers than the status, so they can still be in flight (or
         queued here) when it arrives."""
         steps = int(status.get("step", 0))
-        last_end = _status_seconds(status, "last_push_end")
+        last_end = status_seconds(status, "last_push_end")
 
         def complete() -> bool:
             if len(self.rec.pushes) - n_push < steps:
@@ -462,102 +471,10 @@ class GraphRunner:
         return float(math.hypot(*(self.rec.com[-1][1] - c_true)))
 
 
-def first_estimate(outline_stamps: Sequence[float], estimates: Sequence[tuple[float, Any]],
-                   scene: float, after: float) -> tuple[float, float, Any] | None:
-    """The episode's first estimate: (reference stamp, estimate stamp, estimate) or None yet.
-
-    ``outline_stamps``: ``perception/outline`` stamps as received (s); ``estimates``: (stamp,
-    pose) as received; ``scene``: the new scene's first frame (the simulator's reset answer);
-    ``after``: the estimator's boundary. The reference is the first outline of a frame of the
-    new scene; the estimate the first one after ``after`` and at or after the reference
-    (:meth:`GraphRunner._first_estimate`).
-    """
-    ref = next((s for s in outline_stamps if s >= scene), None)
-    if ref is None:
-        return None
-    return next(((ref, s, p) for s, p in estimates if s > after and s >= ref - 1e-6), None)
-
-
-def _same_goal(a: str, b: str) -> bool:
-    try:
-        va, vb = [float(v) for v in a.split()], [float(v) for v in b.split()]
-    except ValueError:
-        return False
-    return len(va) == len(vb) == 3 and all(abs(x - y) < 2e-4 for x, y in zip(va, vb,
-                                                                              strict=True))
-
-
-def _status_seconds(status: dict[str, str], key: str) -> float:
-    """A time value (s) of planner/status; -inf when absent or unreadable."""
-    try:
-        return float(status.get(key, "-inf"))
-    except ValueError:
-        return -math.inf
-
-
-def _reason(message: str) -> str:
-    if message.startswith("goal reached"):
-        return "goal reached"
-    if message.startswith("failed after max steps"):
-        return "max steps"
-    if message.startswith("failed: no feasible push"):
-        return "no feasible push"
-    return message
-
-
-#: Tool tip samples lower than this above the table count as "in contact" for the line error
-#: of an arm push (the executor pushes at 1 cm; transit and park moves are far higher), m.
-CONTACT_HEIGHT = 0.02
-
-
-def line_deviation(tip: np.ndarray, contact: np.ndarray, end: np.ndarray,
-                   max_height: float = CONTACT_HEIGHT) -> float | None:
-    """Largest horizontal distance of tool tip samples from a commanded push line, m.
-
-    Parameters
-    ----------
-    tip : (K, 3) array
-        True tool tip positions in ``world`` (m).
-    contact, end : (2,) arrays
-        The commanded contact segment (``planner/push``'s contact and end points, m).
-    max_height : float
-        Only samples at most this high count (the pushing height; not transit), m.
-
-    Returns
-    -------
-    float or None
-        The maximum over the samples whose projection falls on the segment, or None when
-        there is none.
-    """
-    tip = np.asarray(tip, dtype=float).reshape(-1, 3)
-    a, b = np.asarray(contact, dtype=float), np.asarray(end, dtype=float)
-    d = b - a
-    length = float(np.hypot(*d))
-    if length == 0.0:
-        return None
-    u = d / length
-    rel = tip[:, :2] - a
-    along = rel @ u
-    off = np.abs(rel @ np.array([-u[1], u[0]]))
-    on = (tip[:, 2] <= max_height) & (along >= 0.0) & (along <= length)
-    return float(off[on].max()) if on.any() else None
-
-
-def _latencies(executed: list[tuple[float, float, float]],
-               pushes: list[tuple[float, np.ndarray]]) -> list[float]:
-    """Wall ms from each pusher/executed to the next planner/push (as received here)."""
-    out = []
-    for t_exec, _, _ in executed:
-        following = [t for t, _ in pushes if t > t_exec]
-        if following:
-            out.append(1e3 * (following[0] - t_exec))
-    return out
-
-
 def check_trial(trial: Trial) -> None:
     """``ValueError`` for trials the graph cannot run (module docstring)."""
     if not isinstance(trial, Trial):
-        raise ValueError(f"expected a pushbot.experiments.protocol.Trial, "
+        raise ValueError(f"expected a pushbot.runner.protocol.Trial, "
                          f"got {type(trial).__name__}")
     if trial.state != "filter":
         raise ValueError(f"the graph estimates the state from images: state must be 'filter', "

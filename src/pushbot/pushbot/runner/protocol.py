@@ -46,6 +46,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = [
+    "COM_MODES",
     "METHODS",
     "REGIONS",
     "STATE_SOURCES",
@@ -122,7 +123,7 @@ class Trial:
         ``filter``: the EKF estimates the COM (True) or keeps it at the geometric centre.
         Ignored by ``gt``.
     horizon : int
-        Pushes the planner looks ahead (``PlannerConfig.horizon``, issue 22; 1 = greedy, the
+        Pushes the planner looks ahead (``PlannerConfig.horizon``; 1 = greedy, the
         source's planner). Ignored by ``pushnet``.
     avoid_contradicted : bool
         The planner avoids the contact region of a push whose observed outcome contradicted
@@ -172,7 +173,7 @@ class Trial:
             raise ValueError(f"horizon must be an integer >= 1, got {self.horizon!r}")
         object.__setattr__(self, "horizon", int(self.horizon))
         if not (isinstance(self.support_cell, float) and self.support_cell == 0.0):
-            from sim_bridge.scene import check_support_cell  # the simulator's rule
+            from sim_bridge.config import check_support_cell  # the simulator's rule
 
             object.__setattr__(self, "support_cell", check_support_cell(self.support_cell))
         for name in ("estimate_com", "avoid_contradicted", "relearn"):
