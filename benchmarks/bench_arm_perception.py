@@ -4,7 +4,7 @@ arm mode (arm parked), run through the committed segmentation model and the pose
 For each held-out object and random pose (half with random appearance, camera jitter and depth
 noise), an episode reference frame and a displaced frame are rendered in both modes; reported:
 the fraction of pixels that differ between the modes, and the pose error (position, yaw) of
-:class:`push_perception.core.EpisodeTracker` against the ground-truth displacement in each
+:class:`push_perception.tracker.EpisodeTracker` against the ground-truth displacement in each
 mode. Writes the ``bench_arm_perception`` section of ``docs/RESULTS.md``.
 
 Usage::
@@ -24,8 +24,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import format_section, update_section  # noqa: E402
 
 from push_core.objects import TEST_OBJECTS  # noqa: E402
-from push_perception.core import EpisodeTracker  # noqa: E402
 from push_perception.model import Segmenter  # noqa: E402
+from push_perception.tracker import EpisodeTracker  # noqa: E402
 from sim_bridge.world import PushWorld, WorldConfig, quiet_stdout  # noqa: E402
 
 

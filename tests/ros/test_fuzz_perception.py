@@ -482,7 +482,7 @@ def hostile_frames(draw: Callable[..., Any]) -> tuple[Any, ...]:
     """A mask blob off the border (so the geometry runs), depth with NaN / inf / 1e30 / 3e38,
     K with focal lengths from 1e-6 to 1e9 px, T with translations up to 1e30 m, and geometry
     parameters anywhere in their ranges."""
-    from push_perception.core import PerceptionConfig
+    from push_perception.perception_config import PerceptionConfig
 
     seed, mode = draw(SEEDS), draw(st.integers(0, 3))
     rng = np.random.default_rng(seed)
@@ -515,7 +515,9 @@ def hostile_frames(draw: Callable[..., Any]) -> tuple[Any, ...]:
 @given(frame=hostile_frames(), second=hostile_frames())
 def test_fuzz_core_bounded_and_only_perception_errors(frame: tuple[Any, ...],
                                                       second: tuple[Any, ...]) -> None:
-    from push_perception.core import MAX_OUTLINE_POINTS, EpisodeTracker, PerceptionError
+    from push_perception.outline import MAX_OUTLINE_POINTS
+    from push_perception.perception_config import PerceptionError
+    from push_perception.tracker import EpisodeTracker
 
     mask, depth, k, t, cfg = frame
     tracker = EpisodeTracker(cfg)

@@ -1,9 +1,10 @@
 """``segmentation_node``'s parameters: the declared table and the typed, validated configuration.
 
 :data:`PARAMETERS` is the one declaration of every parameter (name, default, description with
-unit, bounds, read-only); the geometry ones set the :class:`~push_perception.core.PerceptionConfig`
-field of the same name. :meth:`SegmentationParams.from_values` builds the frozen configuration
-and raises ``ValueError`` naming the parameter. docs/INTERFACES.md and
+unit, bounds, read-only); the geometry ones set the field of the same name of
+:class:`~push_perception.perception_config.PerceptionConfig`.
+:meth:`SegmentationParams.from_values` builds the frozen configuration and raises
+``ValueError`` naming the parameter. docs/INTERFACES.md and
 ``pushbot_bringup/config/push_perception.yaml`` are generated from the table
 (:mod:`push_ros.interfaces`).
 """
@@ -15,7 +16,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from push_perception.core import PerceptionConfig
+from push_perception.perception_config import PerceptionConfig
 from push_ros.interfaces import SIM_TIME
 from push_ros.node import ParamSpec
 
@@ -110,7 +111,7 @@ refused reset keeps the previous values). Doubles need a decimal point (0.0, not
 #: Comment paragraphs before a parameter in the parameter file.
 YAML_NOTES = {
     "weights": "The CNN and the node.",
-    "resolution": "From mask to state (push_perception.core.PerceptionConfig).",
+    "resolution": "From mask to state (push_perception.perception_config.PerceptionConfig).",
 }
 _GEOMETRY_NAMES = tuple(n for n in _GEOMETRY if any(p.name == n for p in PARAMETERS))
 

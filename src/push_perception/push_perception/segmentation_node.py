@@ -2,7 +2,7 @@
 
 Role: pairs colour, depth and camera_info by stamp (:class:`push_perception.inputs.FrameSync`),
 segments with :class:`push_perception.model.Segmenter` and measures with
-:class:`push_perception.core.EpisodeTracker`; publishes the mask, the pose (stamped with the
+:class:`push_perception.tracker.EpisodeTracker`; publishes the mask, the pose (stamped with the
 frame) and, once per episode, the latched outline. Extrinsics:
 :class:`push_ros.extrinsics.CameraExtrinsics`. After a restart it re-anchors to the estimator's
 latched outline and estimate (:class:`push_perception.inputs.AnchorWait`); ``~/reset`` starts
@@ -37,7 +37,6 @@ from sensor_msgs.msg import CameraInfo, Image, PointCloud2
 from std_srvs.srv import Trigger
 
 from push_perception.config import NODE_NAME, PARAMETERS, SegmentationParams
-from push_perception.core import MAX_OUTLINE_POINTS, EpisodeTracker, Measurement, PerceptionError
 from push_perception.inputs import (
     COLOR_ENCODINGS,
     DEPTH_ENCODINGS,
@@ -51,6 +50,9 @@ from push_perception.inputs import (
     check_stamp,
     rgb_from_color,
 )
+from push_perception.outline import MAX_OUTLINE_POINTS
+from push_perception.perception_config import PerceptionError
+from push_perception.tracker import EpisodeTracker, Measurement
 from push_ros.extrinsics import CameraExtrinsics
 from push_ros.frames import OBJECT_FRAME, WORLD_FRAME
 from push_ros.health import NodeHealth
