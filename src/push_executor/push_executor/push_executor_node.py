@@ -36,10 +36,11 @@ from std_msgs.msg import String
 from std_srvs.srv import SetBool, Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from push_core.robot_view import joint_positions
 from push_executor.kinematics import ArmKinematics
 from push_executor.motion import MotionPlan, PushRefused, plan_push
 from push_executor.parameters import NODE_NAME, PARAMETERS, ExecutorParams
-from push_executor.tracking import Event, Execution, chain_positions
+from push_executor.tracking import Event, Execution
 from push_ros.health import NodeHealth
 from push_ros.node import declare_config, run_node
 from push_ros.paths import path_from_points, push_points_from_path
@@ -144,7 +145,7 @@ class PushExecutorNode(Node):
             stamp = seconds_from_stamp(msg.header.stamp)
             check_not_ahead(stamp, clock_seconds(self.get_clock()),
                             self.params.values["max_future_stamp"], "joint state stamp")
-            q = chain_positions(self._arm.joint_names, list(msg.name), msg.position)
+            q = joint_positions(self._arm.joint_names, list(msg.name), msg.position)
         except ValueError as exc:
             self.health.refuse("/joint_states", str(exc), "invalid")
             return
