@@ -38,7 +38,7 @@ from numpy.typing import ArrayLike, NDArray
 from push_perception.perception_config import PerceptionConfig, PerceptionError
 
 __all__ = ["MAX_COORDINATE", "MAX_RASTER_SIDE", "MIN_FOOTPRINT_CELLS", "MIN_FOOTPRINT_SHARE",
-           "TopDownView", "object_points", "outline_view", "top_down_view"]
+           "TopDownView", "above_table", "object_points", "outline_view", "top_down_view"]
 
 #: Smallest share of the object points the footprint (largest component) must hold; less
 #: means the top-down view broke apart and its centroid would not be the object's.
@@ -149,6 +149,43 @@ class TopDownView:
         return out.reshape(shape).astype(np.float64)
 
 
+def above_table(points: NDArray[np.float64], cfg: PerceptionConfig
+                ) -> tuple[NDArray[np.float64], float]:
+    """The object points above the table, and the object's top height.
+
+    Parameters
+    ----------
+    points : (N, 3) float
+        Object points in ``world`` (metres).
+    cfg : PerceptionConfig
+
+    Returns
+    -------
+    kept : (M, 3) float
+        The points higher than ``min_height`` and than 40 % of the top height (lower ones
+        are table pixels at the mask boundary), M >= 3.
+    top : float
+        The 95th percentile of the points' heights, m.
+
+    Raises
+    ------
+    PerceptionError
+        ``"few_pixels"`` (fewer than 3 points kept), ``"too_large"`` (a point farther than
+        ``MAX_COORDINATE`` from the origin).
+    """
+    z = points[:, 2]
+    top = float(np.quantile(z, 0.95)) if len(z) else 0.0
+    kept = points[z > max(cfg.min_height, 0.4 * top)]
+    if len(kept) < 3:
+        raise PerceptionError("few_pixels", f"only {len(kept)} mask point(s) above the table "
+                              f"(>{1e3 * cfg.min_height:.1f} mm)")
+    far = float(np.max(np.abs(kept[:, :2])))
+    if not far <= MAX_COORDINATE:  # beyond it float64 cannot resolve millimetre cells
+        raise PerceptionError("too_large", f"object points {far:.3g} m from the world origin "
+                              f"(at most {MAX_COORDINATE:g} m; bad depth or extrinsics?)")
+    return kept, top
+
+
 def top_down_view(points: NDArray[np.float64], cfg: PerceptionConfig,
                   pad: float = 0.01) -> TopDownView:
     """Rasterise object points into the top-down footprint (see the module docstring).
@@ -168,17 +205,7 @@ def top_down_view(points: NDArray[np.float64], cfg: PerceptionConfig,
         kind ``"few_pixels"`` when no point is above the table, ``"fragmented"`` when the
         largest component holds less than ``MIN_FOOTPRINT_SHARE`` of the points.
     """
-    z = points[:, 2]
-    top = float(np.quantile(z, 0.95)) if len(z) else 0.0
-    keep = z > max(cfg.min_height, 0.4 * top)
-    xy = points[keep, :2]
-    if len(xy) < 3:
-        raise PerceptionError("few_pixels", f"only {len(xy)} mask point(s) above the table "
-                              f"(>{1e3 * cfg.min_height:.1f} mm)")
-    far = float(np.max(np.abs(xy)))
-    if not far <= MAX_COORDINATE:  # beyond it float64 cannot resolve millimetre cells
-        raise PerceptionError("too_large", f"object points {far:.3g} m from the world origin "
-                              f"(at most {MAX_COORDINATE:g} m; bad depth or extrinsics?)")
+    xy = above_table(points, cfg)[0][:, :2]
     res = cfg.resolution
     pad = max(pad, cfg.chamfer_truncation + 2 * res)
     lo = np.floor((xy.min(axis=0) - pad) / res) * res

@@ -62,7 +62,8 @@ STREAMS = ("rgb", "depth", "info")
 #: Kinds of :class:`InputError`: counted as ``refused_<kind>`` by the node.
 REFUSAL_KINDS = ("color", "depth", "camera_info", "extrinsics", "stamp", "size_mismatch",
                  "frame_mismatch", "missing_camera_info", "no_extrinsics",
-                 "estimator_outline", "estimator_pose")
+                 "estimator_outline", "estimator_pose", "joint_states", "robot_description",
+                 "no_robot_model", "no_joint_state", "stale_joint_state", "robot_pose")
 #: Characters of a frame id quoted in a message (an attacker's frame id may be 1 MB).
 _QUOTE = 64
 

@@ -26,7 +26,9 @@ class PerceptionError(ValueError):
 
     Kinds: ``"empty_mask"``, ``"few_pixels"``, ``"no_depth"``, ``"out_of_view"``,
     ``"fragmented"`` (the top-down view falls apart into pieces), ``"too_large"`` (the object
-    points span more than ``MAX_RASTER_SIDE`` cells), ``"bad_input"`` (malformed arrays).
+    points span more than ``MAX_RASTER_SIDE`` cells), ``"occluded"`` (the robot hides too much
+    of the object, or touches it in the frame that would fix the episode's outline),
+    ``"bad_input"`` (malformed arrays).
     """
 
     def __init__(self, kind: str, message: str) -> None:
@@ -80,6 +82,13 @@ class PerceptionConfig:
     match_cost_floor : float
         Chamfer residual of a correct rotation match (raster and depth noise), m; only the
         excess over it widens the orientation's standard deviation.
+    max_occluded : float
+        With the robot's pixels given: a frame in which the robot hides a larger share of the
+        object's predicted silhouette gives no pose (``"occluded"``), [0, 0.9].
+    occlusion_margin_px : int
+        Object boundary within this many pixels of the robot's pixels is the robot's edge,
+        not the object's outline (left out of the fit); the episode's first frame must keep
+        the object this far from the robot, [0, 20].
     """
 
     resolution: float = 0.001
@@ -98,6 +107,8 @@ class PerceptionConfig:
     sigma_position: float = 0.0005
     sigma_theta: float = 0.003
     match_cost_floor: float = 0.0007
+    max_occluded: float = 0.3
+    occlusion_margin_px: int = 3
 
     def __post_init__(self) -> None:
         checks = (
@@ -107,7 +118,7 @@ class PerceptionConfig:
             ("angle_tolerance_deg", 1e-4, 1.0), ("symmetry_tolerance", 0.0, 0.01),
             ("chamfer_truncation", 1e-4, 0.05), ("min_valid_fraction", 0.0, 1.0),
             ("sigma_position", 1e-6, 1.0), ("sigma_theta", 1e-6, math.pi),
-            ("match_cost_floor", 0.0, 0.01),
+            ("match_cost_floor", 0.0, 0.01), ("max_occluded", 0.0, 0.9),
         )
         for name, low, high in checks:
             value = getattr(self, name)
@@ -115,7 +126,8 @@ class PerceptionConfig:
                 raise ValueError(f"{name}: must be in [{low}, {high}], got {value!r}")
             object.__setattr__(self, name, float(value))
         for name, low, high in (("closing_radius", 2, 10), ("min_pixels", 3, 10**7),
-                                ("max_border_pixels", 0, 10**7)):
+                                ("max_border_pixels", 0, 10**7),
+                                ("occlusion_margin_px", 0, 20)):
             value = getattr(self, name)
             if isinstance(value, bool) or int(value) != value or not low <= value <= high:
                 raise ValueError(f"{name}: must be an integer in [{low}, {high}], got {value!r}")

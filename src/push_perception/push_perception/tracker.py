@@ -18,6 +18,12 @@ Pipeline for one frame (:meth:`EpisodeTracker.update`)
    of the first frame's outline) has no orientation to find: the search is skipped, the
    orientation stays at the episode frame's 0 and is reported as not observed (variance
    ``push_core.symmetry.UNOBSERVED_VARIANCE``).
+5. With the robot's pixels given (``robot``) and the robot touching the object, the pose comes
+   from the visible part instead (:mod:`push_perception.occlusion`): the episode's reference
+   footprint fitted to what is seen, the robot's edge left out; the share of the object's
+   predicted silhouette the robot hides is reported (``Measurement.occluded_share``) and
+   above ``max_occluded`` the frame gives no pose (``"occluded"``). The frame that fixes the
+   episode's outline must show the object clear of the robot.
 
 Covariance model (:func:`pose_covariance`)
 ------------------------------------------
@@ -52,7 +58,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from push_core.symmetry import UNOBSERVED_VARIANCE, has_continuous_symmetry
-from push_perception.footprint import TopDownView, object_points, outline_view, top_down_view
+from push_perception.footprint import (
+    TopDownView,
+    above_table,
+    object_points,
+    outline_view,
+    top_down_view,
+)
+from push_perception.occlusion import fit_visible, grow, hidden_share, visible_view
 from push_perception.orientation import rotation_search
 from push_perception.outline import smooth_outline
 from push_perception.perception_config import (
@@ -60,6 +73,7 @@ from push_perception.perception_config import (
     PerceptionError,
     check_frame_arrays,
 )
+from push_perception.robot_filter import segment
 
 __all__ = ["ANCHOR_MAX_COST", "NOMINAL_PIXELS", "EpisodeTracker", "Measurement",
            "pose_covariance"]
@@ -128,6 +142,9 @@ class Measurement:
     anchored : bool
         True on the first frame after :meth:`EpisodeTracker.anchor` that matched the anchor:
         the outline is the anchor's, the yaw the frame's in the episode frame.
+    occluded_share : float
+        Share of the object's predicted image silhouette hidden by the robot, [0, 1] (0
+        without the robot's pixels).
     """
 
     pose: NDArray[np.float64]
@@ -140,6 +157,7 @@ class Measurement:
     is_reference: bool
     orientation_observed: bool = True
     anchored: bool = False
+    occluded_share: float = 0.0
 
 
 class EpisodeTracker:
@@ -163,6 +181,10 @@ class EpisodeTracker:
         self._symmetric = False
         #: Yaw of the reference frame in the episode frame (non-zero only when anchored).
         self._offset = 0.0
+        #: The reference's top height (m) and largest radius about its centroid (m), and the
+        #: last measured position (m): the fit's start when the robot hides part of the object.
+        self._height = self._reach = 0.0
+        self._last_xy = np.zeros(2)
         self._anchor: tuple[NDArray[np.float64], NDArray[np.float64], float] | None = None
 
     def anchor(self, points: ArrayLike, normals: ArrayLike, yaw: float) -> None:
@@ -217,18 +239,25 @@ class EpisodeTracker:
         """The first frame's top-down view (None before the first good frame)."""
         return self._ref
 
-    def measure_frame(self, segmenter: Any, frame: Any) -> Measurement:
+    def measure_frame(self, segmenter: Any, frame: Any, robot: ArrayLike | None = None,
+                      robot_cover: ArrayLike | None = None) -> Measurement:
         """Segment a rendered frame and :meth:`update` with its mask (the in-process path).
 
         ``frame`` has ``rgb``, ``depth``, ``camera_matrix`` and ``T_world_camera`` (for example
-        ``sim_bridge.world.Frame``); ``segmenter`` is a ``push_perception.model.Segmenter``.
-        Raises :class:`PerceptionError` like :meth:`update`.
+        ``sim_bridge.world.Frame``); ``segmenter`` is a ``push_perception.model.Segmenter``;
+        ``robot`` and ``robot_cover`` the robot's pixels, if any, as :meth:`update` takes them
+        (the frame is segmented with :func:`push_perception.robot_filter.segment`). Raises
+        :class:`PerceptionError` like :meth:`update`.
         """
-        seg = segmenter(frame.rgb, frame.depth, frame.camera_matrix, frame.T_world_camera)
-        return self.update(seg.mask, frame.depth, frame.camera_matrix, frame.T_world_camera)
+        rob = None if robot is None else np.asarray(robot, dtype=bool)
+        seg = segment(segmenter, frame.rgb, frame.depth, frame.camera_matrix,
+                      frame.T_world_camera, rob)
+        return self.update(seg.mask, frame.depth, frame.camera_matrix, frame.T_world_camera,
+                           rob, robot_cover)
 
     def update(self, mask: ArrayLike, depth: ArrayLike, camera_matrix: ArrayLike,
-               t_world_camera: ArrayLike) -> Measurement:
+               t_world_camera: ArrayLike, robot: ArrayLike | None = None,
+               robot_cover: ArrayLike | None = None) -> Measurement:
         """Measure the object in one frame.
 
         Parameters
@@ -241,16 +270,48 @@ class EpisodeTracker:
             K, pixels.
         t_world_camera : (4, 4)
             world <- camera_color_optical_frame.
+        robot : (H, W) bool, optional
+            The robot's pixels (where its model is in front of what the camera measured):
+            never object pixels; where they touch the object the pose comes from its visible
+            part (module docstring, step 5). None: no robot in view.
+        robot_cover : (H, W) bool, optional
+            The robot's pixels without the safety margin ``robot`` may have been grown by:
+            the occluded share is counted on them (default ``robot``).
 
         Raises
         ------
         PerceptionError
             With ``kind`` ``"bad_input"``, ``"empty_mask"``, ``"out_of_view"``,
-            ``"few_pixels"``, ``"no_depth"`` or ``"fragmented"``; the tracker's state is
-            unchanged.
+            ``"few_pixels"``, ``"no_depth"``, ``"fragmented"`` or ``"occluded"``; the
+            tracker's state is unchanged.
         """
-        cfg = self.cfg
         m, d, k, t = check_frame_arrays(mask, depth, camera_matrix, t_world_camera)
+        rob = cover = None
+        if robot is not None:
+            rob = np.asarray(robot, dtype=bool)
+            cover = rob if robot_cover is None else np.asarray(robot_cover, dtype=bool)
+            if rob.shape != m.shape or cover.shape != m.shape:
+                raise PerceptionError("bad_input", f"robot masks {rob.shape}, {cover.shape} and "
+                                      f"mask {m.shape} differ in size")
+            m = m & ~rob
+        try:
+            return self._update(m, d, k, t, rob, cover)
+        except PerceptionError as exc:
+            # Little or nothing seen where the robot hides the object's last pose: occluded.
+            if rob is None or self._ref is None or exc.kind not in (
+                    "empty_mask", "few_pixels", "no_depth", "fragmented"):
+                raise
+            share = self._hidden_share(np.array([*self._last_xy, self._previous]), cover, k, t)
+            if share <= self.cfg.max_occluded:
+                raise
+            raise PerceptionError("occluded", f"the robot hides {100 * share:.0f} % of the "
+                                  f"object at its last pose (more than "
+                                  f"{100 * self.cfg.max_occluded:.0f} %); {exc}") from None
+
+    def _update(self, m: NDArray[np.bool_], d: NDArray[np.float32], k: NDArray[np.float64],
+                t: NDArray[np.float64], rob: NDArray[np.bool_] | None,
+                cover: NDArray[np.bool_] | None) -> Measurement:
+        cfg = self.cfg
         n_mask = int(np.count_nonzero(m))
         if n_mask == 0:
             raise PerceptionError("empty_mask", "the object mask is empty (object not found)")
@@ -269,6 +330,13 @@ class EpisodeTracker:
             raise PerceptionError("no_depth", f"only {n_valid} of {n_mask} mask pixels have a "
                                   f"valid depth ({100 * fraction:.0f} %; need >= "
                                   f"{cfg.min_pixels} and {100 * cfg.min_valid_fraction:.0f} %)")
+        near = None if rob is None else grow(rob, cfg.occlusion_margin_px)
+        if near is not None and np.any(near & m):
+            if self._ref is None:
+                raise PerceptionError("occluded", "the robot touches the object in the frame "
+                                      "that would fix the episode's outline; waiting for a "
+                                      "clear frame")
+            return self._visible_part(points, near, cover, k, t, n_mask, n_valid, fraction)
         view = top_down_view(points, cfg)
         pts, normals = smooth_outline(view.boundary, cfg.outline_spacing,
                                       cfg.outline_smoothing,
@@ -276,18 +344,21 @@ class EpisodeTracker:
         if self._ref is None and self._anchor is not None:
             anchored = self._anchored_reference(view, pts, n_mask, n_valid, fraction)
             if anchored is not None:
+                self._set_shape(points, view, pts)
                 return anchored
         if self._ref is None:
             self._ref, self._ref_points = view, pts
             self._outline = (pts - view.centroid, normals)
             self._previous = 0.0
             self._symmetric = has_continuous_symmetry(self._outline[0])
+            self._set_shape(points, view, pts)
             cov = pose_covariance(n_valid, fraction, 0.0, 0.0, view.area,
                                   view.radius_of_gyration, cfg)
             return self._measurement(np.array([*view.centroid, 0.0]), cov, n_mask, n_valid,
                                      view.area, 0.0, 1, True)
         ref = self._ref
         mismatch = abs(view.area / ref.area - 1.0)
+        self._last_xy = view.centroid.copy()
         if self._symmetric:  # no orientation to search for (a disc): position only
             cov = pose_covariance(n_valid, fraction, mismatch, 0.0, ref.area,
                                   ref.radius_of_gyration, cfg)
@@ -297,9 +368,55 @@ class EpisodeTracker:
         self._previous = rot.theta
         cov = pose_covariance(n_valid, fraction, mismatch, rot.cost, ref.area,
                               ref.radius_of_gyration, cfg)
+        share = 0.0 if cover is None else self._hidden_share(
+            np.array([*view.centroid, rot.theta]), cover, k, t)
         return self._measurement(np.array([*view.centroid, self._offset + rot.theta]), cov,
                                  n_mask, n_valid, view.area, rot.cost, len(rot.candidates),
-                                 False)
+                                 False, share)
+
+    def _set_shape(self, points: NDArray[np.float64], view: TopDownView,
+                   pts: NDArray[np.float64]) -> None:
+        """Keep the reference's top height and reach, and its position as the last one."""
+        self._height = above_table(points, self.cfg)[1]
+        self._reach = float(np.max(np.linalg.norm(pts - view.centroid, axis=1)))
+        self._last_xy = view.centroid.copy()
+
+    def _hidden_share(self, pose: NDArray[np.float64], rob: NDArray[np.bool_],
+                      k: NDArray[np.float64], t: NDArray[np.float64]) -> float:
+        """The share of the object's predicted silhouette the robot hides at ``pose`` (where
+        the reference centroid goes, m; rotation since the reference, rad)."""
+        ref = self._ref
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        q = self._ref_points - ref.centroid
+        outline = q @ np.array([[c, s], [-s, c]]) + pose[:2]
+        return hidden_share(outline, self._height, rob, k, t)[0]
+
+    def _visible_part(self, points: NDArray[np.float64], near: NDArray[np.bool_],
+                      cover: NDArray[np.bool_], k: NDArray[np.float64], t: NDArray[np.float64],
+                      n_mask: int, n_valid: int, fraction: float) -> Measurement:
+        """The pose from the visible part of the object (module docstring, step 5)."""
+        cfg, ref = self.cfg, self._ref
+        kept, _ = above_table(points, cfg)
+        vis = visible_view(kept, self._reach, self._height, near, k, t, cfg)
+        # Starts: the previous pose, and the whole-view estimate (of its symmetric
+        # equivalents the one closest to the previous angle).
+        theta = self._previous
+        if not self._symmetric:
+            theta = rotation_search(ref, self._ref_points, vis.view, vis.view.boundary[::2],
+                                    self._previous, cfg).theta
+        starts = [[*self._last_xy, self._previous], [*vis.view.centroid, theta]]
+        pose, cost = fit_visible(ref, self._ref_points, vis, starts, self._previous,
+                                 not self._symmetric, cfg)
+        share = self._hidden_share(pose, cover, k, t)
+        if share > cfg.max_occluded:
+            raise PerceptionError("occluded", f"the robot hides {100 * share:.0f} % of the "
+                                  f"object (more than {100 * cfg.max_occluded:.0f} %)")
+        self._previous, self._last_xy = float(pose[2]), pose[:2].copy()
+        mismatch = abs(vis.view.area / (ref.area * max(1.0 - share, 1e-3)) - 1.0)
+        cov = pose_covariance(n_valid, fraction, mismatch, cost, ref.area,
+                              ref.radius_of_gyration, cfg)
+        return self._measurement(np.array([*pose[:2], self._offset + pose[2]]), cov, n_mask,
+                                 n_valid, vis.view.area, cost, 1, False, share)
 
     def _anchored_reference(self, view: TopDownView, pts: NDArray[np.float64], n_mask: int,
                             n_valid: int, fraction: float) -> Measurement | None:
@@ -330,11 +447,12 @@ class EpisodeTracker:
 
     def _measurement(self, pose: NDArray[np.float64], cov: NDArray[np.float64], n_mask: int,
                      n_valid: int, area: float, cost: float, candidates: int,
-                     is_reference: bool) -> Measurement:
+                     is_reference: bool, occluded_share: float = 0.0) -> Measurement:
         """The frame's Measurement; a continuously symmetric outline reports its orientation
         as not observed (variance ``UNOBSERVED_VARIANCE``)."""
         if self._symmetric:
             cov = cov.copy()
             cov[2, 2] = UNOBSERVED_VARIANCE
         return Measurement(pose, cov, n_mask, n_valid, area, cost, candidates, is_reference,
-                           orientation_observed=not self._symmetric)
+                           orientation_observed=not self._symmetric,
+                           occluded_share=float(occluded_share))

@@ -39,6 +39,7 @@ from push_core.robot_view.model import (
     MAX_DILATE_PX,
     MAX_TRIANGLES,
     MAX_URDF_CHARS,
+    SIM_PANDA_BASE_POSE,
     RobotGeometry,
     RobotImage,
     base_transform,
@@ -48,6 +49,7 @@ from push_core.robot_view.model import (
 )
 from push_core.robot_view.raster import check_camera, rasterize
 
-__all__ = ["MAX_DILATE_PX", "MAX_TRIANGLES", "MAX_URDF_CHARS", "RobotGeometry", "RobotImage",
+__all__ = ["MAX_DILATE_PX", "MAX_TRIANGLES", "MAX_URDF_CHARS", "SIM_PANDA_BASE_POSE",
+           "RobotGeometry", "RobotImage",
            "base_transform", "check_camera", "check_rigid_transform", "dilate",
            "joint_positions", "rasterize"]

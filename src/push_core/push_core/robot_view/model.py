@@ -19,9 +19,15 @@ from scipy import ndimage
 from push_core.robot_view.raster import MAX_WORK, check_camera, rasterize
 from push_core.robot_view.urdf import LinkShape, link_shapes
 
-__all__ = ["MAX_DILATE_PX", "MAX_TRIANGLES", "MAX_URDF_CHARS", "RobotGeometry", "RobotImage",
+__all__ = ["MAX_DILATE_PX", "MAX_TRIANGLES", "MAX_URDF_CHARS", "SIM_PANDA_BASE_POSE",
+           "RobotGeometry", "RobotImage",
            "base_transform", "check_rigid_transform", "dilate", "joint_positions"]
 
+#: Pose (x, y, z, yaw) of the simulated Panda's base ``panda_link0`` in ``world`` (m, rad):
+#: behind the workspace on a 0.15 m pedestal (on the bare table no base pose reaches the whole
+#: workspace with the rod vertical; docs/RESULTS.md, section bench_arm_reach). The default of
+#: every node's base pose parameter.
+SIM_PANDA_BASE_POSE = (-0.47, 0.0, 0.15, 0.0)
 #: Longest URDF text accepted, characters (a 10 MB string is refused before parsing).
 MAX_URDF_CHARS = 4_000_000
 #: Most triangles of a robot's geometry (bounded work per rendered frame).
