@@ -30,7 +30,6 @@ from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from std_srvs.srv import SetBool, Trigger
@@ -45,16 +44,12 @@ from push_ros.health import NodeHealth
 from push_ros.node import declare_config, run_node
 from push_ros.paths import path_from_points, push_points_from_path
 from push_ros.poses import pose_msg
-from push_ros.qos import LATCHED_QOS, RELIABLE_QOS
+from push_ros.qos import JOINT_STATE_QOS, LATCHED_QOS, RELIABLE_QOS
 from push_ros.refusal import refusal_msg
 from push_ros.stamps import check_not_ahead, clock_seconds, seconds_from_stamp, stamp_from_seconds
 
 __all__ = ["PARAMETERS", "ExecutorParams", "PushExecutorNode", "main"]
 
-#: Joint states: reliable, depth 50 (docs/ARCHITECTURE.md).
-JOINT_STATE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50,
-                             reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.VOLATILE)
 #: ``time_from_start`` of the one-point hold trajectory, s.
 HOLD_TIME = 0.05
 #: Most joints a joint state may name (a bigger message is refused before any work).

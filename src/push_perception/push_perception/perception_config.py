@@ -31,9 +31,11 @@ class PerceptionError(ValueError):
     ``"bad_input"`` (malformed arrays).
     """
 
-    def __init__(self, kind: str, message: str) -> None:
+    def __init__(self, kind: str, message: str, occluded_share: float = math.nan) -> None:
         super().__init__(message)
         self.kind = kind
+        #: The share of the object the robot hid, when known (kind ``"occluded"``).
+        self.occluded_share = float(occluded_share)
 
 
 @dataclass(frozen=True)

@@ -306,7 +306,8 @@ class EpisodeTracker:
                 raise
             raise PerceptionError("occluded", f"the robot hides {100 * share:.0f} % of the "
                                   f"object at its last pose (more than "
-                                  f"{100 * self.cfg.max_occluded:.0f} %); {exc}") from None
+                                  f"{100 * self.cfg.max_occluded:.0f} %); {exc}",
+                                  share) from None
 
     def _update(self, m: NDArray[np.bool_], d: NDArray[np.float32], k: NDArray[np.float64],
                 t: NDArray[np.float64], rob: NDArray[np.bool_] | None,
@@ -410,7 +411,7 @@ class EpisodeTracker:
         share = self._hidden_share(pose, cover, k, t)
         if share > cfg.max_occluded:
             raise PerceptionError("occluded", f"the robot hides {100 * share:.0f} % of the "
-                                  f"object (more than {100 * cfg.max_occluded:.0f} %)")
+                                  f"object (more than {100 * cfg.max_occluded:.0f} %)", share)
         self._previous, self._last_xy = float(pose[2]), pose[:2].copy()
         mismatch = abs(vis.view.area / (ref.area * max(1.0 - share, 1e-3)) - 1.0)
         cov = pose_covariance(n_valid, fraction, mismatch, cost, ref.area,
