@@ -48,6 +48,26 @@ def test_joint_states_are_interpolated_or_the_nearest_within_the_tolerance() -> 
     assert info.value.kind == "no_joint_state"
 
 
+def test_a_robot_at_rest_keeps_its_last_state_longer() -> None:
+    buf = JointStateBuffer()
+    buf.add(1.0, ["a"], [0.5], velocities=[0.001])  # at rest
+    assert buf.at(1.5, 0.05, still_tolerance=2.0)[1:] == (pytest.approx([0.5]), 1.0)
+    with pytest.raises(InputError):
+        buf.at(3.5, 0.05, still_tolerance=2.0)  # older than the still tolerance
+    buf.add(2.0, ["a"], [0.5004], velocities=[0.0])  # later, at rest where it was
+    assert buf.at(1.5, 0.05, still_tolerance=2.0)[2] == 1.0
+    buf.add(2.5, ["a"], [0.9], velocities=[0.0])  # later, elsewhere: it moved in between
+    with pytest.raises(InputError):
+        buf.at(2.3, 0.05, still_tolerance=2.0)
+    moving, unknown = JointStateBuffer(), JointStateBuffer()
+    moving.add(1.0, ["a"], [0.5], velocities=[0.2])
+    unknown.add(1.0, ["a"], [0.5])  # no velocities: rest is not known
+    for b in (moving, unknown):
+        with pytest.raises(InputError) as info:
+            b.at(1.5, 0.05, still_tolerance=2.0)
+        assert info.value.kind == "stale_joint_state"
+
+
 def test_the_joint_history_is_bounded_and_bad_states_are_refused() -> None:
     buf = JointStateBuffer()
     for i in range(JOINT_HISTORY + 10):
@@ -126,6 +146,7 @@ def test_clear_robot_makes_the_robot_neutral() -> None:
 def test_bad_settings_are_refused() -> None:
     for kwargs, match in [({"dilate_px": -1}, "dilate_px"), ({"depth_margin": 1.0}, "depth"),
                           ({"joint_state_tolerance": 0.0}, "tolerance"),
+                          ({"still_tolerance": -1.0}, "still_tolerance"),
                           ({"base_pose": (0.0, 0.0, 0.0)}, "base_pose")]:
         with pytest.raises(ValueError, match=match):
             RobotFilterConfig(**kwargs)

@@ -74,6 +74,10 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec("robot_filter.joint_state_tolerance", 0.1, "Largest time between a frame's "
               "stamp and the joint state used for it, s (interpolated between the states "
               "before and after when both are this close).", (0.001, 5.0), read_only=True),
+    ParamSpec("robot_filter.still_tolerance", 2.0, "Largest age of the last joint state "
+              "before a frame that shows the robot at rest (every joint slower than 0.01 rad/s, "
+              "velocities given) and is not contradicted by a later one, s; used when no state "
+              "is within robot_filter.joint_state_tolerance.", (0.0, 60.0), read_only=True),
     ParamSpec("max_occluded", _GEOMETRY["max_occluded"], "With robot_filter.enabled: a frame "
               "in which the robot hides more than this share of the object's predicted "
               "silhouette gives no pose (outcome occluded).", (0.0, 0.9)),
@@ -201,7 +205,8 @@ class SegmentationParams:
                 package_dirs=tuple(values["robot_filter.package_dirs"] or ()),
                 dilate_px=int(values["robot_filter.dilate_px"]),
                 depth_margin=float(values["robot_filter.depth_margin"]),
-                joint_state_tolerance=float(values["robot_filter.joint_state_tolerance"]))
+                joint_state_tolerance=float(values["robot_filter.joint_state_tolerance"]),
+                still_tolerance=float(values["robot_filter.still_tolerance"]))
         return cls(weights=str(values["weights"]), torch_threads=int(values["torch_threads"]),
                    sync_queue=int(values["sync_queue"]), threshold=float(values["threshold"]),
                    min_coarse_cells=int(values["min_coarse_cells"]),

@@ -17,7 +17,12 @@ description yet, or it could not be loaded), ``no_joint_state`` (none received),
 
 Joint states (:class:`JointStateBuffer`) are kept for the last ``JOINT_HISTORY`` messages; the
 frame gets the positions interpolated linearly between the states just before and after its
-stamp when both are within the tolerance, else those of the nearest state within it.
+stamp when both are within the tolerance, else those of the nearest state within it. A robot at
+rest need not be sampled that often: when the last state before the frame reports every joint
+slower than ``STILL_VELOCITY`` (its velocities are given) and is at most
+``still_tolerance`` old, and no later state shows the robot elsewhere, its positions are the
+frame's (the simulator publishes a resting arm's state at 10 Hz of wall time; a loaded machine
+stretches that).
 """
 
 from __future__ import annotations
@@ -41,6 +46,10 @@ __all__ = ["JOINT_HISTORY", "JointStateBuffer", "RobotFilter", "RobotFilterConfi
 JOINT_HISTORY = 1000
 #: Most joints in one joint state.
 MAX_JOINTS = 256
+#: Joint speed below which a joint state shows the robot at rest, rad/s (m/s).
+STILL_VELOCITY = 0.01
+#: Largest difference of the positions of two states of a robot that did not move, rad (m).
+STILL_POSITION = 1e-3
 #: Pixels sampled per axis for the table colour (every n-th row and column).
 _COLOUR_STRIDE = 8
 
@@ -63,6 +72,9 @@ class RobotFilterConfig:
         A pixel measured this much nearer than the model is not the robot, m, [0, 0.5].
     joint_state_tolerance : float
         Largest time between the frame's stamp and the joint state used, s, (0, 5].
+    still_tolerance : float
+        The same for the last state before the frame when it shows the robot at rest, s,
+        [0, 60] (module docstring).
     """
 
     base_pose: tuple[float, float, float, float] = SIM_PANDA_BASE_POSE
@@ -71,6 +83,7 @@ class RobotFilterConfig:
     dilate_px: int = 2
     depth_margin: float = 0.01
     joint_state_tolerance: float = 0.1
+    still_tolerance: float = 2.0
 
     def __post_init__(self) -> None:
         pose = tuple(float(v) for v in self.base_pose)
@@ -89,6 +102,9 @@ class RobotFilterConfig:
                 and 0.0 < self.joint_state_tolerance <= 5.0):
             raise ValueError(f"robot_filter.joint_state_tolerance: must be in (0, 5] s, got "
                              f"{self.joint_state_tolerance!r}")
+        if not (math.isfinite(self.still_tolerance) and 0.0 <= self.still_tolerance <= 60.0):
+            raise ValueError(f"robot_filter.still_tolerance: must be in [0, 60] s, got "
+                             f"{self.still_tolerance!r}")
         object.__setattr__(self, "package_dirs", tuple(str(d) for d in self.package_dirs))
 
 
@@ -98,12 +114,15 @@ class JointStateBuffer:
     def __init__(self) -> None:
         self._stamps: list[float] = []
         self._states: list[tuple[tuple[str, ...], NDArray[np.float64]]] = []
+        self._still: list[bool] = []
 
     def __len__(self) -> int:
         return len(self._stamps)
 
-    def add(self, stamp: float, names: Sequence[str], positions: Sequence[float]) -> None:
-        """Keep one joint state (``stamp`` s; the positions of ``names``, rad or m).
+    def add(self, stamp: float, names: Sequence[str], positions: Sequence[float],
+            velocities: Sequence[float] = ()) -> None:
+        """Keep one joint state (``stamp`` s; the positions of ``names``, rad or m; their
+        velocities, rad/s or m/s, if given: one per name, else not known).
 
         Raises
         ------
@@ -118,24 +137,30 @@ class JointStateBuffer:
         values = np.asarray(positions, dtype=np.float64).ravel()
         if len(values) != len(names):
             raise ValueError(f"{len(names)} names but {len(values)} positions")
+        speed = np.asarray(velocities, dtype=np.float64).ravel()
+        still = len(speed) == len(values) > 0 and bool(np.all(np.abs(speed) <= STILL_VELOCITY))
         i = bisect.bisect_right(self._stamps, stamp)
         self._stamps.insert(i, float(stamp))
         self._states.insert(i, (tuple(str(n) for n in names), values))
+        self._still.insert(i, still)
         if len(self._stamps) > JOINT_HISTORY:
-            del self._stamps[0], self._states[0]
+            del self._stamps[0], self._states[0], self._still[0]
 
     def clear(self) -> None:
         """Forget every state."""
         self._stamps.clear()
         self._states.clear()
+        self._still.clear()
 
-    def at(self, stamp: float, tolerance: float
+    def at(self, stamp: float, tolerance: float, still_tolerance: float = 0.0
            ) -> tuple[tuple[str, ...], NDArray[np.float64], float]:
         """The joint state at ``stamp`` (s): names, positions and the time it is from.
 
         Interpolated between the states just before and after ``stamp`` when both are
         within ``tolerance`` s and name the same joints; otherwise the nearest state within
-        ``tolerance``.
+        ``tolerance``; otherwise the state before ``stamp`` if it shows the robot at rest, is
+        at most ``still_tolerance`` s old and a later state (if any) shows it at rest at the
+        same positions (module docstring).
 
         Raises
         ------
@@ -157,12 +182,27 @@ class JointStateBuffer:
         near = min((j for j in (before, after) if j is not None),
                    key=lambda j: abs(self._stamps[j] - stamp))
         gap = abs(self._stamps[near] - stamp)
+        if gap > tolerance and before is not None and self._resting(before, after) \
+                and stamp - self._stamps[before] <= still_tolerance:
+            names, q = self._states[before]
+            return names, q, self._stamps[before]
         if gap > tolerance:
             raise InputError("stale_joint_state", f"the nearest joint state is {gap:.3f} s from "
                              f"the frame (more than {tolerance:g} s): the robot's pixels "
                              "cannot be computed")
         names, q = self._states[near]
         return names, q, self._stamps[near]
+
+    def _resting(self, before: int, after: int | None) -> bool:
+        """The state ``before`` shows the robot at rest, and so does ``after`` (if any), at
+        the same positions."""
+        if not self._still[before]:
+            return False
+        if after is None:
+            return True
+        (n0, q0), (n1, q1) = self._states[before], self._states[after]
+        return self._still[after] and n0 == n1 and bool(np.all(np.abs(q1 - q0)
+                                                                <= STILL_POSITION))
 
 
 @dataclass(frozen=True)
@@ -247,7 +287,8 @@ class RobotFilter:
             raise InputError("no_robot_model", f"no robot model yet{why}: the robot's pixels "
                              "cannot be computed (/robot_description or "
                              "robot_filter.description_file)")
-        names, q, used = self.joints.at(stamp, self.cfg.joint_state_tolerance)
+        names, q, used = self.joints.at(stamp, self.cfg.joint_state_tolerance,
+                                        self.cfg.still_tolerance)
         h, w = depth.shape
         try:
             core = self._robot.render(camera_matrix, t_world_camera, w, h, names, q)

@@ -63,6 +63,7 @@ class RobotInputs:
         self.filter = RobotFilter(cfg)
         self._node, self._health = node, health
         self.last_share = math.nan
+        self._urdf = ""
         self.on_joint_state = health.guard(self._on_joint_state)
         self.on_description = health.guard(self._on_description)
         self._pub = node.create_publisher(DiagnosticStatus, OCCLUSION_TOPIC, RELIABLE_QOS)
@@ -85,11 +86,14 @@ class RobotInputs:
             if len(msg.name) > MAX_JOINTS:
                 raise ValueError(f"{len(msg.name)} joints (at most {MAX_JOINTS})")
             self.filter.joints.add(seconds_from_stamp(msg.header.stamp), list(msg.name),
-                                   list(msg.position))
+                                   list(msg.position), list(msg.velocity))
         except ValueError as exc:
             self._health.refuse("/joint_states", str(exc), "joint_states")
 
     def _on_description(self, msg: String) -> None:
+        if msg.data == self._urdf:  # re-latched (the simulator's reset): nothing new
+            return
+        self._urdf = msg.data
         if self.filter.set_model(msg.data):
             robot = self.filter.robot
             self._node.get_logger().info(f"robot model loaded: {len(robot.joint_names)} joints, "
