@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from push_perception.model import Segmenter
-from push_perception.occlusion import hidden_share
+from push_perception.occlusion import hidden_share, visible_match
 from push_perception.perception_config import PerceptionError
 from push_perception.robot_filter import RobotFilter, RobotFilterConfig
 from push_perception.tracker import EpisodeTracker
@@ -71,6 +71,34 @@ def test_a_band_across_the_object_leaves_the_pose(make_frame: Callable[..., Any]
     assert np.linalg.norm(meas.pose[:2] - expected) < 1e-3
     assert abs(meas.pose[2] - pose[2]) < np.radians(1.0)
     assert 0.05 < meas.occluded_share < 0.3
+
+
+def test_visible_match_is_the_iou_of_the_predicted_visible_part() -> None:
+    sil = np.zeros((10, 10), dtype=bool)
+    sil[2:8, 2:8] = True  # 36 px predicted
+    robot = np.zeros_like(sil)
+    robot[:, 5:] = True  # hides 18 of them
+    mask = np.zeros_like(sil)
+    mask[2:8, 2:5] = True  # the 18 seen
+    assert visible_match(sil, robot, mask) == 1.0
+    mask[2:8, 1] = True  # 6 more pixels that the prediction does not hold
+    assert visible_match(sil, robot, mask) == pytest.approx(18 / 24)
+
+
+def test_a_visible_part_unlike_the_outline_gives_no_pose(make_frame: Callable[..., Any]) -> None:
+    # Another object under the robot than the episode's: no pose fits what is seen.
+    tracker = EpisodeTracker()
+    first = make_frame(LOPSIDED, np.array([0.0, 0.0, 0.0]))
+    tracker.update(first.mask, first.depth, first.camera_matrix, first.T_world_camera,
+                   robot=np.zeros_like(first.mask))
+    disc = 0.03 * np.column_stack([np.cos(np.linspace(0, 2 * np.pi, 60, endpoint=False)),
+                                   np.sin(np.linspace(0, 2 * np.pi, 60, endpoint=False))])
+    frame = make_frame(disc, np.array([0.005, 0.0, 0.0]))
+    robot = np.zeros_like(frame.mask)
+    robot[:, 330:345] = True
+    with pytest.raises(PerceptionError, match="matches the episode.s outline poorly"):
+        tracker.update(frame.mask, frame.depth, frame.camera_matrix, frame.T_world_camera,
+                       robot=robot)
 
 
 @pytest.fixture(scope="module")

@@ -40,8 +40,8 @@ from numpy.typing import ArrayLike, NDArray
 from push_perception.footprint import TopDownView
 from push_perception.perception_config import PerceptionConfig, PerceptionError
 
-__all__ = ["MIN_FIT_POINTS", "VisibleView", "fit_visible", "hidden_cells", "hidden_share",
-           "project", "touches", "visible_view"]
+__all__ = ["MIN_FIT_POINTS", "VisibleView", "fit_visible", "grow", "hidden_cells",
+           "hidden_share", "project", "silhouette", "touches", "visible_match", "visible_view"]
 
 #: Fewest uncut boundary points a fit needs (a few centimetres of the outline at 1 mm cells).
 MIN_FIT_POINTS = 20
@@ -295,6 +295,39 @@ def fit_visible(ref: TopDownView, ref_points: NDArray[np.float64], vis: VisibleV
     return pose[pick], float(cost[pick])
 
 
+def silhouette(outline: NDArray[np.float64], height: float, camera_matrix: NDArray[np.float64],
+               t_world_camera: NDArray[np.float64], shape: tuple[int, int]
+               ) -> NDArray[np.bool_]:
+    """The object's image silhouette, (H, W) bool: the prism of ``outline`` (K, 2) in
+    ``world`` (m, closed) from the table up to ``height`` (m), seen by the camera (empty
+    where it is out of the image; all True when a point lies behind the camera)."""
+    h, w = shape
+    k = len(outline)
+    pts = np.concatenate([np.column_stack([outline, np.full(k, height)]),
+                          np.column_stack([outline, np.zeros(k)])])
+    uv, z = project(pts, camera_matrix, t_world_camera)
+    sil = np.zeros((h, w), dtype=bool)
+    if not np.all(z > 0) or not np.all(np.isfinite(uv)):
+        sil[:] = True
+        return sil
+    lo = np.maximum(np.floor(uv.min(axis=0)).astype(int) - 1, 0)
+    hi = np.minimum(np.ceil(uv.max(axis=0)).astype(int) + 2, (w, h))
+    if np.any(hi <= lo):
+        return sil
+    canvas = np.zeros((hi[1] - lo[1], hi[0] - lo[0]), dtype=np.uint8)
+    fixed = np.round((uv - lo) * 16.0).astype(np.int32)  # 4 fractional bits
+    top, bottom = fixed[:k], fixed[k:]
+    sides = np.stack([top, np.roll(top, -1, axis=0), np.roll(bottom, -1, axis=0), bottom],
+                     axis=1)
+    # One call per polygon: a call with several fills their overlaps even-odd (holes).
+    for poly in (top, bottom):
+        cv2.fillPoly(canvas, [poly.reshape(-1, 1, 2)], 1, shift=4)
+    for quad in sides:  # the side walls: convex quadrilaterals
+        cv2.fillConvexPoly(canvas, quad.reshape(-1, 1, 2), 1, shift=4)
+    sil[lo[1]:hi[1], lo[0]:hi[0]] = canvas.astype(bool)
+    return sil
+
+
 def hidden_share(outline: NDArray[np.float64], height: float, robot: NDArray[np.bool_],
                  camera_matrix: NDArray[np.float64], t_world_camera: NDArray[np.float64]
                  ) -> tuple[float, int]:
@@ -313,34 +346,19 @@ def hidden_share(outline: NDArray[np.float64], height: float, robot: NDArray[np.
     Returns
     -------
     share : float
-        In [0, 1].
+        In [0, 1] (1 when a point lies behind the camera, 0 out of the image).
     pixels : int
         Pixels of the silhouette in the image.
     """
-    h, w = robot.shape
-    k = len(outline)
-    pts = np.concatenate([np.column_stack([outline, np.full(k, height)]),
-                          np.column_stack([outline, np.zeros(k)])])
-    uv, z = project(pts, camera_matrix, t_world_camera)
-    if not np.all(z > 0) or not np.all(np.isfinite(uv)):
-        return 1.0, 0
-    lo = np.maximum(np.floor(uv.min(axis=0)).astype(int) - 1, 0)
-    hi = np.minimum(np.ceil(uv.max(axis=0)).astype(int) + 2, (w, h))
-    if np.any(hi <= lo):
-        return 0.0, 0
-    canvas = np.zeros((hi[1] - lo[1], hi[0] - lo[0]), dtype=np.uint8)
-    fixed = np.round((uv - lo) * 16.0).astype(np.int32)  # 4 fractional bits
-    top, bottom = fixed[:k], fixed[k:]
-    sides = np.stack([top, np.roll(top, -1, axis=0), np.roll(bottom, -1, axis=0), bottom],
-                     axis=1)
-    # One call per polygon: a call with several fills their overlaps even-odd (holes).
-    for poly in (top, bottom):
-        cv2.fillPoly(canvas, [poly.reshape(-1, 1, 2)], 1, shift=4)
-    for quad in sides:  # the side walls: convex quadrilaterals
-        cv2.fillConvexPoly(canvas, quad.reshape(-1, 1, 2), 1, shift=4)
-    sil = canvas.astype(bool)
+    sil = silhouette(outline, height, camera_matrix, t_world_camera, robot.shape)
     n = int(np.count_nonzero(sil))
-    if n == 0:
-        return 0.0, 0
-    covered = np.count_nonzero(sil & robot[lo[1]:hi[1], lo[0]:hi[0]])
-    return covered / n, n
+    return (np.count_nonzero(sil & robot) / n if n else 0.0), n
+
+
+def visible_match(sil: NDArray[np.bool_], robot: NDArray[np.bool_], mask: NDArray[np.bool_]
+                  ) -> float:
+    """IoU of the predicted visible part (silhouette ``sil`` off the robot's pixels) with the
+    object mask ``mask``: near 1 for the right pose, low for a fit that went astray."""
+    seen = sil & ~robot
+    union = np.count_nonzero(seen | mask)
+    return np.count_nonzero(seen & mask) / union if union else 0.0

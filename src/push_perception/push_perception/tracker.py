@@ -57,6 +57,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from push_core.geometry import wrap_angle
 from push_core.symmetry import UNOBSERVED_VARIANCE, has_continuous_symmetry
 from push_perception.footprint import (
     TopDownView,
@@ -65,7 +66,14 @@ from push_perception.footprint import (
     outline_view,
     top_down_view,
 )
-from push_perception.occlusion import fit_visible, grow, hidden_share, visible_view
+from push_perception.occlusion import (
+    fit_visible,
+    grow,
+    hidden_share,
+    silhouette,
+    visible_match,
+    visible_view,
+)
 from push_perception.orientation import rotation_search
 from push_perception.outline import smooth_outline
 from push_perception.perception_config import (
@@ -84,6 +92,9 @@ NOMINAL_PIXELS = 5000
 #: Largest chamfer cost (m) of an anchor outline against the first frame after a restart
 #: (:meth:`EpisodeTracker.anchor`): above it the anchor is another object and is dropped.
 ANCHOR_MAX_COST = 0.003
+#: Smallest IoU of the predicted visible part of the object with its mask for a pose from the
+#: visible part (:func:`push_perception.occlusion.visible_match`); below it the fit is refused.
+MIN_VISIBLE_MATCH = 0.85
 
 
 def pose_covariance(n_valid: int, valid_fraction: float, area_mismatch: float,
@@ -185,6 +196,7 @@ class EpisodeTracker:
         #: last measured position (m): the fit's start when the robot hides part of the object.
         self._height = self._reach = 0.0
         self._last_xy = np.zeros(2)
+        self._symmetries = np.zeros(1)
         self._anchor: tuple[NDArray[np.float64], NDArray[np.float64], float] | None = None
 
     def anchor(self, points: ArrayLike, normals: ArrayLike, yaw: float) -> None:
@@ -337,7 +349,8 @@ class EpisodeTracker:
                 raise PerceptionError("occluded", "the robot touches the object in the frame "
                                       "that would fix the episode's outline; waiting for a "
                                       "clear frame")
-            return self._visible_part(points, near, cover, k, t, n_mask, n_valid, fraction)
+            return self._visible_part(m, points, near, rob, cover, k, t, n_mask, n_valid,
+                                      fraction)
         view = top_down_view(points, cfg)
         pts, normals = smooth_outline(view.boundary, cfg.outline_spacing,
                                       cfg.outline_smoothing,
@@ -377,24 +390,30 @@ class EpisodeTracker:
 
     def _set_shape(self, points: NDArray[np.float64], view: TopDownView,
                    pts: NDArray[np.float64]) -> None:
-        """Keep the reference's top height and reach, and its position as the last one."""
+        """Keep the reference's top height, reach and symmetry angles (the rotations that map
+        its footprint onto itself), and its position as the last one."""
         self._height = above_table(points, self.cfg)[1]
         self._reach = float(np.max(np.linalg.norm(pts - view.centroid, axis=1)))
         self._last_xy = view.centroid.copy()
+        self._symmetries = np.zeros(1) if self._symmetric else rotation_search(
+            view, pts, view, pts, 0.0, self.cfg).candidates
+
+    def _outline_at(self, pose: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The reference outline in ``world`` at ``pose`` (where the reference centroid goes,
+        m; rotation since the reference, rad)."""
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        q = self._ref_points - self._ref.centroid
+        return q @ np.array([[c, s], [-s, c]]) + pose[:2]
 
     def _hidden_share(self, pose: NDArray[np.float64], rob: NDArray[np.bool_],
                       k: NDArray[np.float64], t: NDArray[np.float64]) -> float:
-        """The share of the object's predicted silhouette the robot hides at ``pose`` (where
-        the reference centroid goes, m; rotation since the reference, rad)."""
-        ref = self._ref
-        c, s = math.cos(pose[2]), math.sin(pose[2])
-        q = self._ref_points - ref.centroid
-        outline = q @ np.array([[c, s], [-s, c]]) + pose[:2]
-        return hidden_share(outline, self._height, rob, k, t)[0]
+        """The share of the object's predicted silhouette the robot hides at ``pose``."""
+        return hidden_share(self._outline_at(pose), self._height, rob, k, t)[0]
 
-    def _visible_part(self, points: NDArray[np.float64], near: NDArray[np.bool_],
-                      cover: NDArray[np.bool_], k: NDArray[np.float64], t: NDArray[np.float64],
-                      n_mask: int, n_valid: int, fraction: float) -> Measurement:
+    def _visible_part(self, m: NDArray[np.bool_], points: NDArray[np.float64],
+                      near: NDArray[np.bool_], rob: NDArray[np.bool_], cover: NDArray[np.bool_],
+                      k: NDArray[np.float64], t: NDArray[np.float64], n_mask: int,
+                      n_valid: int, fraction: float) -> Measurement:
         """The pose from the visible part of the object (module docstring, step 5)."""
         cfg, ref = self.cfg, self._ref
         kept, _ = above_table(points, cfg)
@@ -408,10 +427,26 @@ class EpisodeTracker:
         starts = [[*self._last_xy, self._previous], [*vis.view.centroid, theta]]
         pose, cost = fit_visible(ref, self._ref_points, vis, starts, self._previous,
                                  not self._symmetric, cfg)
-        share = self._hidden_share(pose, cover, k, t)
+        # A symmetric outline: its equivalent closest to the previous angle, refined, competes
+        # (the fit keeps the angle continuous as the whole-view search does).
+        turns = pose[2] + self._symmetries
+        alt = float(turns[np.argmin(np.abs(wrap_angle(turns - self._previous)))])
+        if abs(alt - pose[2]) > math.radians(1.0):
+            alt = self._previous + float(wrap_angle(alt - self._previous))
+            pose, cost = fit_visible(ref, self._ref_points, vis, [pose, [*pose[:2], alt]],
+                                     self._previous, True, cfg)
+        sil = silhouette(self._outline_at(pose), self._height, k, t, m.shape)
+        share = np.count_nonzero(sil & cover) / max(np.count_nonzero(sil), 1)
         if share > cfg.max_occluded:
             raise PerceptionError("occluded", f"the robot hides {100 * share:.0f} % of the "
                                   f"object (more than {100 * cfg.max_occluded:.0f} %)", share)
+        match = visible_match(sil, rob, m)
+        self.last_visible_match = match
+        if match < MIN_VISIBLE_MATCH:
+            raise PerceptionError("occluded", f"the visible part of the object matches the "
+                                  f"episode's outline poorly (IoU {match:.2f} < "
+                                  f"{MIN_VISIBLE_MATCH}): no reliable pose with the robot "
+                                  f"hiding {100 * share:.0f} % of it", share)
         self._previous, self._last_xy = float(pose[2]), pose[:2].copy()
         mismatch = abs(vis.view.area / (ref.area * max(1.0 - share, 1e-3)) - 1.0)
         cov = pose_covariance(n_valid, fraction, mismatch, cost, ref.area,
