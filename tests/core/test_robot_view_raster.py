@@ -126,3 +126,42 @@ def test_bad_input_is_a_clear_error() -> None:
     with pytest.raises(ValueError, match="cull"):
         rasterize(tri, K, W, H, cull=[True])
     assert not rasterize(np.zeros((0, 3, 3)), K, W, H)[0].any()
+
+
+def test_fill_polygon_takes_the_pixel_centres_inside_even_a_concave_polygon() -> None:
+    from push_core.robot_view.raster import fill_polygon
+
+    # A U: the outer square 10..30 x 10..30 without the notch 15..25 x 10..22 (u, v).
+    u_shape = np.array([[10.0, 10.0], [15.0, 10.0], [15.0, 22.0], [25.0, 22.0], [25.0, 10.0],
+                        [30.0, 10.0], [30.0, 30.0], [10.0, 30.0]])
+    mask = fill_polygon(u_shape, 40, 40)
+    vv, uu = np.mgrid[:40, :40]
+    outer = (uu >= 10) & (uu <= 30) & (vv >= 10) & (vv < 30)
+    notch = (uu > 15) & (uu < 25) & (vv < 22)
+    inside = outer & ~notch
+    # Pixel centres on an edge may go either way; all the others must agree.
+    edge = ((uu == 10) | (uu == 30) | (uu == 15) | (uu == 25) | (vv == 10) | (vv == 22)
+            | (vv == 30))
+    assert np.array_equal(mask[~edge], inside[~edge])
+    assert np.array_equal(fill_polygon(u_shape[::-1], 40, 40), mask)  # orientation free
+    with pytest.raises(ValueError, match="K >= 3"):
+        fill_polygon(u_shape[:2], 40, 40)
+
+
+def test_prism_silhouette_of_a_box_seen_from_above() -> None:
+    from push_core.robot_view.raster import prism_silhouette
+
+    # Camera 1 m above the table looking straight down (x right, y down in the image =
+    # world -y): a 0.2 x 0.1 m plate 0.1 m high at the origin, top face 0.9 m from the lens.
+    t_cam_world = np.array([[1.0, 0, 0, 0], [0, -1.0, 0, 0], [0, 0, -1.0, 1.0], [0, 0, 0, 1]])
+    plate = np.array([[-0.1, -0.05], [0.1, -0.05], [0.1, 0.05], [-0.1, 0.05]])
+    sil = prism_silhouette(plate, 0.1, K, t_cam_world, W, H)
+    u = 49.5 + 100 * np.array([-0.1, 0.1]) / 0.9  # the top face: 38.4 .. 60.6
+    v = 39.5 + 100 * np.array([-0.05, 0.05]) / 0.9
+    expected = np.zeros((H, W), dtype=bool)
+    expected[int(np.ceil(v[0])):int(np.floor(v[1])) + 1,
+             int(np.ceil(u[0])):int(np.floor(u[1])) + 1] = True
+    assert np.array_equal(sil, expected)  # from straight above the top face is the silhouette
+    tilted = np.array([[1.0, 0, 0, 0], [0, -0.8, 0.6, 0], [0, -0.6, -0.8, 1.0], [0, 0, 0, 1]])
+    side = prism_silhouette(plate, 0.1, K, tilted, W, H)
+    assert side.sum() > sil.sum()  # seen at an angle: a side wall shows too

@@ -37,6 +37,7 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from push_core.robot_view import prism_silhouette
 from push_perception.footprint import TopDownView
 from push_perception.perception_config import PerceptionConfig, PerceptionError
 
@@ -299,33 +300,10 @@ def silhouette(outline: NDArray[np.float64], height: float, camera_matrix: NDArr
                t_world_camera: NDArray[np.float64], shape: tuple[int, int]
                ) -> NDArray[np.bool_]:
     """The object's image silhouette, (H, W) bool: the prism of ``outline`` (K, 2) in
-    ``world`` (m, closed) from the table up to ``height`` (m), seen by the camera (empty
-    where it is out of the image; all True when a point lies behind the camera)."""
+    ``world`` (m, closed) from the table up to ``height`` (m), seen by the camera
+    (:func:`push_core.robot_view.prism_silhouette`)."""
     h, w = shape
-    k = len(outline)
-    pts = np.concatenate([np.column_stack([outline, np.full(k, height)]),
-                          np.column_stack([outline, np.zeros(k)])])
-    uv, z = project(pts, camera_matrix, t_world_camera)
-    sil = np.zeros((h, w), dtype=bool)
-    if not np.all(z > 0) or not np.all(np.isfinite(uv)):
-        sil[:] = True
-        return sil
-    lo = np.maximum(np.floor(uv.min(axis=0)).astype(int) - 1, 0)
-    hi = np.minimum(np.ceil(uv.max(axis=0)).astype(int) + 2, (w, h))
-    if np.any(hi <= lo):
-        return sil
-    canvas = np.zeros((hi[1] - lo[1], hi[0] - lo[0]), dtype=np.uint8)
-    fixed = np.round((uv - lo) * 16.0).astype(np.int32)  # 4 fractional bits
-    top, bottom = fixed[:k], fixed[k:]
-    sides = np.stack([top, np.roll(top, -1, axis=0), np.roll(bottom, -1, axis=0), bottom],
-                     axis=1)
-    # One call per polygon: a call with several fills their overlaps even-odd (holes).
-    for poly in (top, bottom):
-        cv2.fillPoly(canvas, [poly.reshape(-1, 1, 2)], 1, shift=4)
-    for quad in sides:  # the side walls: convex quadrilaterals
-        cv2.fillConvexPoly(canvas, quad.reshape(-1, 1, 2), 1, shift=4)
-    sil[lo[1]:hi[1], lo[0]:hi[0]] = canvas.astype(bool)
-    return sil
+    return prism_silhouette(outline, height, camera_matrix, np.linalg.inv(t_world_camera), w, h)
 
 
 def hidden_share(outline: NDArray[np.float64], height: float, robot: NDArray[np.bool_],
@@ -346,7 +324,7 @@ def hidden_share(outline: NDArray[np.float64], height: float, robot: NDArray[np.
     Returns
     -------
     share : float
-        In [0, 1] (1 when a point lies behind the camera, 0 out of the image).
+        In [0, 1] (0 when the silhouette is out of the image).
     pixels : int
         Pixels of the silhouette in the image.
     """

@@ -5,12 +5,14 @@ remove the robot's own pixels from a frame (the idea of MoveIt's depth self-filt
 ``robot_self_filter``), the executor to choose arm poses clear of the object's silhouette.
 This package's top level is its public face::
 
-    from push_core.robot_view import RobotGeometry
+    from push_core.robot_view import RobotGeometry, prism_silhouette
 
     robot = RobotGeometry.from_urdf(urdf_text, package_dirs=[...], base_pose=(x, y, z, yaw))
     poses = robot.link_poses(joint_names, positions)          # {link: T_world_link (4, 4)}
     mask, depth = robot.render(K, T_world_camera, 640, 480, joint_names, positions,
                                dilate_px=2)
+    seen = prism_silhouette(outline, thickness, K, inv(T_world_camera), 640, 480)
+    hidden = (mask & seen).sum() / seen.sum()  # the share of the object the robot hides
 
 Frames and conventions (REP 103: metres, radians, right-handed, z up):
 
@@ -47,9 +49,9 @@ from push_core.robot_view.model import (
     dilate,
     joint_positions,
 )
-from push_core.robot_view.raster import check_camera, rasterize
+from push_core.robot_view.raster import check_camera, fill_polygon, prism_silhouette, rasterize
 
 __all__ = ["MAX_DILATE_PX", "MAX_TRIANGLES", "MAX_URDF_CHARS", "SIM_PANDA_BASE_POSE",
            "RobotGeometry", "RobotImage",
-           "base_transform", "check_camera", "check_rigid_transform", "dilate",
-           "joint_positions", "rasterize"]
+           "base_transform", "check_camera", "check_rigid_transform", "dilate", "fill_polygon",
+           "joint_positions", "prism_silhouette", "rasterize"]

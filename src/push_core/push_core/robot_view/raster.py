@@ -28,7 +28,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["CHUNK_PIXELS", "MAX_IMAGE_SIDE", "MAX_WORK", "check_camera", "rasterize"]
+__all__ = ["CHUNK_PIXELS", "MAX_IMAGE_SIDE", "MAX_WORK", "check_camera", "check_size",
+           "fill_polygon", "prism_silhouette", "rasterize"]
 
 #: Candidate pixels evaluated at once (about 15 temporaries of 8 bytes each: ~250 MB at most).
 CHUNK_PIXELS = 1 << 21
@@ -54,10 +55,15 @@ def check_camera(camera_matrix: ArrayLike, width: int, height: int) -> NDArray[n
             or k[1, 0] != 0 or not np.array_equal(k[2], (0.0, 0.0, 1.0)):
         raise ValueError(f"camera matrix must be a finite (3, 3) pinhole K (fx, fy > 0, last "
                          f"row 0 0 1), got {k.tolist() if k.size <= 9 else k.shape}")
+    check_size(width, height)
+    return k
+
+
+def check_size(width: int, height: int) -> None:
+    """Raise ``ValueError`` unless both sides are integers in [1, ``MAX_IMAGE_SIDE``] px."""
     for name, side in (("width", width), ("height", height)):
         if isinstance(side, bool) or int(side) != side or not 1 <= side <= MAX_IMAGE_SIDE:
             raise ValueError(f"{name} must be an integer in [1, {MAX_IMAGE_SIDE}], got {side!r}")
-    return k
 
 
 def rasterize(triangles: ArrayLike, camera_matrix: ArrayLike, width: int, height: int,
@@ -236,3 +242,105 @@ def _draw_bands(band_tri: NDArray[np.int64], band_v0: NDArray[np.float64],
     w = w_first[span] + c[span, 4] * offset
     pixel = (v * width + u_lo).astype(np.int64)[span] + offset
     np.maximum.at(flat, pixel, w)
+
+
+def fill_polygon(uv: ArrayLike, width: int, height: int) -> NDArray[np.bool_]:
+    """The pixels whose centres lie inside a closed polygon in the image (even-odd rule).
+
+    Parameters
+    ----------
+    uv : (K, 2) array_like
+        Vertices in pixels (OpenCV: ``u`` right, ``v`` down, integer coordinates at pixel
+        centres), any orientation, K >= 3; the polygon may be non-convex.
+    width, height : int
+        Image size, pixels.
+
+    Returns
+    -------
+    (height, width) bool
+
+    Raises
+    ------
+    ValueError
+        Bad shape, a non-finite vertex, or a bad size.
+    """
+    check_size(width, height)
+    p = np.asarray(uv, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != 2 or len(p) < 3:
+        raise ValueError(f"uv must be (K, 2) with K >= 3, got shape {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise ValueError("uv: non-finite vertex")
+    out = np.zeros((height, width), dtype=bool)
+    a, b = p, np.roll(p, -1, axis=0)
+    lo, hi = np.minimum(a[:, 1], b[:, 1]), np.maximum(a[:, 1], b[:, 1])
+    # Rows whose centre v satisfies lo <= v < hi cross the edge (half-open: a vertex counts once).
+    first = np.clip(np.ceil(lo), 0, height).astype(np.int64)
+    last = np.clip(np.ceil(hi), 0, height).astype(np.int64)  # exclusive
+    n = np.maximum(last - first, 0)
+    if n.sum() == 0:
+        return out
+    edge = np.repeat(np.arange(len(p)), n)
+    row = np.arange(len(edge)) - np.repeat(np.cumsum(n) - n, n) + first[edge]
+    ea, eb = a[edge], b[edge]
+    u = ea[:, 0] + (row - ea[:, 1]) * (eb[:, 0] - ea[:, 0]) / (eb[:, 1] - ea[:, 1])
+    order = np.lexsort((u, row))
+    row, u = row[order], u[order]
+    # Consecutive crossings of a row pair up (even-odd): fill from each odd one to the next.
+    starts, ends = u[0::2], u[1::2]
+    span_row = row[0::2]
+    u0 = np.maximum(np.ceil(starts), 0)
+    u1 = np.minimum(np.floor(ends), width - 1)
+    length = np.maximum(u1 - u0 + 1, 0).astype(np.int64)
+    span = np.repeat(np.arange(len(length)), length)
+    col = (np.arange(len(span)) - np.repeat(np.cumsum(length) - length, length)
+           + u0[span].astype(np.int64))
+    out[span_row[span], col] = True
+    return out
+
+
+def prism_silhouette(outline: ArrayLike, top: float, camera_matrix: ArrayLike,
+                     t_camera_world: ArrayLike, width: int, height: int,
+                     near: float = 0.01) -> NDArray[np.bool_]:
+    """The image silhouette of a flat object: the prism of its outline from the table (z = 0)
+    up to ``top``, seen by a pinhole camera.
+
+    Parameters
+    ----------
+    outline : (K, 2) array_like
+        The object's closed outline in ``world`` at its pose, m (K >= 3; any orientation,
+        non-convex allowed).
+    top : float
+        Height of its top face above the table, m.
+    camera_matrix : (3, 3) array_like
+        K, pixels.
+    t_camera_world : (4, 4) array_like
+        ``camera optical frame <- world`` (the inverse of ``T_world_camera``).
+    width, height : int
+        Image size, pixels.
+    near : float
+        Near clipping plane, m: the side walls are clipped at it; a top or bottom face that
+        reaches behind it is drawn through its side walls only.
+
+    Returns
+    -------
+    (height, width) bool
+        Pixel centres inside the silhouette (the side walls by :func:`rasterize`, the top and
+        bottom faces by :func:`fill_polygon`).
+    """
+    k = check_camera(camera_matrix, width, height)
+    t = np.asarray(t_camera_world, dtype=np.float64)
+    xy = np.asarray(outline, dtype=np.float64)
+    if xy.ndim != 2 or xy.shape[1] != 2 or len(xy) < 3 or not np.all(np.isfinite(xy)):
+        raise ValueError(f"outline must be finite (K, 2) with K >= 3, got shape {xy.shape}")
+    n = len(xy)
+    faces = [np.column_stack([xy, np.full(n, float(top))]), np.column_stack([xy, np.zeros(n)])]
+    cam = [f @ t[:3, :3].T + t[:3, 3] for f in faces]
+    a, b = cam[0], cam[1]
+    a1, b1 = np.roll(a, -1, axis=0), np.roll(b, -1, axis=0)
+    walls = np.concatenate([np.stack([a, a1, b1], axis=1), np.stack([a, b1, b], axis=1)])
+    out = rasterize(walls, k, width, height, near=near)[0]
+    for face in cam:
+        if np.all(face[:, 2] >= near):
+            uv = (face[:, :2] / face[:, 2:3]) @ k[:2, :2].T + k[:2, 2]
+            out |= fill_polygon(uv, width, height)
+    return out
