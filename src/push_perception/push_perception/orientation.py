@@ -27,7 +27,8 @@ from numpy.typing import ArrayLike, NDArray
 from push_perception.footprint import TopDownView
 from push_perception.perception_config import PerceptionConfig
 
-__all__ = ["MAX_REFINED_MINIMA", "RotationResult", "chamfer_cost", "rotation_search"]
+__all__ = ["MAX_REFINED_MINIMA", "RotationResult", "chamfer_cost", "coarse_minima",
+           "rotation_search"]
 
 #: Most coarse minima of the rotation search that are refined (the lowest ones).
 MAX_REFINED_MINIMA = 64
@@ -102,21 +103,8 @@ def rotation_search(ref: TopDownView, ref_points: NDArray[np.float64], cur: TopD
     RotationResult
     """
     trunc = cfg.chamfer_truncation
-    step = math.radians(cfg.coarse_step_deg)
-    n = int(math.ceil(2 * math.pi / step))
-    grid = -math.pi + np.arange(n) * (2 * math.pi / n)
-    # Coarse search on every third point (6 mm apart at the default spacing: plenty).
-    coarse = chamfer_cost(grid, ref, ref_points[::3], cur, cur_points[::3], trunc)
-    left, right = np.roll(coarse, 1), np.roll(coarse, -1)
-    minima = np.nonzero((coarse <= left) & (coarse <= right))[0]
-    # Refine the promising minima (within a generous margin of the coarse best) together.
-    best_coarse = coarse[minima].min()
-    margin = cfg.symmetry_tolerance + 0.5 * best_coarse
-    promising = minima[coarse[minima] <= best_coarse + margin]
-    if len(promising) > MAX_REFINED_MINIMA:  # bounded work (only with a very fine grid)
-        promising = promising[np.argsort(coarse[promising], kind="stable")[:MAX_REFINED_MINIMA]]
-    thetas = grid[promising]
-    thetas, costs = _refine(thetas, 2 * math.pi / n, math.radians(cfg.angle_tolerance_deg),
+    thetas, step = coarse_minima(ref, ref_points, cur, cur_points, cfg)
+    thetas, costs = _refine(thetas, step, math.radians(cfg.angle_tolerance_deg),
                             ref, ref_points, cur, cur_points, trunc)
     best = costs.min()
     close = costs <= best + cfg.symmetry_tolerance
@@ -126,6 +114,28 @@ def rotation_search(ref: TopDownView, ref_points: NDArray[np.float64], cur: TopD
     k = int(np.argmin(np.abs(deltas)))
     return RotationResult(theta=float(previous + deltas[k]), cost=float(costs[close][k]),
                           candidates=cand)
+
+
+def coarse_minima(ref: TopDownView, ref_points: NDArray[np.float64], cur: TopDownView,
+                  cur_points: NDArray[np.float64], cfg: PerceptionConfig
+                  ) -> tuple[NDArray[np.float64], float]:
+    """The promising local minima of the chamfer cost on the coarse grid (the first step of
+    :func:`rotation_search`): angles (rad) within a generous margin of the best, and the
+    grid step (rad)."""
+    step = math.radians(cfg.coarse_step_deg)
+    n = int(math.ceil(2 * math.pi / step))
+    grid = -math.pi + np.arange(n) * (2 * math.pi / n)
+    # Coarse search on every third point (6 mm apart at the default spacing: plenty).
+    coarse = chamfer_cost(grid, ref, ref_points[::3], cur, cur_points[::3],
+                          cfg.chamfer_truncation)
+    left, right = np.roll(coarse, 1), np.roll(coarse, -1)
+    minima = np.nonzero((coarse <= left) & (coarse <= right))[0]
+    best_coarse = coarse[minima].min()
+    margin = cfg.symmetry_tolerance + 0.5 * best_coarse
+    promising = minima[coarse[minima] <= best_coarse + margin]
+    if len(promising) > MAX_REFINED_MINIMA:  # bounded work (only with a very fine grid)
+        promising = promising[np.argsort(coarse[promising], kind="stable")[:MAX_REFINED_MINIMA]]
+    return grid[promising], 2 * math.pi / n
 
 
 def _refine(thetas: NDArray[np.float64], step: float, tol: float, ref: TopDownView,

@@ -74,7 +74,7 @@ from push_perception.occlusion import (
     visible_match,
     visible_view,
 )
-from push_perception.orientation import rotation_search
+from push_perception.orientation import coarse_minima, rotation_search
 from push_perception.outline import smooth_outline
 from push_perception.perception_config import (
     PerceptionConfig,
@@ -421,9 +421,11 @@ class EpisodeTracker:
         # Starts: the previous pose, and the whole-view estimate (of its symmetric
         # equivalents the one closest to the previous angle).
         theta = self._previous
-        if not self._symmetric:
-            theta = rotation_search(ref, self._ref_points, vis.view, vis.view.boundary[::2],
-                                    self._previous, cfg).theta
+        if not self._symmetric:  # the coarse minimum closest to it; the fit refines it
+            angles = coarse_minima(ref, self._ref_points, vis.view, vis.view.boundary[::2],
+                                   cfg)[0]
+            deltas = wrap_angle(angles - self._previous)
+            theta = self._previous + float(deltas[np.argmin(np.abs(deltas))])
         starts = [[*self._last_xy, self._previous], [*vis.view.centroid, theta]]
         pose, cost = fit_visible(ref, self._ref_points, vis, starts, self._previous,
                                  not self._symmetric, cfg)
