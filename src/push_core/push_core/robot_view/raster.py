@@ -338,9 +338,23 @@ def prism_silhouette(outline: ArrayLike, top: float, camera_matrix: ArrayLike,
     a, b = cam[0], cam[1]
     a1, b1 = np.roll(a, -1, axis=0), np.roll(b, -1, axis=0)
     walls = np.concatenate([np.stack([a, a1, b1], axis=1), np.stack([a, b1, b], axis=1)])
-    out = rasterize(walls, k, width, height, near=near)[0]
+    out = np.zeros((height, width), dtype=bool)
+    u0, v0, u1, v1 = 0, 0, width, height
+    every = np.concatenate(cam)
+    if np.all(every[:, 2] >= near):  # all in front: draw in the bounding box only
+        uv = (every[:, :2] / every[:, 2:3]) @ k[:2, :2].T + k[:2, 2]
+        u0, v0 = (max(int(np.floor(c)), 0) for c in uv.min(axis=0))
+        u1, v1 = min(int(np.ceil(uv[:, 0].max())) + 1, width), \
+            min(int(np.ceil(uv[:, 1].max())) + 1, height)
+        if u1 <= u0 or v1 <= v0:
+            return out
+    crop = k.copy()
+    crop[0, 2] -= u0
+    crop[1, 2] -= v0
+    box = rasterize(walls, crop, u1 - u0, v1 - v0, near=near)[0]
     for face in cam:
         if np.all(face[:, 2] >= near):
-            uv = (face[:, :2] / face[:, 2:3]) @ k[:2, :2].T + k[:2, 2]
-            out |= fill_polygon(uv, width, height)
+            uv = (face[:, :2] / face[:, 2:3]) @ crop[:2, :2].T + crop[:2, 2]
+            box |= fill_polygon(uv, u1 - u0, v1 - v0)
+    out[v0:v1, u0:u1] = box
     return out
