@@ -16,7 +16,6 @@ from push_executor.motion import MotionPlan, StageSpan
 from push_executor.tracking import (
     START_MOTION,
     Execution,
-    chain_positions,
     expected_positions,
     segment_distance,
     tracking_error,
@@ -34,17 +33,6 @@ def straight_plan() -> MotionPlan:
                       tip=np.zeros((3, 3)), stages=(StageSpan("push", 1.0, 2.0),),
                       contact_start=1.2, contact_end=1.8,
                       line=np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]))
-
-
-def test_chain_positions_maps_by_name() -> None:
-    q = chain_positions(("a", "b"), ["x", "b", "a"], [9.0, 2.0, 1.0])
-    np.testing.assert_array_equal(q, [1.0, 2.0])
-    for names, positions, match in [(["a"], [1.0, 2.0], "1 names but 2"),
-                                    (["a", "a"], [1.0, 2.0], "twice"),
-                                    (["a", "x"], [1.0, 2.0], "missing"),
-                                    (["a", "b"], [1.0, math.nan], "non-finite")]:
-        with pytest.raises(ValueError, match=match):
-            chain_positions(("a", "b"), names, positions)
 
 
 def test_expected_positions_hermite() -> None:

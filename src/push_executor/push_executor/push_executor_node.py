@@ -30,30 +30,26 @@ from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from std_srvs.srv import SetBool, Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from push_core.robot_view import joint_positions
 from push_executor.kinematics import ArmKinematics
 from push_executor.motion import MotionPlan, PushRefused, plan_push
 from push_executor.parameters import NODE_NAME, PARAMETERS, ExecutorParams
-from push_executor.tracking import Event, Execution, chain_positions
+from push_executor.tracking import Event, Execution
 from push_ros.health import NodeHealth
 from push_ros.node import declare_config, run_node
 from push_ros.paths import path_from_points, push_points_from_path
 from push_ros.poses import pose_msg
-from push_ros.qos import LATCHED_QOS, RELIABLE_QOS
+from push_ros.qos import JOINT_STATE_QOS, LATCHED_QOS, RELIABLE_QOS
 from push_ros.refusal import refusal_msg
 from push_ros.stamps import check_not_ahead, clock_seconds, seconds_from_stamp, stamp_from_seconds
 
 __all__ = ["PARAMETERS", "ExecutorParams", "PushExecutorNode", "main"]
 
-#: Joint states: reliable, depth 50 (docs/design/arm.md#push_executor).
-JOINT_STATE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50,
-                             reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.VOLATILE)
 #: ``time_from_start`` of the one-point hold trajectory, s.
 HOLD_TIME = 0.05
 #: Most joints a joint state may name (a bigger message is refused before any work).
@@ -144,7 +140,7 @@ class PushExecutorNode(Node):
             stamp = seconds_from_stamp(msg.header.stamp)
             check_not_ahead(stamp, clock_seconds(self.get_clock()),
                             self.params.values["max_future_stamp"], "joint state stamp")
-            q = chain_positions(self._arm.joint_names, list(msg.name), msg.position)
+            q = joint_positions(self._arm.joint_names, list(msg.name), msg.position)
         except ValueError as exc:
             self.health.refuse("/joint_states", str(exc), "invalid")
             return

@@ -39,7 +39,7 @@ from push_executor.kinematics import ArmKinematics
 from push_executor.motion import MotionPlan
 
 __all__ = ["MAX_SAMPLES", "START_MOTION", "ContactSegment", "Event", "Execution",
-           "chain_positions", "expected_positions", "segment_distance", "tracking_error"]
+           "expected_positions", "segment_distance", "tracking_error"]
 
 #: Joint motion (rad) that shows a trajectory started.
 START_MOTION = 1e-3
@@ -52,33 +52,6 @@ MAX_SAMPLES = 100_000
 MAX_SAMPLE_GAP = 0.2
 #: Samples this long (s) before and after the contact segment are kept too.
 SAMPLE_MARGIN = 0.5
-
-
-def chain_positions(chain: tuple[str, ...], names: list[str], positions: ArrayLike
-                    ) -> NDArray[np.float64]:
-    """The chain's joint positions out of a joint state (any order, extra joints ignored).
-
-    Raises
-    ------
-    ValueError
-        ``names`` and ``positions`` differ in length, a name repeats, a chain joint is missing,
-        or a chain joint's position is not finite.
-    """
-    values = np.asarray(positions, dtype=float).ravel()
-    if len(names) != len(values):
-        raise ValueError(f"{len(names)} names but {len(values)} positions")
-    index = {}
-    for i, name in enumerate(names):
-        if name in index:
-            raise ValueError(f"joint {name[:64]!r} appears twice")
-        index[name] = i
-    missing = [j for j in chain if j not in index]
-    if missing:
-        raise ValueError(f"joints {missing} missing")
-    q = values[[index[j] for j in chain]]
-    if not np.all(np.isfinite(q)):
-        raise ValueError("non-finite joint position")
-    return q
 
 
 def expected_positions(plan: MotionPlan, elapsed: float) -> NDArray[np.float64]:
