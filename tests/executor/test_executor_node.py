@@ -135,10 +135,18 @@ class Graph:
             self.executor.spin_once(timeout_sec=0.01)
         return bool(predicate())
 
-    def state(self) -> str:
+    def value(self, key: str) -> str:
+        """``key`` of the newest executor/status ("" before any)."""
         if not self.status:
             return ""
-        return {kv.key: kv.value for kv in self.status[-1].values}.get("state", "")
+        return {kv.key: kv.value for kv in self.status[-1].values}.get(key, "")
+
+    def state(self) -> str:
+        return self.value("state")
+
+    def states(self) -> list[str]:
+        """Every executor/status state received, in order."""
+        return [{kv.key: kv.value for kv in s.values}.get("state", "") for s in self.status]
 
     def ready(self) -> bool:
         node = self.executor_node
@@ -253,7 +261,17 @@ def test_busy_and_cancel(graph: Graph) -> None:
     assert graph.spin_until(lambda: len(graph.refused) == 2)
     cancelled = read_refusal(graph.refused[1])
     assert cancelled.kind == "cancelled" and cancelled.push_stamp == stamp_key(first)
-    assert graph.spin_until(lambda: graph.state() == "stopped")
+    assert graph.spin_until(lambda: "stopped" in graph.states())
+    # Once the arm is held it parks (the planner's next frame must not show it over the
+    # object): a third trajectory from the held posture to the park posture.
+    assert graph.spin_until(lambda: len(graph.arm.received) == 3, 30.0)
+    park = graph.arm.received[2]
+    np.testing.assert_allclose(park.points[0].positions, hold.points[0].positions, atol=1e-9)
+    order = [park.joint_names.index(j) for j in ARM]
+    np.testing.assert_allclose(np.asarray(park.points[-1].positions)[order], PANDA_PARK,
+                               atol=1e-9)
+    assert graph.spin_until(lambda: graph.state() == "idle" and graph.value("at_park") == "true",
+                            60.0)
     assert not graph.executed
 
 

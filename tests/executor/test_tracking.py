@@ -31,7 +31,8 @@ def straight_plan() -> MotionPlan:
     q = np.array([[0.0, 0.5], [0.5, 0.5], [1.0, 0.5]])
     qd = np.array([[1.0, 0.0], [1.0, 0.0], [1.0, 0.0]])
     return MotionPlan(joint_names=("j1", "j2"), times=times, positions=q, velocities=qd,
-                      tip=np.zeros((3, 3)), stages=(StageSpan("push", 1.0, 2.0),),
+                      accelerations=np.zeros_like(q), tip=np.zeros((3, 3)),
+                      stages=(StageSpan("push", 1.0, 2.0),),
                       contact_start=1.2, contact_end=1.8,
                       line=np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]))
 
@@ -87,6 +88,37 @@ def test_execution_done_and_deviation() -> None:
     assert run.on_state(102.0, np.array([0.99, 0.5]), 0.5).kind == "done"
     # Past the end but not there yet: a deviation, not done.
     assert execution().on_state(102.5, np.array([0.9, 0.5]), 0.5).kind == "deviation"
+
+
+def test_the_contact_segment_is_reported_once_it_has_ended() -> None:
+    """``executed`` at the first state at or after the contact end (1.8 s), once; the motion
+    goes on to ``done``."""
+    run = execution()
+    assert run.on_state(101.7, np.array([0.7, 0.5]), 0.1) is None and not run.reported
+    event = run.on_state(101.85, np.array([0.85, 0.5]), 0.2)
+    assert event is not None and event.kind == "executed"
+    with pytest.raises(ValueError):  # no sample near the contact start was kept
+        run.report(ArmKinematics(PLANAR, "base", ToolSpec("flange", 0.0, 0.1)))
+    assert run.reported and run.chainable
+    assert run.on_state(101.9, np.array([0.9, 0.5]), 0.3) is None
+    assert run.on_state(102.0, np.array([1.0, 0.5]), 0.4).kind == "done"
+
+
+def test_a_chained_execution_follows_the_replaced_plan_until_its_first_point() -> None:
+    """A plan sent at 100.5 s whose first point (at 101.5 s) lies on the running plan: joint
+    states in between are checked against the running plan, later ones against the new."""
+    old = execution()
+    plan = straight_plan()
+    hold = MotionPlan(**{**plan.__dict__, "positions": np.array([[0.5, 0.5]] * 3),
+                         "velocities": np.zeros((3, 2)), "times": np.array([1.0, 1.5, 2.0])})
+    new = Execution(hold, 100.5, 0.0, 100.5, 0.05, 1.0, 3.0, previous=old)
+    assert new.started  # the arm moves already
+    # At 101.2 s the running plan is at 0.2 rad: fine for the chained one too.
+    assert new.on_state(101.2, np.array([0.2, 0.5]), 0.1) is None
+    # ... while the new plan alone (held at 0.5 rad from its first point) would object.
+    assert Execution(hold, 100.5, 0.0, 100.5, 0.05, 1.0, 3.0).on_state(
+        101.2, np.array([0.2, 0.5]), 0.1).kind == "deviation"
+    assert new.on_state(101.7, np.array([0.2, 0.5]), 0.2).kind == "deviation"
 
 
 def test_watchdogs() -> None:

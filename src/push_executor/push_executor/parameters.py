@@ -15,7 +15,7 @@ from typing import Any
 from rcl_interfaces.msg import ParameterType
 
 from push_core.rollout import PUSHER_RADIUS
-from push_executor.kinematics import ToolSpec
+from push_executor.kinematics import DEFAULT_ACCELERATION, DEFAULT_JERK, ToolSpec
 from push_executor.motion import PANDA_PARK, PANDA_READY, PANDA_SIM_BASE_POSE, MotionConfig
 from push_ros.node import ParamSpec
 
@@ -45,16 +45,19 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec("joints", None, "Joints commanded, in this order; unset: the chain's joints "
               "base_frame -> tool.flange_link (the set must equal the chain's).",
               read_only=True, type=_STRINGS),
-    ParamSpec("approach_height", 0.10, "Tip height of the transit and the lift, m above the "
-              "table.", (0.0, 2.0), read_only=True),
+    ParamSpec("approach_height", 0.10, "Tip height of the transit and the lift (and the "
+              "lowest of the clear poses), m above the table.", (0.0, 2.0), read_only=True),
     ParamSpec("push_height", 0.01, "Tip height while pushing, m above the table.", (0.0, 1.0),
               read_only=True),
     ParamSpec("push_speed", 0.02, "Tip speed along the push line, m/s.", (1e-4, 1.0),
               read_only=True),
-    ParamSpec("cartesian_speed", 0.05, "Tip speed of descend, retreat and lift, m/s.",
+    ParamSpec("cartesian_speed", 0.25, "Tip speed of descend, retreat and lift (and of the "
+              "blends from the transit into the descend and from the lift on), m/s.",
               (1e-4, 1.0), read_only=True),
-    ParamSpec("cartesian_acceleration", 0.2, "Tip acceleration of the Cartesian speed ramps, "
-              "m/s^2.", (1e-3, 10.0), read_only=True),
+    ParamSpec("cartesian_acceleration", 1.0, "Tip acceleration limit of the Cartesian speed "
+              "profiles, m/s^2.", (1e-3, 10.0), read_only=True),
+    ParamSpec("cartesian_jerk", 10.0, "Tip jerk limit of the Cartesian speed profiles, "
+              "m/s^3.", (1e-2, 1000.0), read_only=True),
     ParamSpec("retreat", 0.02, "Distance moved back along the push line after the push, m.",
               (0.0, 0.5), read_only=True),
     ParamSpec("park_positions", list(PANDA_PARK), "Park posture (chain order), rad; the "
@@ -71,10 +74,13 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               (0.0, 1.0), read_only=True),
     ParamSpec("limit_margin", 0.05, "Margin inside the URDF joint position limits, rad.",
               (0.0, 1.0), read_only=True),
-    ParamSpec("speed_margin", 0.5, "Fraction of the joint velocity and acceleration limits a "
-              "trajectory may use.", (0.01, 1.0), read_only=True),
-    ParamSpec("acceleration_limits", [5.0], "Joint acceleration limits, rad/s^2: one value for "
-              "every joint or one per chain joint.", read_only=True),
+    ParamSpec("speed_margin", 0.5, "Fraction of the joint velocity, acceleration and jerk "
+              "limits a trajectory may use.", (0.01, 1.0), read_only=True),
+    ParamSpec("acceleration_limits", [DEFAULT_ACCELERATION], "Joint acceleration limits, "
+              "rad/s^2: one value for every joint or one per chain joint (the default: the "
+              "Panda's lowest).", read_only=True),
+    ParamSpec("jerk_limits", [DEFAULT_JERK], "Joint jerk limits, rad/s^3: one value for every "
+              "joint or one per chain joint.", read_only=True),
     ParamSpec("min_manipulability", 0.005, "Smallest manipulability of the tip task Jacobian "
               "on the Cartesian stages (singularity distance).", (0.0, 10.0), read_only=True),
     ParamSpec("ik_tolerance", 1e-5, "Largest inverse kinematics residual, m and rad.",
@@ -101,6 +107,21 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               "node's clock are refused, s.", (0.0, 3600.0), read_only=True),
     ParamSpec("start_enabled", False, "Start enabled (moving the arm); false: dry run until "
               "~/enable.", read_only=True),
+    ParamSpec("clear.enabled", True, "End each push at a clear pose near the work, out of the "
+              "object's silhouette in the camera image (false: park after every push).",
+              read_only=True),
+    ParamSpec("clear.margin", 0.02, "Growth of the object's region (where it may lie after "
+              "the push) before its silhouette is taken, m.", (0.0, 0.5), read_only=True),
+    ParamSpec("clear.turn", 0.35, "Largest rotation of the object during a push either way "
+              "the region allows for, rad.", (0.0, 3.2), read_only=True),
+    ParamSpec("clear.object_height", 0.03, "Height of the object's region above the table "
+              "(its silhouette is the image of that prism), m.", (0.0, 1.0), read_only=True),
+    ParamSpec("clear.distance", 0.05, "Distance of the candidate clear poses beyond the "
+              "region's radius, m.", (0.0, 1.0), read_only=True),
+    ParamSpec("clear.rise", 0.1, "Height of the upper ring of candidate clear poses above "
+              "approach_height, m.", (0.0, 1.0), read_only=True),
+    ParamSpec("clear.scale", 0.25, "Image resolution of the silhouette check, a fraction of "
+              "the camera's.", (0.05, 1.0), read_only=True),
 )
 
 
@@ -111,6 +132,8 @@ class ExecutorParams:
     values: dict[str, Any]
     tool: ToolSpec
     motion: MotionConfig
+    #: The ``clear.*`` parameters without the prefix.
+    clear: dict[str, Any]
 
     @classmethod
     def from_values(cls, v: dict[str, Any]) -> ExecutorParams:
@@ -119,8 +142,8 @@ class ExecutorParams:
             tool = ToolSpec(str(v["tool.flange_link"]), float(v["tool.flange_offset"]),
                             float(v["tool.length"]), float(v["tool.radius"]))
             names = ("approach_height", "push_height", "push_speed", "cartesian_speed",
-                     "cartesian_acceleration", "retreat", "min_tool_height", "limit_margin",
-                     "speed_margin", "min_manipulability", "waypoint_period",
+                     "cartesian_acceleration", "cartesian_jerk", "retreat", "min_tool_height",
+                     "limit_margin", "speed_margin", "min_manipulability", "waypoint_period",
                      "max_push_length", "ik_tolerance")
             motion = MotionConfig(
                 **{n: float(v[n]) for n in names},
@@ -135,7 +158,8 @@ class ExecutorParams:
         for name in ("tracking_tolerance", "state_timeout", "start_timeout"):
             if not v[name] > 0:
                 raise ValueError(f"parameter {name}: must be > 0")
-        return cls(values=dict(v), tool=tool, motion=motion)
+        clear = {k.removeprefix("clear."): v[k] for k in v if k.startswith("clear.")}
+        return cls(values=dict(v), tool=tool, motion=motion, clear=clear)
 
 
 #: The node's name: the top-level key of its parameter file.
@@ -145,7 +169,8 @@ YAML_HEADER = """
 Parameters of push_executor_node (package push_executor): planner/push -> a joint trajectory of
 a ros2_control arm (docs/ROBOT.md, docs/ARCHITECTURE.md "Pushing with an arm"; the table is also in
 docs/INTERFACES.md). The defaults describe the simulated Panda; on your arm set at least
-controller_topic, base_frame, base_pose, tool.*, park_positions and the workspace (docs/ROBOT.md).
+controller_topic, base_frame, base_pose, tool.*, park_positions, the limits and the workspace
+(docs/ROBOT.md).
 The launch file sets use_sim_time and start_enabled (true in simulation, false on a robot: a dry run
 until
 ~/enable)."""

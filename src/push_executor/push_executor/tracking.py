@@ -7,10 +7,13 @@ monotonic clock of the node's machine, s.
 
 :class:`Execution` is one running plan. Feed it every measured joint state
 (:meth:`Execution.on_state`) and poll it on a timer (:meth:`Execution.on_timer`); each returns
-``None`` (keep going) or an :class:`Event`:
+``None`` (keep going) or an :class:`Event`. A chained execution (``previous``) is checked
+against the plan it replaced until its own first point:
 
 - ``done``: the measured stamp passed ``t0 + duration`` and every joint is within
   ``tracking_tolerance`` of the last point;
+- ``executed`` (does not end it): the first measured stamp at or after the contact segment's
+  end (a push plan, once): the contact segment can be reported while the arm retreats;
 - ``deviation``: a joint off the plan (cubic Hermite interpolation of the points, as the
   controller interpolates them) by more than ``tracking_tolerance`` at every plan time within
   ``time_window`` s of ``elapsed`` (joint and amount reported). The window absorbs the unknown
@@ -30,16 +33,18 @@ commanded line in between.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from push_executor.kinematics import ArmKinematics
-from push_executor.motion import MotionPlan
+from push_executor.motion import MotionPlan, MotionState, PushRefused, chain_point
 
 __all__ = ["MAX_SAMPLES", "START_MOTION", "ContactSegment", "Event", "Execution",
-           "chain_positions", "expected_positions", "segment_distance", "tracking_error"]
+           "chain_positions", "expected_positions", "segment_distance", "start_plan",
+           "tracking_error"]
 
 #: Joint motion (rad) that shows a trajectory started.
 START_MOTION = 1e-3
@@ -83,18 +88,8 @@ def chain_positions(chain: tuple[str, ...], names: list[str], positions: ArrayLi
 
 def expected_positions(plan: MotionPlan, elapsed: float) -> NDArray[np.float64]:
     """Planned joint positions at ``elapsed`` s from the start (cubic Hermite between points;
-    the measured start posture before the first point, the last point after the end)."""
-    times, q, qd = plan.times, plan.positions, plan.velocities
-    if elapsed <= times[0]:
-        return q[0].copy()
-    if elapsed >= times[-1]:
-        return q[-1].copy()
-    i = int(np.searchsorted(times, elapsed)) - 1
-    h = times[i + 1] - times[i]
-    s = (elapsed - times[i]) / h
-    h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
-    h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
-    return h00 * q[i] + h10 * h * qd[i] + h01 * q[i + 1] + h11 * h * qd[i + 1]
+    the start state before the first point, the last point after the end)."""
+    return plan.state_at(elapsed).q
 
 
 def tracking_error(plan: MotionPlan, q_measured: ArrayLike, elapsed: float,
@@ -106,12 +101,17 @@ def tracking_error(plan: MotionPlan, q_measured: ArrayLike, elapsed: float,
     closest to the measurement (smallest largest-joint error): a time-shift-tolerant tube
     around the plan.
     """
+    return _window_error(lambda t: expected_positions(plan, t), q_measured, elapsed, window)
+
+
+def _window_error(expected: Callable[[float], NDArray[np.float64]], q_measured: ArrayLike,
+                  elapsed: float, window: float) -> tuple[int, float]:
     q = np.asarray(q_measured, dtype=float)
     times = [elapsed]
     if window > 0.0:
         n = min(MAX_WINDOW_SAMPLES, 2 * int(np.ceil(window / WINDOW_STEP)) + 1)
         times += list(elapsed + np.linspace(-window, window, n))
-    dev = np.abs(np.array([expected_positions(plan, t) for t in times]) - q)
+    dev = np.abs(np.array([expected(t) for t in times]) - q)
     best = int(np.argmin(dev.max(axis=1)))
     j = int(np.argmax(dev[best]))
     return j, float(dev[best, j])
@@ -127,7 +127,8 @@ def segment_distance(points: ArrayLike, a: ArrayLike, b: ArrayLike) -> NDArray[n
 
 @dataclass(frozen=True)
 class Event:
-    """Why an execution ended: ``kind`` (done | deviation | stale | no_start) and words."""
+    """What happened to an execution: ``kind`` (done | deviation | stale | no_start end it;
+    executed does not) and words."""
 
     kind: str
     reason: str
@@ -172,20 +173,27 @@ class Execution:
     time_window : float
         s of plan time either side of ``elapsed`` the deviation check may match (module
         docstring; 0: the plan exactly at ``elapsed``).
+    previous : Execution, optional
+        The execution this one replaces (a chained push): until this plan's first point the
+        arm follows that one's plan, and the measured joints are checked against it.
     """
 
     def __init__(self, plan: MotionPlan, t0: float, steady: float, last_stamp: float,
                  tracking_tolerance: float, state_timeout: float, start_timeout: float,
-                 time_window: float = 0.0) -> None:
+                 time_window: float = 0.0, previous: Execution | None = None) -> None:
         self.plan, self.t0 = plan, float(t0)
         self.time_window = float(time_window)
         self.tolerance = float(tracking_tolerance)
         self.state_timeout, self.start_timeout = float(state_timeout), float(start_timeout)
+        self._previous = None if previous is None else (previous.plan, previous.t0)
         self._start_steady = steady
         self._last_sample = steady
         self._last_advance = steady
         self._stamp = max(float(last_stamp), self.t0)
-        self.started = False
+        self.started = previous is not None  # a chained motion starts on a moving arm
+        #: Whether the contact segment has been reported (``executed``; a push plan only).
+        self.reported = not plan.is_push
+        self._contact_over = False
         self._times: list[float] = []
         self._qs: list[NDArray[np.float64]] = []
         self._keep = (plan.contact_start - SAMPLE_MARGIN, plan.contact_end + SAMPLE_MARGIN)
@@ -194,8 +202,25 @@ class Execution:
         """Seconds of the plan at a joint state stamped ``stamp``."""
         return float(stamp) - self.t0
 
+    def expected(self, elapsed: float) -> NDArray[np.float64]:
+        """Planned positions at ``elapsed`` (the replaced plan's before this one's first
+        point)."""
+        if self._previous is not None and elapsed < self.plan.times[0]:
+            plan, t0 = self._previous
+            return expected_positions(plan, elapsed + self.t0 - t0)
+        return expected_positions(self.plan, elapsed)
+
+    @property
+    def chainable(self) -> bool:
+        """Whether a next motion may take over: the contact segment (if any) is reported."""
+        return self.reported
+
     def on_state(self, stamp: float, q: NDArray[np.float64], steady: float) -> Event | None:
-        """A measured joint state (chain order); returns an ending event or None."""
+        """A measured joint state (chain order); returns an event or None.
+
+        ``done`` (at the end, within tolerance), ``deviation`` end the execution;
+        ``executed`` (the first state at or after the contact segment's end, once) does not.
+        """
         self._last_sample = steady
         if stamp > self._stamp:
             self._stamp = stamp
@@ -209,13 +234,16 @@ class Execution:
         if self._keep[0] <= elapsed <= self._keep[1] and len(self._times) < MAX_SAMPLES:
             self._times.append(float(stamp))
             self._qs.append(np.array(q, dtype=float))
-        j, dev = tracking_error(self.plan, q, elapsed, self.time_window)
+        j, dev = _window_error(self.expected, q, elapsed, self.time_window)
         if dev > self.tolerance:
             return Event("deviation", f"{self.plan.joint_names[j]} {dev:.4f} off the plan at "
                          f"t = {elapsed:.2f} s ({self.plan.stage_at(elapsed)}), tolerance "
                          f"{self.tolerance}")
         if elapsed >= self.plan.duration:
             return Event("done", f"finished after {elapsed:.2f} s")
+        if not (self.reported or self._contact_over) and elapsed >= self.plan.contact_end:
+            self._contact_over = True
+            return Event("executed", f"contact segment ended at {elapsed:.2f} s")
         return None
 
     def on_timer(self, steady: float) -> Event | None:
@@ -234,6 +262,11 @@ class Execution:
     def samples(self) -> int:
         """Samples kept for the contact segment."""
         return len(self._times)
+
+    def report(self, arm: ArmKinematics) -> ContactSegment:
+        """:meth:`contact_segment`, marking the execution reported (also when it raises)."""
+        self.reported = True
+        return self.contact_segment(arm)
 
     def contact_segment(self, arm: ArmKinematics) -> ContactSegment:
         """The measured contact segment (:class:`ContactSegment`).
@@ -259,3 +292,56 @@ class Execution:
         error = segment_distance(tips, plan.line[0], plan.line[1])
         return ContactSegment(start=tips[0], end=tips[-1], stamp_start=self._times[i0],
                               stamp_end=self._times[i1], line_error=float(np.max(error)))
+
+
+#: ``make(start, previous plan or None, first)``: a motion from ``start`` (its first point at
+#: the previous plan's time ``first``, led in by that plan's points up to its chain point).
+PlanMaker = Callable[[MotionState, MotionPlan | None, float], MotionPlan]
+
+
+def start_plan(make: PlanMaker, running: Execution | None, q: NDArray[np.float64],
+               now: Callable[[], float], start_delay: float, first_delay: float
+               ) -> tuple[MotionPlan, float, bool]:
+    """Plan the next motion from the arm at rest at ``q`` or chained to ``running``.
+
+    The trajectory starts (header stamp) ``start_delay`` after ``now()`` (the controller's
+    time, s) and its first point ``first_delay`` later. Chained, that first point lies on the
+    running plan, the motion takes over at :func:`push_executor.motion.chain_point` and the
+    new trajectory repeats the running one until then, so the controller's switch is seamless
+    whenever it receives the trajectory before that point; when planning took so long that the
+    arm has passed it (``now()`` + ``start_delay`` beyond it), the motion is planned once more
+    from later on. A running plan that will have ended by the first point is not chained to:
+    the motion starts at rest from its last posture.
+
+    Returns
+    -------
+    plan : MotionPlan
+    t0 : float
+        The trajectory's start (header stamp), s.
+    chained : bool
+        Whether ``plan`` takes over from ``running`` while it moves.
+
+    Raises
+    ------
+    PushRefused
+        ``make``'s refusal, or ``busy`` when the second plan came too late as well.
+    """
+    extra = 0.0
+    for _ in range(2):
+        began = now()
+        t0 = began + start_delay + extra
+        if running is None:
+            return make(MotionState.at_rest(q), None, 0.0), now() + start_delay, False
+        previous = running.plan
+        first = t0 + first_delay - running.t0
+        if first >= previous.duration:  # nothing left to chain to
+            plan = make(MotionState.at_rest(previous.positions[-1]), None, 0.0)
+            return plan, now() + start_delay, False
+        take_over = chain_point(previous, first)
+        plan = make(previous.state_at(take_over), previous, first)
+        done = now()
+        if done + start_delay <= running.t0 + take_over:
+            return plan, t0, True
+        extra = 2.0 * (done - began)
+    raise PushRefused("busy", previous.stage_at(first), "the arm passed the chain point while "
+                      "the motion was planned")
