@@ -150,7 +150,7 @@ class Graph:
 
     def ready(self) -> bool:
         node = self.executor_node
-        return (node._arm is not None and node._q is not None
+        return (node._arm is not None and node.measured.q is not None
                 and self.push_pub.get_subscription_count() > 0
                 and node._pub_traj.get_subscription_count() > 0)
 
@@ -243,7 +243,7 @@ def test_busy_and_cancel(graph: Graph) -> None:
     assert graph.spin_until(lambda: graph.refused)
     assert read_refusal(graph.refused[0]).kind == "busy"
     graph.spin_until(lambda: False, 0.3)
-    q_before = graph.executor_node._q.copy()
+    q_before = graph.executor_node.measured.q.copy()
     response = graph.call(graph.cancel, Trigger.Request())
     assert response.success, response.message
     assert graph.spin_until(lambda: len(graph.arm.received) == 2)

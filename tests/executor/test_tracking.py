@@ -16,6 +16,8 @@ from push_executor.motion import MotionPlan, StageSpan
 from push_executor.tracking import (
     START_MOTION,
     Execution,
+    MeasuredArm,
+    StampClock,
     chain_positions,
     expected_positions,
     segment_distance,
@@ -173,3 +175,33 @@ def test_segment_distance() -> None:
     d = segment_distance([[0.5, 1.0, 0.0], [-1.0, 0.0, 0.0], [3.0, 0.0, 4.0]], [0, 0, 0],
                          [1, 0, 0])
     np.testing.assert_allclose(d, [1.0, 1.0, math.hypot(2.0, 4.0)])
+
+
+def test_the_stamp_clock_carries_the_newest_stamp_forward_at_the_observed_rate() -> None:
+    clock = StampClock(window=0.5)
+    assert clock.now(0.0) == -math.inf
+    for k in range(11):  # stamps advance 5x faster than the steady clock (a fast simulation)
+        clock.update(100.0 + 0.5 * k, 0.1 * k)
+    assert clock.rate == pytest.approx(5.0)
+    assert clock.now(1.2) == pytest.approx(105.0 + 5.0 * 0.2)
+    clock.update(99.0, 1.3)  # an older stamp changes nothing
+    assert clock.now(1.2) == pytest.approx(106.0)
+    slow = StampClock(window=0.5)
+    for k in range(11):  # stamps standing still (a paused clock): never slower than 1x
+        slow.update(7.0, 0.1 * k)
+    assert slow.rate == 1.0 and slow.now(2.0) == pytest.approx(8.0)
+
+
+def test_the_measured_arm_is_held_when_its_last_postures_agree() -> None:
+    arm = MeasuredArm(held_states=3, held=1e-4)
+    assert not arm.held and not arm.at([0.0, 0.0], 1.0)
+    for k in range(3):
+        arm.update(1.0 + k, np.array([0.1 * k, 0.0]), k)
+    assert not arm.held and arm.at([0.2, 0.0], 1e-9)
+    for k in range(3, 6):
+        arm.update(1.0 + k, np.array([0.5, 5e-5 * (k % 2)]), k)
+    assert arm.held
+    arm.moved()
+    assert not arm.held
+    arm.update(0.5, np.array([9.0, 9.0]), 7.0)  # older than the newest: kept out
+    assert arm.at([0.5, 5e-5], 1e-9)

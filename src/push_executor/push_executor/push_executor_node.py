@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import math
 import time
-from collections import deque
 from pathlib import Path as FilePath
 from typing import Any
 
@@ -46,7 +45,14 @@ from push_executor.messages import hold_msg, path_msg, stage_text, trajectory_ms
 from push_executor.motion import PushRefused, plan_park, plan_push
 from push_executor.parameters import NODE_NAME, PARAMETERS, ExecutorParams
 from push_executor.scene_inputs import SceneInputs
-from push_executor.tracking import Event, Execution, PlanMaker, chain_positions, start_plan
+from push_executor.tracking import (
+    Event,
+    Execution,
+    MeasuredArm,
+    PlanMaker,
+    chain_positions,
+    start_plan,
+)
 from push_ros.health import NodeHealth
 from push_ros.node import declare_config, run_node
 from push_ros.paths import path_from_points, push_points_from_path
@@ -81,9 +87,7 @@ class PushExecutorNode(Node):
         guard = self.health.guard
         self._arm: ArmKinematics | None = None
         self._robot, self._urdf, self._joints = None, "", ()
-        self._q: np.ndarray | None = None
-        self._q_stamp = self._q_steady = -math.inf
-        self._recent: deque[np.ndarray] = deque(maxlen=HELD_STATES)
+        self.measured = MeasuredArm(HELD_STATES, HELD)
         self._enabled = bool(p["start_enabled"])
         self._run: Execution | None = None
         self._push_stamp: Any = None
@@ -137,7 +141,7 @@ class PushExecutorNode(Node):
         if why:  # the arm still works: it parks after every push
             self.health.refuse("robot_description", f"{why}; parking after every push", "model")
         self._arm, self._robot, self._urdf, self._joints = arm, robot, urdf, joints
-        self._q = None
+        self.measured = MeasuredArm(HELD_STATES, HELD)
         self.health.count("models")
         self._publish_status()
 
@@ -164,13 +168,11 @@ class PushExecutorNode(Node):
             self.health.refuse("/joint_states", str(exc), "invalid")
             return
         steady = time.monotonic()
-        if stamp >= self._q_stamp or self._run is None:
-            self._q, self._q_stamp, self._q_steady = q, stamp, steady
-            self._recent.append(q)
+        self.measured.update(stamp, q, steady, replace=self._run is None)
         self.health.count("joint_states")
         if self._run is not None:
             self._finish(self._run.on_state(stamp, q, steady))
-        elif self._park_pending and self._held():
+        elif self._park_pending and self.measured.held:
             self._park()
 
     def _on_push(self, msg: Path) -> None:
@@ -178,7 +180,7 @@ class PushExecutorNode(Node):
         stamp = msg.header.stamp
         run = self._run
         if run is not None and self._enabled and not run.chainable:
-            return self._refuse(stamp, "busy", run.plan.stage_at(run.elapsed(self._q_stamp)),
+            return self._refuse(stamp, "busy", run.plan.stage_at(run.elapsed(self.measured.stamp)),
                                 "the arm is executing a push")
         try:
             seconds_from_stamp(stamp)
@@ -190,7 +192,7 @@ class PushExecutorNode(Node):
             return self._refuse(stamp, "invalid", "input", str(exc))
         if self._arm is None:
             return self._refuse(stamp, "no_model", "", "no robot description yet")
-        if self._q is None or time.monotonic() - self._q_steady > \
+        if self.measured.q is None or time.monotonic() - self.measured.steady > \
                 self.params.values["state_timeout"]:
             return self._refuse(stamp, "no_state", "", "no recent joint state")
         view, why = self.scene.view(contact, end, self._robot)
@@ -210,7 +212,7 @@ class PushExecutorNode(Node):
         :class:`PushRefused` (also ``disabled``, ``no_controller``, ``busy``)."""
         p = self.params.values
         run = self._run if self._enabled or stamp is None else None  # a dry run: from here
-        plan, t0, chained = start_plan(make, run, self._q, self._now, p["start_delay"],
+        plan, t0, chained = start_plan(make, run, self.measured.q, self._now, p["start_delay"],
                                        self.params.motion.start_delay)
         self._pub_path.publish(path_msg(plan, p["world_frame"], self.get_clock().now().to_msg()))
         if not self._enabled and stamp is not None:
@@ -221,7 +223,7 @@ class PushExecutorNode(Node):
         self._pub_traj.publish(trajectory_msg(plan, self._joints, t0))
         if run is not None:
             self.health.count("chained")
-        self._run = Execution(plan, t0, time.monotonic(), self._q_stamp,
+        self._run = Execution(plan, t0, time.monotonic(), self.measured.stamp,
                               p["tracking_tolerance"], p["state_timeout"], p["start_timeout"],
                               p["tracking_window"], previous=run if chained else None)
         self._push_stamp, self._stopped, self._park_pending = stamp, False, ""
@@ -230,27 +232,22 @@ class PushExecutorNode(Node):
 
     def _now(self) -> float:
         """The controller's time now at least: the node's clock or the newest joint state's
-        stamp, s (``PushRefused`` before the clock has started)."""
+        stamp carried forward (:class:`StampClock`), s (``PushRefused`` before the clock)."""
         clock = clock_seconds(self.get_clock())
         if clock is None:
             raise PushRefused("no_state", "", "the node's clock has not started")
-        return max(clock, self._q_stamp)
+        return max(clock, self.measured.clock.now(time.monotonic()))
 
     def _request_park(self, reason: str) -> None:
         """Park once the arm is free: now if idle, after the running motion otherwise."""
         self._park_pending = reason
-        if self._run is None and self._held():
+        if self._run is None and self.measured.held:
             self._park()
-
-    def _held(self) -> bool:
-        recent = list(self._recent)
-        return len(recent) == HELD_STATES and float(np.ptp(np.array(recent), axis=0).max()) \
-            <= HELD
 
     def _park(self) -> None:
         """Plan and send the park motion (only the disable's own while disabled)."""
         reason, self._park_pending = self._park_pending, ""
-        if self._arm is None or self._q is None or self._parked() \
+        if self._arm is None or self.measured.q is None or self._parked() \
                 or not (self._enabled or reason == "disabled"):
             return
         try:
@@ -265,8 +262,7 @@ class PushExecutorNode(Node):
         self._publish_status()
 
     def _parked(self) -> bool:
-        return self._q is not None and bool(np.max(np.abs(
-            self._q - np.array(self.params.motion.park_positions))) <= PARKED)
+        return self.measured.at(self.params.motion.park_positions, PARKED)
 
     def _on_watchdog(self) -> None:
         if self._run is not None:
@@ -298,7 +294,7 @@ class PushExecutorNode(Node):
             self._stop(f"{event.kind}: {event.reason}")
             if not run.reported:
                 self._refuse(self._push_stamp, "fault", run.plan.stage_at(
-                    run.elapsed(self._q_stamp)), f"stopped ({event.kind}): {event.reason}")
+                    run.elapsed(self.measured.stamp)), f"stopped ({event.kind}): {event.reason}")
         elif self._park_pending:
             self._park()
         self._publish_status()
@@ -306,12 +302,13 @@ class PushExecutorNode(Node):
 
     def _stop(self, reason: str) -> bool:
         """Send the one-point hold trajectory at the measured posture; False without one."""
-        if self._q is None or self._arm is None:
+        if self.measured.q is None or self._arm is None:
             return False
-        self._pub_traj.publish(hold_msg(self._joints, dict(zip(self._arm.joint_names, self._q,
+        self._pub_traj.publish(hold_msg(self._joints, dict(zip(self._arm.joint_names,
+                                                                self.measured.q,
                                                                 strict=True))))
         self._stopped = True
-        self._recent.clear()  # held once the states show it
+        self.measured.moved()
         self.health.count("stopped")
         self.health.log.warning("stop", f"arm stopped: {reason}")
         return True
@@ -322,7 +319,7 @@ class PushExecutorNode(Node):
         response.success = self._stop("~/cancel")
         if run is not None and not run.reported:
             self._refuse(self._push_stamp, "cancelled", run.plan.stage_at(
-                run.elapsed(self._q_stamp)), "cancelled by ~/cancel")
+                run.elapsed(self.measured.stamp)), "cancelled by ~/cancel")
         response.message = "holding, then parking" if response.success \
             else "no joint state: nothing to hold"
         self._park_pending = "~/cancel" if response.success else ""

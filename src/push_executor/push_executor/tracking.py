@@ -33,6 +33,8 @@ commanded line in between.
 
 from __future__ import annotations
 
+import math
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -42,7 +44,8 @@ from numpy.typing import ArrayLike, NDArray
 from push_executor.kinematics import ArmKinematics
 from push_executor.motion import MotionPlan, MotionState, PushRefused, chain_point
 
-__all__ = ["MAX_SAMPLES", "START_MOTION", "ContactSegment", "Event", "Execution",
+__all__ = ["MAX_SAMPLES", "START_MOTION", "ContactSegment", "Event", "Execution", "MeasuredArm",
+           "StampClock",
            "chain_positions", "expected_positions", "segment_distance", "start_plan",
            "tracking_error"]
 
@@ -292,6 +295,79 @@ class Execution:
         error = segment_distance(tips, plan.line[0], plan.line[1])
         return ContactSegment(start=tips[0], end=tips[-1], stamp_start=self._times[i0],
                               stamp_end=self._times[i1], line_error=float(np.max(error)))
+
+
+class StampClock:
+    """The controller's time now, from the joint states' stamps and the steady clock.
+
+    A node's ROS clock is not updated while one of its callbacks runs (planning a push takes a
+    fifth of a second and more), and on a simulated graph time passes at a rate unknown to the
+    node (wall rate while the world rests, several times faster while the arm moves). So the
+    newest joint state's stamp is carried forward at the rate at which the stamps advanced
+    against the steady clock over the last ``window`` seconds (at least 1: never slower than
+    real time), s.
+    """
+
+    def __init__(self, window: float = 0.5) -> None:
+        self.window = float(window)
+        self._samples: deque[tuple[float, float]] = deque()  # (steady, stamp)
+        self.rate = 1.0
+
+    def update(self, stamp: float, steady: float) -> None:
+        """A joint state stamped ``stamp`` arrived at ``steady`` (s)."""
+        samples = self._samples
+        if samples and stamp < samples[-1][1]:
+            return  # an older state: nothing new about the time
+        samples.append((float(steady), float(stamp)))
+        while len(samples) > 2 and steady - samples[0][0] > self.window:
+            samples.popleft()
+        (s0, t0), (s1, t1) = samples[0], samples[-1]
+        if s1 - s0 > 0.5 * self.window:
+            self.rate = max(1.0, (t1 - t0) / (s1 - s0))
+
+    def now(self, steady: float) -> float:
+        """The stamp a joint state would carry at ``steady`` (s; -inf before the first)."""
+        if not self._samples:
+            return -math.inf
+        s1, t1 = self._samples[-1]
+        return t1 + self.rate * max(0.0, steady - s1)
+
+
+class MeasuredArm:
+    """The newest measured chain posture (``q``, rad), its ``stamp`` and steady arrival time
+    (s), the controller's time (:class:`StampClock`) and whether the arm is held: its last
+    ``held_states`` postures within ``held`` rad of each other."""
+
+    def __init__(self, held_states: int = 3, held: float = 1e-4) -> None:
+        self.q: NDArray[np.float64] | None = None
+        self.stamp = self.steady = -math.inf
+        self.clock = StampClock()
+        self._recent: deque[NDArray[np.float64]] = deque(maxlen=held_states)
+        self._held = float(held)
+
+    def update(self, stamp: float, q: NDArray[np.float64], steady: float,
+               replace: bool = False) -> None:
+        """A joint state; it becomes the newest unless older than it (``replace``: anyway)."""
+        if stamp >= self.stamp or replace:
+            self.q, self.stamp, self.steady = q, float(stamp), float(steady)
+            self._recent.append(q)
+        self.clock.update(stamp, steady)
+
+    def moved(self) -> None:
+        """The arm was sent moving: held again only once new states show it."""
+        self._recent.clear()
+
+    @property
+    def held(self) -> bool:
+        """Whether the last few postures agree (the arm stands still)."""
+        recent = list(self._recent)
+        return len(recent) == self._recent.maxlen and float(
+            np.ptp(np.array(recent), axis=0).max()) <= self._held
+
+    def at(self, posture: ArrayLike, tolerance: float) -> bool:
+        """Whether the newest posture is within ``tolerance`` (rad) of ``posture``."""
+        return self.q is not None and bool(
+            np.max(np.abs(self.q - np.asarray(posture, dtype=float))) <= tolerance)
 
 
 #: ``make(start, previous plan or None, first)``: a motion from ``start`` (its first point at
