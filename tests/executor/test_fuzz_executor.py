@@ -196,7 +196,7 @@ def test_fuzz_joint_states(probe: Probe) -> None:
 
     run()
     probe.send("joint_states", valid_state())
-    np.testing.assert_allclose(probe.node._q, PANDA_PARK)
+    np.testing.assert_allclose(probe.node.measured.q, PANDA_PARK)
 
 
 def test_fuzz_joint_states_while_moving(probe: Probe) -> None:
