@@ -113,7 +113,7 @@ def test_a_chained_execution_follows_the_replaced_plan_until_its_first_point() -
     plan = straight_plan()
     hold = MotionPlan(**{**plan.__dict__, "positions": np.array([[0.5, 0.5]] * 3),
                          "velocities": np.zeros((3, 2)), "times": np.array([1.0, 1.5, 2.0])})
-    new = Execution(hold, 100.5, 0.0, 100.5, 0.05, 1.0, 3.0, previous=old)
+    new = Execution(hold, 100.5, 0.0, 100.5, 0.05, 1.0, 3.0, previous=old, moving=True)
     assert new.started  # the arm moves already
     # At 101.2 s the running plan is at 0.2 rad: fine for the chained one too.
     assert new.on_state(101.2, np.array([0.2, 0.5]), 0.1) is None
@@ -169,6 +169,21 @@ def test_contact_segment() -> None:
     empty = Execution(plan, 100.0, 0.0, 100.0, 0.05, 1.0, 3.0)
     with pytest.raises(ValueError, match="contact segment's start"):
         empty.contact_segment(arm)
+    # Joint states lost from 0.95 s to 1.5 s (a loaded machine): the start is interpolated
+    # between the samples either side, at the planned time; a longer gap is refused.
+    gappy = Execution(plan, 100.0, 0.0, 100.0, 0.05, 1.0, 3.0)
+    for t in (0.95, 1.5, 1.8):
+        gappy.on_state(100.0 + t, expected_positions(plan, t), t)
+    seg = gappy.contact_segment(arm)
+    assert seg.stamp_start == pytest.approx(101.2) and seg.stamp_end == pytest.approx(101.8)
+    w = (1.2 - 0.95) / (1.5 - 0.95)
+    between = (1 - w) * expected_positions(plan, 0.95) + w * expected_positions(plan, 1.5)
+    np.testing.assert_allclose(seg.start, arm.tip_pose(between)[0], atol=1e-12)
+    far = Execution(plan, 100.0, 0.0, 100.0, 0.05, 1.0, 3.0)
+    for t in (0.75, 1.8):
+        far.on_state(100.0 + t, expected_positions(plan, t), t)
+    with pytest.raises(ValueError, match="contact segment's start"):
+        far.contact_segment(arm)
 
 
 def test_segment_distance() -> None:
@@ -178,18 +193,23 @@ def test_segment_distance() -> None:
 
 
 def test_the_stamp_clock_carries_the_newest_stamp_forward_at_the_observed_rate() -> None:
-    clock = StampClock(window=0.5)
+    clock = StampClock(window=0.1)
     assert clock.now(0.0) == -math.inf
     for k in range(11):  # stamps advance 5x faster than the steady clock (a fast simulation)
-        clock.update(100.0 + 0.5 * k, 0.1 * k)
+        clock.update(100.0 + 0.05 * k, 0.01 * k)
     assert clock.rate == pytest.approx(5.0)
-    assert clock.now(1.2) == pytest.approx(105.0 + 5.0 * 0.2)
-    clock.update(99.0, 1.3)  # an older stamp changes nothing
-    assert clock.now(1.2) == pytest.approx(106.0)
-    slow = StampClock(window=0.5)
+    assert clock.now(0.12) == pytest.approx(100.5 + 5.0 * 0.02)
+    clock.update(99.0, 0.13)  # an older stamp changes nothing
+    assert clock.now(0.12) == pytest.approx(100.6)
+    # The run ends; the resting world's states advance at the wall clock's rate, 10 a second:
+    # the rate is the new one as soon as the window has passed.
+    for k in range(1, 4):
+        clock.update(100.5 + 0.1 * k, 0.1 + 0.1 * k)
+    assert clock.rate == pytest.approx(1.0)
+    slow = StampClock(window=0.1)
     for k in range(11):  # stamps standing still (a paused clock): never slower than 1x
-        slow.update(7.0, 0.1 * k)
-    assert slow.rate == 1.0 and slow.now(2.0) == pytest.approx(8.0)
+        slow.update(7.0, 0.01 * k)
+    assert slow.rate == 1.0 and slow.now(0.3) == pytest.approx(7.2)
 
 
 def test_the_measured_arm_is_held_when_its_last_postures_agree() -> None:

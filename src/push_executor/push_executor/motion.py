@@ -63,6 +63,7 @@ from typing import Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.interpolate import CubicSpline
 
 from push_executor.kinematics import ArmKinematics
 from push_executor.timing import blend_speed, joint_move, line_profile
@@ -103,8 +104,11 @@ AT_REST = 1e-6
 #: a smooth path whose finite differences give the joint accelerations and jerks (the solver's
 #: default gain 0.2 and step 1e-5 rad left 1e-5 rad of noise: 1e3 rad/s^3 of spurious jerk).
 LINE_POSTURE_GAIN, LINE_POSTURE_STEP = 1.0, 1e-8
-#: Scales of the Cartesian acceleration and jerk a line stage is tried with, in turn.
+#: Scales of the Cartesian acceleration, jerk and speed a line stage is tried with, in turn.
 RAMP_SCALES = (1.0, 0.5, 0.25)
+#: Spacing of the inverse kinematics solutions along a Cartesian stage, m: the samples between
+#: them lie on a cubic spline through them (checked against the line by forward kinematics).
+LINE_KNOT = 0.0025
 
 
 class PushRefused(Exception):  # noqa: N818 - a refusal, not an error of the code
@@ -311,6 +315,21 @@ class MotionPlan:
                 return span.name
         return self.stages[-1].name
 
+    def positions_at(self, times: ArrayLike) -> NDArray[np.float64]:
+        """Planned positions (T, n) at plan times (T,) (the positions of :meth:`state_at`)."""
+        grid = self.times
+        t = np.minimum(np.maximum(np.asarray(times, dtype=float).ravel(), grid[0]), grid[-1])
+        if len(grid) == 1:
+            return np.repeat(self.positions[:1], len(t), axis=0)
+        i = np.minimum(np.maximum(np.searchsorted(grid, t) - 1, 0), len(grid) - 2)
+        h = (grid[i + 1] - grid[i])[:, None]
+        u = (t - grid[i])[:, None] / h
+        u2 = u * u
+        u3 = u2 * u
+        q, v = self.positions, self.velocities
+        return ((2 * u3 - 3 * u2 + 1) * q[i] + (u3 - 2 * u2 + u) * h * v[i]
+                + (3 * u2 - 2 * u3) * q[i + 1] + (u3 - u2) * h * v[i + 1])
+
     def state_at(self, t: float) -> MotionState:
         """The planned state at plan time ``t`` (cubic Hermite positions and velocities
         between the points, as the controller interpolates them; accelerations linear; the
@@ -326,8 +345,7 @@ class MotionPlan:
         u = (t - times[i]) / h
         q0, q1, v0, v1 = (self.positions[i], self.positions[i + 1], self.velocities[i],
                           self.velocities[i + 1])
-        q = ((2 * u**3 - 3 * u**2 + 1) * q0 + (u**3 - 2 * u**2 + u) * h * v0
-             + (-2 * u**3 + 3 * u**2) * q1 + (u**3 - u**2) * h * v1)
+        q = self.positions_at([t])[0]
         v = ((6 * u**2 - 6 * u) * q0 + (-6 * u**2 + 6 * u) * q1) / h \
             + (3 * u**2 - 4 * u + 1) * v0 + (3 * u**2 - 2 * u) * v1
         a = (1 - u) * self.accelerations[i] + u * self.accelerations[i + 1]
@@ -396,41 +414,34 @@ class _Planner:
                    ) -> _Stage:
         """The tip on the straight line ``p_a`` -> ``p_b`` (jerk-limited speed profile from
         ``v0`` to ``v1``), IK per sample seeded from ``q_a``, checked (``min_tool_height``).
-        A profile whose joint accelerations or jerks exceed the limits is tried again with
-        the Cartesian acceleration and jerk scaled by :data:`RAMP_SCALES` (the blend speeds
-        lowered to fit); the last failure refuses."""
+        A profile whose joint speeds, accelerations or jerks exceed the limits is tried again
+        with the Cartesian acceleration, jerk and speed (not the push's) scaled by
+        :data:`RAMP_SCALES` (the blend speeds lowered to fit); the last failure refuses."""
         cfg = self.cfg
         length = float(np.linalg.norm(p_b - p_a))
         u = (p_b - p_a) / length if length > 0 else np.zeros(3)
+        path = self.line_path(name, q_a, p_a, u, length)
         failure = None
         for scale in RAMP_SCALES:
             acc, jerk = cfg.cartesian_acceleration * scale, cfg.cartesian_jerk * scale
-            ends = [min(v, blend_speed(length, v, acc, jerk)) if v > 0 else 0.0
+            top = speed if name == "push" else max(speed * scale, cfg.push_speed)
+            ends = [min(v, top, blend_speed(length, v, acc, jerk)) if v > 0 else 0.0
                     for v in (v0, v1)]
             try:
-                times, s, sd, sdd = line_profile(length, *ends, speed, acc, jerk,
+                times, s, sd, sdd = line_profile(length, *ends, top, acc, jerk,
                                                  cfg.waypoint_period)
             except ValueError as exc:
                 raise PushRefused("speed", name, f"no speed profile along the line: {exc}"
                                   ) from None
-            q = np.empty((len(times), self.arm.n_joints))
-            seed = q_a
-            for i, target in enumerate(p_a + s[:, None] * u):
-                result = self.arm.solve_ik(target, seed, self.reference,
-                                           posture_gain=LINE_POSTURE_GAIN,
-                                           posture_tolerance=LINE_POSTURE_STEP)
-                self.check_ik(name, result.position_error, result.axis_error, target)
-                q[i] = seed = result.q
-            if len(times) > 2:
-                q_s = np.gradient(q, s, axis=0)
-                q_ss = np.gradient(q_s, s, axis=0)
+            if path is None or len(times) < 2:  # no motion
+                q = np.repeat(q_a[None], len(times), axis=0)
+                qd, qdd = np.zeros_like(q), np.zeros_like(q)
+            else:
+                q, q_s, q_ss = path(s), path(s, 1), path(s, 2)
                 qd = q_s * sd[:, None]
                 qdd = q_s * sdd[:, None] + q_ss * (sd**2)[:, None]
-            else:  # no motion
-                qd, qdd = np.zeros_like(q), np.zeros_like(q)
-            stage = _Stage(name, times, q, qd, qdd, self.arm.tip_positions(q))
+            stage = _Stage(name, times, q, qd, qdd, self.check_line(name, q, p_a + s[:, None] * u))
             self.check_workspace(stage)
-            self.check_singular(stage)
             try:
                 self.check_stage(stage, q_a, cfg.min_tool_height)
             except PushRefused as refusal:
@@ -441,6 +452,37 @@ class _Planner:
             return stage
         assert failure is not None
         raise failure
+
+    def line_path(self, name: str, q_a: NDArray[np.float64], p_a: NDArray[np.float64],
+                  u: NDArray[np.float64], length: float) -> CubicSpline | None:
+        """The joint path along the line as a cubic spline over the path parameter (m) through
+        IK solutions every :data:`LINE_KNOT` (each seeded with the path extrapolated from the
+        two before), their manipulability checked; None for a line of length 0."""
+        if length <= 0.0:
+            return None
+        knots = np.linspace(0.0, length, max(4, int(math.ceil(length / LINE_KNOT)) + 1))
+        q = np.empty((len(knots), self.arm.n_joints))
+        for i, s in enumerate(knots):
+            target = p_a + s * u
+            seed = q_a if i == 0 else q[0] if i == 1 else 2.0 * q[i - 1] - q[i - 2]
+            result = self.arm.solve_ik(target, seed, self.reference,
+                                       posture_gain=LINE_POSTURE_GAIN,
+                                       posture_tolerance=LINE_POSTURE_STEP)
+            self.check_ik(name, result.position_error, result.axis_error, target)
+            q[i] = result.q
+        self.check_singular(name, q, knots)
+        return CubicSpline(knots, q, axis=0)
+
+    def check_line(self, name: str, q: NDArray[np.float64], targets: NDArray[np.float64]
+                   ) -> NDArray[np.float64]:
+        """The tips (N, 3) of the interpolated postures ``q``, each within ``ik_tolerance`` of
+        its target on the line and the tool axis vertical (else ``ik``)."""
+        tips = np.empty((len(q), 3))
+        for i, posture in enumerate(q):
+            tips[i], axis = self.arm.tip_pose(posture)
+            self.check_ik(name, float(np.linalg.norm(tips[i] - targets[i])),
+                          float(math.acos(min(1.0, max(-1.0, -axis[2])))), targets[i])
+        return tips
 
     def blend(self, p_a: NDArray[np.float64], p_b: NDArray[np.float64]) -> float:
         """Speed at which a joint-space stage may join the line ``p_a`` -> ``p_b``, m/s."""
@@ -475,13 +517,15 @@ class _Planner:
             raise PushRefused("workspace", stage.name, f"tip at ({x:.3f}, {y:.3f}) m leaves the "
                               f"workspace x [{x_min}, {x_max}], y [{y_min}, {y_max}] m")
 
-    def check_singular(self, stage: _Stage) -> None:
-        m = np.array([self.arm.manipulability(q) for q in stage.q])
+    def check_singular(self, name: str, q: NDArray[np.float64], along: NDArray[np.float64]
+                       ) -> None:
+        """Manipulability of postures ``q`` at ``along`` m of a line's length."""
+        m = np.array([self.arm.manipulability(posture) for posture in q])
         if np.min(m) < self.cfg.min_manipulability:
             i = int(np.argmin(m))
-            raise PushRefused("singular", stage.name, f"manipulability {m[i]:.4f} < "
-                              f"{self.cfg.min_manipulability} at t = {stage.times[i]:.2f} s "
-                              "(near a singular posture)")
+            raise PushRefused("singular", name, f"manipulability {m[i]:.4f} < "
+                              f"{self.cfg.min_manipulability} {1e3 * along[i]:.0f} mm along "
+                              "the line (near a singular posture)")
 
     def over_workspace(self, xy: NDArray[np.float64]) -> NDArray[np.bool_]:
         """Which (N, 2) points lie within CLEARANCE_MARGIN of the workspace rectangle."""

@@ -28,7 +28,6 @@ import time
 from pathlib import Path as FilePath
 from typing import Any
 
-import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
 from nav_msgs.msg import Path
 from rclpy.clock import Clock, ClockType
@@ -39,35 +38,26 @@ from std_msgs.msg import String
 from std_srvs.srv import SetBool, Trigger
 from trajectory_msgs.msg import JointTrajectory
 
+from push_executor import messages as m
 from push_executor.clearance import robot_mask_factory
 from push_executor.kinematics import ArmKinematics
-from push_executor.messages import hold_msg, path_msg, stage_text, trajectory_msg
 from push_executor.motion import PushRefused, plan_park, plan_push
 from push_executor.parameters import NODE_NAME, PARAMETERS, ExecutorParams
 from push_executor.scene_inputs import SceneInputs
-from push_executor.tracking import (
-    Event,
-    Execution,
-    MeasuredArm,
-    PlanMaker,
-    chain_positions,
-    start_plan,
-)
+from push_executor.tracking import Event, Execution, MeasuredArm, PlanMaker, start_plan
 from push_ros.health import NodeHealth
 from push_ros.node import declare_config, run_node
-from push_ros.paths import path_from_points, push_points_from_path
 from push_ros.qos import LATCHED_QOS, RELIABLE_QOS
-from push_ros.refusal import refusal_msg
-from push_ros.stamps import check_not_ahead, clock_seconds, seconds_from_stamp, stamp_from_seconds
+from push_ros.refusal import refusal_msg, stamp_key
+from push_ros.stamps import clock_seconds
 
 __all__ = ["PARAMETERS", "ExecutorParams", "PushExecutorNode", "main"]
 
-#: Joint states: reliable, depth 50 (docs/ARCHITECTURE.md).
-JOINT_STATE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50,
+#: Joint states: reliable, depth 500 (docs/ARCHITECTURE.md): a second of a 500 Hz stream
+#: waits while the node plans a push, none of the contact segment's samples is lost.
+JOINT_STATE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=500,
                              reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.VOLATILE)
-#: Most joints a joint state may name (a bigger message is refused before any work).
-MAX_JOINTS = 1000
 #: Watchdog timer and /diagnostics periods, s.
 WATCHDOG_PERIOD, DIAGNOSTICS_PERIOD = 0.05, 1.0
 #: The arm is parked within this of ``park_positions`` (every joint), rad; held (a pending park
@@ -91,6 +81,7 @@ class PushExecutorNode(Node):
         self._enabled = bool(p["start_enabled"])
         self._run: Execution | None = None
         self._push_stamp: Any = None
+        self._deferred: tuple[Path, float] | None = None  # a push waiting for the arm at rest
         self._park_pending, self._stopped, self._line_error_mm = "", False, math.nan
         self._plan_values: dict[str, str] = {}
         self._pub_traj = self.create_publisher(JointTrajectory, p["controller_topic"],
@@ -156,14 +147,10 @@ class PushExecutorNode(Node):
     def _on_joint_state(self, msg: JointState) -> None:
         if self._arm is None:
             return
-        if len(msg.name) > MAX_JOINTS:
-            self.health.refuse("/joint_states", f"{len(msg.name)} joints", "invalid")
-            return
         try:
-            stamp = seconds_from_stamp(msg.header.stamp)
-            check_not_ahead(stamp, clock_seconds(self.get_clock()),
-                            self.params.values["max_future_stamp"], "joint state stamp")
-            q = chain_positions(self._arm.joint_names, list(msg.name), msg.position)
+            stamp, q = m.joint_state_from_msg(msg, self._arm.joint_names,
+                                            clock_seconds(self.get_clock()),
+                                            self.params.values["max_future_stamp"])
         except ValueError as exc:
             self.health.refuse("/joint_states", str(exc), "invalid")
             return
@@ -172,22 +159,24 @@ class PushExecutorNode(Node):
         self.health.count("joint_states")
         if self._run is not None:
             self._finish(self._run.on_state(stamp, q, steady))
+        elif self._deferred is not None and self.measured.held:
+            msg, self._deferred = self._deferred[0], None
+            self._take_push(msg)
         elif self._park_pending and self.measured.held:
             self._park()
 
     def _on_push(self, msg: Path) -> None:
         self.health.count("pushes")
+        self._take_push(msg)
+
+    def _take_push(self, msg: Path) -> None:
         stamp = msg.header.stamp
         run = self._run
         if run is not None and self._enabled and not run.chainable:
             return self._refuse(stamp, "busy", run.plan.stage_at(run.elapsed(self.measured.stamp)),
                                 "the arm is executing a push")
         try:
-            seconds_from_stamp(stamp)
-            if msg.header.frame_id != self.params.values["world_frame"]:
-                raise ValueError(f"frame {msg.header.frame_id[:64]!r} is not "
-                                 f"{self.params.values['world_frame']!r}")
-            approach, contact, end = push_points_from_path(msg)
+            approach, contact, end = m.push_from_msg(msg, self.params.values["world_frame"])
         except ValueError as exc:
             return self._refuse(stamp, "invalid", "input", str(exc))
         if self._arm is None:
@@ -195,6 +184,9 @@ class PushExecutorNode(Node):
         if self.measured.q is None or time.monotonic() - self.measured.steady > \
                 self.params.values["state_timeout"]:
             return self._refuse(stamp, "no_state", "", "no recent joint state")
+        if self._run is None and self._enabled and not self.measured.held:
+            self._deferred = (msg, time.monotonic())  # planned once the states show it held
+            return None
         view, why = self.scene.view(contact, end, self._robot)
         self._plan_values = {"view": why or "clear pose"}
         try:
@@ -214,21 +206,23 @@ class PushExecutorNode(Node):
         run = self._run if self._enabled or stamp is None else None  # a dry run: from here
         plan, t0, chained = start_plan(make, run, self.measured.q, self._now, p["start_delay"],
                                        self.params.motion.start_delay)
-        self._pub_path.publish(path_msg(plan, p["world_frame"], self.get_clock().now().to_msg()))
+        self._pub_path.publish(m.path_msg(plan, p["world_frame"], self.get_clock().now().to_msg()))
         if not self._enabled and stamp is not None:
             raise PushRefused("disabled", "", "executor disabled (dry run): planned, not moved")
         if self._pub_traj.get_subscription_count() == 0:
             raise PushRefused("no_controller", "", "no controller subscribes "
                               f"{self._pub_traj.topic_name}")
-        self._pub_traj.publish(trajectory_msg(plan, self._joints, t0))
+        self._pub_traj.publish(m.trajectory_msg(plan, self._joints, t0))
+        self.get_logger().info(f"{'chained' if chained else 'sent'}: {m.stage_text(plan)}; starts "
+                               f"{t0:.3f} s (measured {self.measured.stamp:.3f} s)")
         if run is not None:
             self.health.count("chained")
         self._run = Execution(plan, t0, time.monotonic(), self.measured.stamp,
                               p["tracking_tolerance"], p["state_timeout"], p["start_timeout"],
-                              p["tracking_window"], previous=run if chained else None)
+                              p["tracking_window"], previous=run, moving=chained)
         self._push_stamp, self._stopped, self._park_pending = stamp, False, ""
-        self._plan_values.update(plan_t0=f"{t0:.6f}", final=plan.final,
-                                 stages=stage_text(plan))
+        self._plan_values.update(plan_t0=f"{t0:.6f}", final=plan.final, stages=m.stage_text(plan),
+                                 push="" if stamp is None else stamp_key(stamp))
 
     def _now(self) -> float:
         """The controller's time now at least: the node's clock or the newest joint state's
@@ -265,6 +259,10 @@ class PushExecutorNode(Node):
         return self.measured.at(self.params.motion.park_positions, PARKED)
 
     def _on_watchdog(self) -> None:
+        if self._deferred is not None and time.monotonic() - self._deferred[1] > \
+                self.params.values["state_timeout"]:
+            msg, self._deferred = self._deferred[0], None
+            self._refuse(msg.header.stamp, "busy", "", "the arm did not come to rest")
         if self._run is not None:
             self._finish(self._run.on_timer(time.monotonic()))
 
@@ -276,9 +274,7 @@ class PushExecutorNode(Node):
             self._refuse(self._push_stamp, "fault", "push", str(exc))
             return
         self._line_error_mm = seg.line_error * 1e3
-        stamps = [stamp_from_seconds(s, clamp=True) for s in (seg.stamp_start, seg.stamp_end)]
-        self._pub_executed.publish(path_from_points(np.array([seg.start[:2], seg.end[:2]]),
-                                                    stamps, self.params.values["world_frame"]))
+        self._pub_executed.publish(m.executed_msg(seg, self.params.values["world_frame"]))
         self.health.count("executed")
 
     def _finish(self, event: Event | None) -> None:
@@ -304,7 +300,7 @@ class PushExecutorNode(Node):
         """Send the one-point hold trajectory at the measured posture; False without one."""
         if self.measured.q is None or self._arm is None:
             return False
-        self._pub_traj.publish(hold_msg(self._joints, dict(zip(self._arm.joint_names,
+        self._pub_traj.publish(m.hold_msg(self._joints, dict(zip(self._arm.joint_names,
                                                                 self.measured.q,
                                                                 strict=True))))
         self._stopped = True

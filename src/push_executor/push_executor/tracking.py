@@ -33,6 +33,7 @@ commanded line in between.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections import deque
 from collections.abc import Callable
@@ -51,6 +52,10 @@ __all__ = ["MAX_SAMPLES", "START_MOTION", "ContactSegment", "Event", "Execution"
 
 #: Joint motion (rad) that shows a trajectory started.
 START_MOTION = 1e-3
+#: Joint states closer than this (s of their stamps) to the last checked one are recorded but
+#: not checked against the plan (a blocked arm still leaves it within a fraction of a second;
+#: at 500 states a second the check alone took a core).
+CHECK_PERIOD = 0.02
 #: Spacing of the plan times the tracking window tries, s, and their largest number.
 WINDOW_STEP = 0.01
 MAX_WINDOW_SAMPLES = 101
@@ -58,6 +63,9 @@ MAX_WINDOW_SAMPLES = 101
 MAX_SAMPLES = 100_000
 #: Largest gap between a planned contact time and the nearest joint state, s.
 MAX_SAMPLE_GAP = 0.2
+#: Longest gap between two samples either side of the contact start or end that they are
+#: interpolated across when none lies within MAX_SAMPLE_GAP of it, s.
+MAX_BRACKET = 0.6
 #: Samples this long (s) before and after the contact segment are kept too.
 SAMPLE_MARGIN = 0.5
 
@@ -75,6 +83,17 @@ def chain_positions(chain: tuple[str, ...], names: list[str], positions: ArrayLi
     values = np.asarray(positions, dtype=float).ravel()
     if len(names) != len(values):
         raise ValueError(f"{len(names)} names but {len(values)} positions")
+    order = _chain_order(tuple(chain), tuple(names))
+    q = values[list(order)]
+    if not np.all(np.isfinite(q)):
+        raise ValueError("non-finite joint position")
+    return q
+
+
+@functools.lru_cache(maxsize=16)
+def _chain_order(chain: tuple[str, ...], names: tuple[str, ...]) -> tuple[int, ...]:
+    """Indices of the chain's joints in ``names`` (a joint state stream repeats its names:
+    worked out once per layout); ``ValueError`` for a repeated name or a missing joint."""
     index = {}
     for i, name in enumerate(names):
         if name in index:
@@ -83,16 +102,13 @@ def chain_positions(chain: tuple[str, ...], names: list[str], positions: ArrayLi
     missing = [j for j in chain if j not in index]
     if missing:
         raise ValueError(f"joints {missing} missing")
-    q = values[[index[j] for j in chain]]
-    if not np.all(np.isfinite(q)):
-        raise ValueError("non-finite joint position")
-    return q
+    return tuple(index[j] for j in chain)
 
 
 def expected_positions(plan: MotionPlan, elapsed: float) -> NDArray[np.float64]:
     """Planned joint positions at ``elapsed`` s from the start (cubic Hermite between points;
     the start state before the first point, the last point after the end)."""
-    return plan.state_at(elapsed).q
+    return plan.positions_at([elapsed])[0]
 
 
 def tracking_error(plan: MotionPlan, q_measured: ArrayLike, elapsed: float,
@@ -104,17 +120,19 @@ def tracking_error(plan: MotionPlan, q_measured: ArrayLike, elapsed: float,
     closest to the measurement (smallest largest-joint error): a time-shift-tolerant tube
     around the plan.
     """
-    return _window_error(lambda t: expected_positions(plan, t), q_measured, elapsed, window)
+    return _window_error(plan.positions_at, q_measured, elapsed, window)
 
 
-def _window_error(expected: Callable[[float], NDArray[np.float64]], q_measured: ArrayLike,
-                  elapsed: float, window: float) -> tuple[int, float]:
+def _window_error(expected: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+                  q_measured: ArrayLike, elapsed: float, window: float) -> tuple[int, float]:
+    """:func:`tracking_error` with ``expected(times) -> (T, n)`` positions (vectorised: the
+    node checks every joint state, hundreds a second)."""
     q = np.asarray(q_measured, dtype=float)
-    times = [elapsed]
+    times = np.array([elapsed])
     if window > 0.0:
         n = min(MAX_WINDOW_SAMPLES, 2 * int(np.ceil(window / WINDOW_STEP)) + 1)
-        times += list(elapsed + np.linspace(-window, window, n))
-    dev = np.abs(np.array([expected(t) for t in times]) - q)
+        times = np.concatenate([times, elapsed + np.linspace(-window, window, n)])
+    dev = np.abs(expected(times) - q)
     best = int(np.argmin(dev.max(axis=1)))
     j = int(np.argmax(dev[best]))
     return j, float(dev[best, j])
@@ -177,13 +195,16 @@ class Execution:
         s of plan time either side of ``elapsed`` the deviation check may match (module
         docstring; 0: the plan exactly at ``elapsed``).
     previous : Execution, optional
-        The execution this one replaces (a chained push): until this plan's first point the
-        arm follows that one's plan, and the measured joints are checked against it.
+        The execution this one replaces: until this plan's first point the arm follows that
+        one's plan, and the measured joints are checked against it.
+    moving : bool
+        The arm is moving at the start (a chained motion: started at once).
     """
 
     def __init__(self, plan: MotionPlan, t0: float, steady: float, last_stamp: float,
                  tracking_tolerance: float, state_timeout: float, start_timeout: float,
-                 time_window: float = 0.0, previous: Execution | None = None) -> None:
+                 time_window: float = 0.0, previous: Execution | None = None,
+                 moving: bool = False) -> None:
         self.plan, self.t0 = plan, float(t0)
         self.time_window = float(time_window)
         self.tolerance = float(tracking_tolerance)
@@ -192,8 +213,9 @@ class Execution:
         self._start_steady = steady
         self._last_sample = steady
         self._last_advance = steady
-        self._stamp = max(float(last_stamp), self.t0)
-        self.started = previous is not None  # a chained motion starts on a moving arm
+        self._stamp = self._stamp0 = float(last_stamp)
+        self.started = moving  # a chained motion starts on a moving arm
+        self._checked = -math.inf  # stamp of the last tracking check
         #: Whether the contact segment has been reported (``executed``; a push plan only).
         self.reported = not plan.is_push
         self._contact_over = False
@@ -205,13 +227,17 @@ class Execution:
         """Seconds of the plan at a joint state stamped ``stamp``."""
         return float(stamp) - self.t0
 
-    def expected(self, elapsed: float) -> NDArray[np.float64]:
-        """Planned positions at ``elapsed`` (the replaced plan's before this one's first
-        point)."""
-        if self._previous is not None and elapsed < self.plan.times[0]:
-            plan, t0 = self._previous
-            return expected_positions(plan, elapsed + self.t0 - t0)
-        return expected_positions(self.plan, elapsed)
+    def expected(self, elapsed: ArrayLike) -> NDArray[np.float64]:
+        """Planned positions (T, n) at plan times ``elapsed`` (T,) (the replaced plan's before
+        this one's first point)."""
+        t = np.asarray(elapsed, dtype=float).ravel()
+        out = self.plan.positions_at(t)
+        if self._previous is not None:
+            early = t < self.plan.times[0]
+            if np.any(early):
+                plan, t0 = self._previous
+                out[early] = plan.positions_at(t[early] + self.t0 - t0)
+        return out
 
     @property
     def chainable(self) -> bool:
@@ -225,19 +251,25 @@ class Execution:
         ``executed`` (the first state at or after the contact segment's end, once) does not.
         """
         self._last_sample = steady
-        if stamp > self._stamp:
+        if stamp > self._stamp:  # the stamps advance (also before the start: a queue)
             self._stamp = stamp
             self._last_advance = steady
-            self.started = True
-        elif not self.started and float(np.max(np.abs(q - self.plan.positions[0]))) \
-                > START_MOTION:
+        if not self.started and (stamp > self.t0 or (
+                stamp <= self._stamp0 and float(np.max(np.abs(q - self.plan.positions[0])))
+                > START_MOTION)):
             self.started = True
             self._last_advance = steady
         elapsed = self.elapsed(stamp)
         if self._keep[0] <= elapsed <= self._keep[1] and len(self._times) < MAX_SAMPLES:
             self._times.append(float(stamp))
             self._qs.append(np.array(q, dtype=float))
-        j, dev = _window_error(self.expected, q, elapsed, self.time_window)
+        if stamp < self._checked + CHECK_PERIOD and elapsed < self.plan.duration:
+            dev = 0.0  # checked a moment ago (joint states may come at hundreds of hertz)
+        else:
+            self._checked = float(stamp)
+            j, dev = _window_error(self.expected, q, elapsed, 0.0)
+            if dev > self.tolerance:  # off the plan at this time: within the window's times?
+                j, dev = _window_error(self.expected, q, elapsed, self.time_window)
         if dev > self.tolerance:
             return Event("deviation", f"{self.plan.joint_names[j]} {dev:.4f} off the plan at "
                          f"t = {elapsed:.2f} s ({self.plan.stage_at(elapsed)}), tolerance "
@@ -272,29 +304,43 @@ class Execution:
         return self.contact_segment(arm)
 
     def contact_segment(self, arm: ArmKinematics) -> ContactSegment:
-        """The measured contact segment (:class:`ContactSegment`).
+        """The measured contact segment (:class:`ContactSegment`): at the samples nearest the
+        planned start and end, or -- joint states lost around one -- the joint positions
+        interpolated there between the samples either side (at most ``MAX_BRACKET`` apart),
+        stamped with the planned time.
 
         Raises
         ------
         ValueError
-            No sample within ``MAX_SAMPLE_GAP`` of the contact start or end.
+            Neither for the contact start or end.
         """
         times = np.array(self._times) - self.t0
         plan = self.plan
-        index = []
+        qs = np.array(self._qs, dtype=float).reshape(len(times), self.plan.positions.shape[1])
+        ends = []
         for label, t in (("start", plan.contact_start), ("end", plan.contact_end)):
             i = int(np.argmin(np.abs(times - t))) if len(times) else -1
-            if i < 0 or abs(times[i] - t) > MAX_SAMPLE_GAP:
-                held = (f"{len(times)} samples at {times.min():.3f}-{times.max():.3f} s"
-                        if len(times) else "no samples")
-                raise ValueError(f"no joint state recorded within {MAX_SAMPLE_GAP} s of the "
-                                 f"contact segment's {label} ({t:.3f} s of the plan; {held})")
-            index.append(i)
-        i0, i1 = index
-        tips = arm.tip_positions(np.array(self._qs[i0:i1 + 1]))
+            if i >= 0 and abs(times[i] - t) <= MAX_SAMPLE_GAP:
+                ends.append((i, qs[i], self._times[i]))
+                continue
+            # joint states lost around it (a loaded machine): between the samples either side
+            before, after = np.flatnonzero(times < t), np.flatnonzero(times > t)
+            if len(before) and len(after) and times[after[0]] - times[before[-1]] \
+                    <= MAX_BRACKET:
+                a, b = before[-1], after[0]
+                w = (t - times[a]) / (times[b] - times[a])
+                ends.append((b if label == "start" else a, (1 - w) * qs[a] + w * qs[b],
+                             t + self.t0))
+                continue
+            held = (f"{len(times)} samples at {times.min():.3f}-{times.max():.3f} s"
+                    if len(times) else "no samples")
+            raise ValueError(f"no joint state recorded within {MAX_SAMPLE_GAP} s of the "
+                             f"contact segment's {label} ({t:.3f} s of the plan; {held})")
+        (i0, q0, e0), (i1, q1, e1) = ends
+        tips = arm.tip_positions(np.vstack([q0, qs[i0:i1 + 1], q1]))
         error = segment_distance(tips, plan.line[0], plan.line[1])
-        return ContactSegment(start=tips[0], end=tips[-1], stamp_start=self._times[i0],
-                              stamp_end=self._times[i1], line_error=float(np.max(error)))
+        return ContactSegment(start=tips[0], end=tips[-1], stamp_start=e0, stamp_end=e1,
+                              line_error=float(np.max(error)))
 
 
 class StampClock:
@@ -305,10 +351,12 @@ class StampClock:
     node (wall rate while the world rests, several times faster while the arm moves). So the
     newest joint state's stamp is carried forward at the rate at which the stamps advanced
     against the steady clock over the last ``window`` seconds (at least 1: never slower than
-    real time), s.
+    real time), s. The window is short, so that the rate is the current one: a window that
+    still held the end of a fast run overestimated the time after it by seconds (the arm then
+    waited that long before each push).
     """
 
-    def __init__(self, window: float = 0.5) -> None:
+    def __init__(self, window: float = 0.1) -> None:
         self.window = float(window)
         self._samples: deque[tuple[float, float]] = deque()  # (steady, stamp)
         self.rate = 1.0

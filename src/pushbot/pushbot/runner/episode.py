@@ -64,7 +64,7 @@ from typing import Any
 
 import numpy as np
 
-from push_core.episode import new_record
+from push_core.episode import new_record, robot_times
 from pushbot.experiments.protocol import Trial, planner_episode_params
 from pushbot.ros2cli.discovery import sigterm_as_keyboard_interrupt
 from pushbot.runner.client import GraphClient, Recorded
@@ -103,11 +103,13 @@ class GraphRunner:
     robot : str
         ``pusher`` (the simulator's finger) or ``arm`` (``push_executor_node`` and the
         simulated Panda; :class:`pushbot.runner.graph_nodes.GraphNodes`).
+    node_exe : Path, optional
+        The ``pushbot`` executable of the node processes (:class:`GraphNodes`).
     """
 
     def __init__(self, log_dir: Path | None = None, record_frames: bool = False,
-                 node_args: dict[str, Sequence[str]] | None = None, robot: str = "pusher"
-                 ) -> None:
+                 node_args: dict[str, Sequence[str]] | None = None, robot: str = "pusher",
+                 node_exe: Path | None = None) -> None:
         self._tmp = None
         if log_dir is None:
             self._tmp = tempfile.TemporaryDirectory(prefix="pushbot_graph_")
@@ -115,7 +117,7 @@ class GraphRunner:
         self.log_dir = Path(log_dir)
         self.record_frames = record_frames
         self.robot = robot
-        self.nodes = GraphNodes(self.log_dir, node_args, robot=robot)
+        self.nodes = GraphNodes(self.log_dir, node_args, robot=robot, node_exe=node_exe)
         self.rec = Recorded()
         self.client: GraphClient | None = None
         self._com_true: np.ndarray | None = None
@@ -159,7 +161,8 @@ class GraphRunner:
         """Stop everything and start again (after a failed episode)."""
         self.close()
         self.rec = Recorded()
-        self.nodes = GraphNodes(self.log_dir, self.nodes.node_args, robot=self.robot)
+        self.nodes = GraphNodes(self.log_dir, self.nodes.node_args, robot=self.robot,
+                                node_exe=self.nodes.node_exe)
         self.start()
 
     # ---- the client's waits and calls -----------------------------------------------------------
@@ -249,6 +252,7 @@ class GraphRunner:
         goal = trial.goal(first_est)
         n_push, n_exec, n_status = (len(self.rec.pushes), len(self.rec.executed),
                                     len(self.rec.status))
+        t_goal = self.rec.clock  # the simulated time when the goal goes out
         goal_text = self._client().publish_goal(goal)
         episode = Episode(trial, n_push, n_exec, n_status, np.asarray(goal, dtype=float),
                           np.asarray(trial.goal_offset(), dtype=float), goal_text)
@@ -272,6 +276,8 @@ class GraphRunner:
         rec["frame_stamps"] = [first_stamp] + [
             next((st for st, _ in self.rec.est if st >= t1), t1) for _, _, t1 in executed]
         rec["step_latency_ms"] = _latencies(executed, pushes)
+        rec.update(_robot_times(t_goal, first_stamp, self.rec.push_stamps[n_push:],
+                                rec["frame_stamps"][-1] if executed else None))
         if self.robot == "arm":
             rec["contact_line_error_mm"] = self._line_errors(executed, pushes)
         end_true = self._true_after(executed[-1][2]) if executed else pose0_true
@@ -292,7 +298,21 @@ class GraphRunner:
                                    else self._c_true_episode.tolist())
         rec["com_est"] = self.rec.com[-1][1].tolist() if self.rec.com else None
         rec["wall_s"] = time.perf_counter() - t_start
+        if self.robot == "arm":
+            self._wait_arm_parked()
         return rec
+
+    def _wait_arm_parked(self) -> None:
+        """The executor parks the arm once the episode is over; the next scene is not set up
+        while it moves (the simulator refuses ``~/reset`` while it follows a trajectory). A
+        stopped arm stays where it is (the next scene's reset parks it)."""
+        def parked() -> bool:
+            status = self.rec.executor_status[-1] if self.rec.executor_status else {}
+            return status.get("state") == "stopped" or (
+                status.get("state") in ("idle", "disabled")
+                and status.get("at_park", "true") == "true")
+
+        self.wait(parked, STEP_TIMEOUT, "the arm parked after the episode (executor/status)")
 
     def _line_errors(self, executed: list[tuple[float, float, float]],
                      pushes: list[tuple[float, np.ndarray]]) -> list[float]:
@@ -476,6 +496,22 @@ def first_estimate(outline_stamps: Sequence[float], estimates: Sequence[tuple[fl
     if ref is None:
         return None
     return next(((ref, s, p) for s, p in estimates if s > after and s >= ref - 1e-6), None)
+
+
+def _robot_times(t_goal: float, first_frame: float, stamps: Sequence[float],
+                 stop: float | None) -> dict[str, Any]:
+    """``robot_time_s`` and ``cycle_s`` of a graph episode (:func:`push_core.episode.robot_times`).
+
+    ``t_goal``: the client's newest ``/clock`` when it sent the goal (the episode's first
+    frame's stamp if none had come), at most the first push's stamp (two nodes' clocks differ
+    by their ``/clock`` delivery); ``stamps``: the header stamps of the pushes seen since, of
+    which those before the goal (another client's, stamped 0) are not the robot's commands;
+    ``stop``: the stamp of the frame after the last executed push (None: nothing executed)."""
+    goal = t_goal if math.isfinite(t_goal) else first_frame
+    commands = [s for s in stamps if s >= goal - 1.0]
+    goal = min([goal, *commands])
+    end = goal if stop is None else max(stop, commands[-1] if commands else goal)
+    return robot_times(goal, sorted(commands), end)
 
 
 def _same_goal(a: str, b: str) -> bool:

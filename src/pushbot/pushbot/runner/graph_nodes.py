@@ -87,13 +87,18 @@ class GraphNodes:
     robot : str
         ``pusher`` (the four nodes) or ``arm`` (the bridge with ``robot:=arm`` and
         ``push_executor_node``, enabled, as a fifth node).
+    node_exe : Path, optional
+        The ``pushbot`` executable the nodes run from (default: this interpreter's): another
+        installation's, e.g. a checkout of an earlier version, so that its nodes meet this
+        client on the same trials.
     """
 
     def __init__(self, log_dir: Path, node_args: dict[str, Sequence[str]] | None = None,
-                 ros_args: dict[str, Sequence[str]] | None = None, robot: str = "pusher"
-                 ) -> None:
+                 ros_args: dict[str, Sequence[str]] | None = None, robot: str = "pusher",
+                 node_exe: Path | None = None) -> None:
         self.log_dir = Path(log_dir)
         self.robot = robot
+        self.node_exe = None if node_exe is None else Path(node_exe)
         self.names = graph_node_names(robot)
         self.node_args = {n: list((node_args or {}).get(n, ())) for n in self.names}
         self.ros_args = ros_args
@@ -108,7 +113,7 @@ class GraphNodes:
         """Start one node process (``extra``: more ``name:=value`` start-up parameters)."""
         env = dict(os.environ, PYTHONUNBUFFERED="1")
         apply_default_profile(env)
-        exe = Path(sys.executable).parent / "pushbot"
+        exe = self.node_exe or Path(sys.executable).parent / "pushbot"
         base = [str(exe)] if exe.exists() else [sys.executable, "-m", "pushbot.cli"]
         if self.ros_args is not None:  # pushbot up: the launch file's arguments as they are
             params = list(self.ros_args[name])
