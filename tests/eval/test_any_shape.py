@@ -47,7 +47,7 @@ def _visible(frame) -> bool:
 def _measure(tracker, segmenter, frame, what: str):
     """(measurement or None, failure text or None) of one frame: a visible object must yield
     a finite pose within :data:`POSITION_TOLERANCE` of the truth."""
-    from push_perception.core import PerceptionError
+    from push_perception.perception_config import PerceptionError
 
     try:
         meas = tracker.measure_frame(segmenter, frame)
@@ -64,7 +64,7 @@ def _measure(tracker, segmenter, frame, what: str):
 
 def _one_shape(world, segmenter, index: int, tmp_path) -> tuple[str | None, bool]:
     """One step of the loop on shape ``index``; returns (failure text or None, refused)."""
-    from push_perception.core import EpisodeTracker
+    from push_perception.tracker import EpisodeTracker
     from sim_bridge.world import WorldConfig, quiet_stdout
 
     rng = np.random.default_rng([SEED, index])

@@ -39,7 +39,7 @@ from rclpy.parameter import Parameter  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
-from push_executor.kinematics import MAX_URDF_CHARS  # noqa: E402
+from push_core.robot_view import MAX_URDF_CHARS  # noqa: E402
 from push_executor.motion import PANDA_PARK  # noqa: E402
 from push_executor.push_executor_node import HELD_STATES, PushExecutorNode  # noqa: E402
 from push_executor.tracking import MAX_SAMPLES  # noqa: E402

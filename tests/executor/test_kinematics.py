@@ -12,14 +12,8 @@ import os
 import numpy as np
 import pytest
 
-from push_executor.kinematics import (
-    DEFAULT_ACCELERATION,
-    DEFAULT_JERK,
-    MAX_URDF_CHARS,
-    ArmKinematics,
-    ToolSpec,
-    base_transform,
-)
+from push_core.robot_view import MAX_URDF_CHARS, base_transform
+from push_executor.kinematics import DEFAULT_ACCELERATION, DEFAULT_JERK, ArmKinematics, ToolSpec
 from push_executor.motion import PANDA_READY
 
 PLANAR = """<robot name="planar">

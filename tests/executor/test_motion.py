@@ -128,11 +128,11 @@ def test_heights_of_the_stages(plan: MotionPlan) -> None:
     np.testing.assert_allclose(tip_at(spans["push"].t_start), [*PUSH[0], 0.01], atol=1e-6)
     np.testing.assert_allclose(tip_at(spans["retreat"].t_start), [*PUSH[2], 0.01], atol=1e-6)
     np.testing.assert_allclose(tip_at(spans["lift"].t_start), [-0.02, 0.02, 0.01], atol=1e-6)
-    np.testing.assert_allclose(tip_at(spans["park"].t_start), [-0.02, 0.02, 0.10], atol=1e-6)
+    np.testing.assert_allclose(tip_at(spans["park"].t_start), [-0.02, 0.02, 0.11], atol=1e-6)
     for name in ("transit", "park"):  # joint space: clear of the object over the workspace
         during = (plan.times >= spans[name].t_start) & (plan.times <= spans[name].t_end)
         over = np.all(np.abs(plan.tip[during, :2]) <= [0.3, 0.35], axis=1)
-        assert np.min(plan.tip[during][over, 2]) >= 0.10 - 1e-3
+        assert np.min(plan.tip[during][over, 2]) >= 0.10 - 5e-3
 
 
 def test_transit_blends_into_the_descend(plan: MotionPlan) -> None:
@@ -323,7 +323,7 @@ def test_transit_clearance(arm: ArmKinematics) -> None:
     ready = np.array(PANDA_READY)
     beside = arm.solve_ik([-0.1, 0.38, 0.02], ready, ready).q
     r = refusal(arm, push=((0.0, 0.1), (0.0, 0.095), (0.0, 0.05)), q=beside)
-    assert (r.kind, r.stage) == ("tool_height", "transit") and "below 0.0990 m" in r.reason
+    assert (r.kind, r.stage) == ("tool_height", "transit") and "below 0.0950 m" in r.reason
 
 
 def test_singular(arm: ArmKinematics) -> None:

@@ -18,7 +18,6 @@ from push_executor.tracking import (
     Execution,
     MeasuredArm,
     StampClock,
-    chain_positions,
     expected_positions,
     segment_distance,
     tracking_error,
@@ -37,17 +36,6 @@ def straight_plan() -> MotionPlan:
                       stages=(StageSpan("push", 1.0, 2.0),),
                       contact_start=1.2, contact_end=1.8,
                       line=np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]))
-
-
-def test_chain_positions_maps_by_name() -> None:
-    q = chain_positions(("a", "b"), ["x", "b", "a"], [9.0, 2.0, 1.0])
-    np.testing.assert_array_equal(q, [1.0, 2.0])
-    for names, positions, match in [(["a"], [1.0, 2.0], "1 names but 2"),
-                                    (["a", "a"], [1.0, 2.0], "twice"),
-                                    (["a", "x"], [1.0, 2.0], "missing"),
-                                    (["a", "b"], [1.0, math.nan], "non-finite")]:
-        with pytest.raises(ValueError, match=match):
-            chain_positions(("a", "b"), names, positions)
 
 
 def test_expected_positions_hermite() -> None:
@@ -213,15 +201,16 @@ def test_the_stamp_clock_carries_the_newest_stamp_forward_at_the_observed_rate()
 
 
 def test_the_measured_arm_is_held_when_its_last_postures_agree() -> None:
-    arm = MeasuredArm(held_states=3, held=1e-4)
-    assert not arm.held and not arm.at([0.0, 0.0], 1.0)
+    arm = MeasuredArm(held_states=3, held=1e-4, quiet=0.5)
+    assert not arm.held(0.0) and not arm.at([0.0, 0.0], 1.0)
     for k in range(3):
-        arm.update(1.0 + k, np.array([0.1 * k, 0.0]), k)
-    assert not arm.held and arm.at([0.2, 0.0], 1e-9)
+        arm.update(1.0 + k, np.array([0.1 * k, 0.0]), 0.01 * k)
+    assert not arm.held(0.03) and arm.at([0.2, 0.0], 1e-9)
+    assert arm.held(0.6)  # no state for half a second: nothing streams, the arm rests
     for k in range(3, 6):
-        arm.update(1.0 + k, np.array([0.5, 5e-5 * (k % 2)]), k)
-    assert arm.held
+        arm.update(1.0 + k, np.array([0.5, 5e-5 * (k % 2)]), 0.01 * k)
+    assert arm.held(0.06)
     arm.moved()
-    assert not arm.held
+    assert not arm.held(0.06)
     arm.update(0.5, np.array([9.0, 9.0]), 7.0)  # older than the newest: kept out
     assert arm.at([0.5, 5e-5], 1e-9)

@@ -10,19 +10,11 @@ import pytest
 
 from push_core.geometry import closest_point_on_polyline, object_to_world
 from push_core.objects import load_object
-from push_perception.core import (
-    MAX_OUTLINE_POINTS,
-    MAX_RASTER_SIDE,
-    EpisodeTracker,
-    PerceptionConfig,
-    PerceptionError,
-    check_frame_arrays,
-    object_points,
-    pose_covariance,
-    rotation_search,
-    smooth_outline,
-    top_down_view,
-)
+from push_perception.footprint import MAX_RASTER_SIDE, object_points, top_down_view
+from push_perception.orientation import rotation_search
+from push_perception.outline import MAX_OUTLINE_POINTS, smooth_outline
+from push_perception.perception_config import PerceptionConfig, PerceptionError, check_frame_arrays
+from push_perception.tracker import EpisodeTracker, pose_covariance
 
 CFG = PerceptionConfig()
 #: An asymmetric polygon (object frame, m): a lopsided pentagon about 10 x 7 cm.

@@ -20,11 +20,12 @@ Inputs (all in ``world`` unless said otherwise; REP 103, metres):
   (:func:`object_region`); its silhouette is the image of that region between the table and
   ``height`` (:func:`silhouette`);
 - the robot's image at a posture: a callable ``robot_mask(q) -> (H, W) bool`` at the view's
-  resolution (the robot model's rendering, the same a perception self-filter uses).
+  resolution (:func:`robot_mask_factory`: the URDF's collision geometry posed and rendered by
+  :class:`push_core.robot_view.RobotGeometry`, as perception's self-filter does).
 
 Candidates (:func:`clear_candidates`): the tip where the lift ends (the retreat point at the
 approach height), then points around the region's centre at ``distance`` beyond its radius, in
-eight directions starting from the lift's, at the approach height and ``rise`` above it, nearest
+eight directions starting from the lift's, at the lift's height and ``rise`` above it, nearest
 to the lift's end first.
 """
 
@@ -39,6 +40,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from push_core.geometry import object_to_world, rot2
 from push_core.procedural import convex_hull
+from push_core.robot_view import RobotGeometry
 
 __all__ = ["CameraView", "ClearView", "clear_candidates", "fill_convex", "object_region",
            "robot_mask_factory", "silhouette"]
@@ -162,17 +164,18 @@ def silhouette(camera: CameraView, region: ArrayLike, height: float) -> NDArray[
     return fill_convex(uv[z > 1e-9], camera.width, camera.height)
 
 
-def clear_candidates(top: ArrayLike, region: ArrayLike, approach_height: float,
-                     distance: float, rise: float) -> list[NDArray[np.float64]]:
+def clear_candidates(top: ArrayLike, region: ArrayLike, distance: float, rise: float
+                     ) -> list[NDArray[np.float64]]:
     """Tool tip positions (x, y, z) for the clear pose, the preferred first (module docstring).
 
     Parameters
     ----------
     top : (3,) array_like
-        The tip at the end of the lift, ``world``, m.
+        The tip at the end of the lift, ``world``, m: the candidates are at its height and
+        ``rise`` above.
     region : (M, 2) array_like
         The object's region (:func:`object_region`).
-    approach_height, distance, rise : float
+    distance, rise : float
         m.
     """
     top = np.asarray(top, dtype=float)
@@ -182,7 +185,7 @@ def clear_candidates(top: ArrayLike, region: ArrayLike, approach_height: float,
     away = top[:2] - centre
     heading = math.atan2(away[1], away[0]) if np.linalg.norm(away) > 1e-9 else 0.0
     ring = []
-    for z in (approach_height, approach_height + rise):
+    for z in (top[2], top[2] + rise):
         for a in DIRECTIONS:
             xy = centre + radius * np.array([math.cos(heading + a), math.sin(heading + a)])
             ring.append(np.array([xy[0], xy[1], z]))
@@ -204,18 +207,18 @@ class ClearView:
     robot_mask : callable
         ``robot_mask(q)``: (``camera.height``, ``camera.width``) bool, the arm's pixels at
         chain posture ``q``.
-    approach_height, distance, rise : float
+    distance, rise : float
         Of the candidates (:func:`clear_candidates`), m.
     """
 
     def __init__(self, camera: CameraView, region: ArrayLike, height: float,
                  robot_mask: Callable[[NDArray[np.float64]], NDArray[np.bool_]],
-                 approach_height: float, distance: float, rise: float) -> None:
+                 distance: float, rise: float) -> None:
         self.camera = camera
         self.region = np.asarray(region, dtype=float)
         self.mask = silhouette(camera, self.region, height)
         self._robot_mask = robot_mask
-        self._candidate_args = (approach_height, distance, rise)
+        self._candidate_args = (distance, rise)
         #: Postures checked by :meth:`covered` (a diagnostic of the search).
         self.checked = 0
 
@@ -236,13 +239,11 @@ def robot_mask_factory(urdf: str, base_pose: Sequence[float], joint_names: Seque
                        ) -> tuple[Callable[[CameraView], Callable[[NDArray[np.float64]],
                                                                    NDArray[np.bool_]]] | None,
                                   str]:
-    """The arm's image at a camera from its URDF's collision geometry (push_core's robot
-    view): ``(factory, "")`` with ``factory(camera) -> robot_mask(q)`` (chain postures in
-    ``joint_names`` order), or ``(None, why not)``."""
-    try:
-        from push_core.robot_view import RobotGeometry
-    except ImportError as exc:
-        return None, f"no robot image ({exc})"
+    """The arm's image at a camera from its URDF's collision geometry
+    (:class:`push_core.robot_view.RobotGeometry`): ``(factory, "")`` with ``factory(camera)
+    -> robot_mask(q)`` (chain postures in ``joint_names`` order), or ``(None, why not)``. A
+    posture the model cannot render (a joint it needs that the chain lacks) gives a mask
+    covering the whole image: that pose is never taken for clear."""
     try:
         robot = RobotGeometry.from_urdf(urdf, base_pose=tuple(base_pose))
     except ValueError as exc:
@@ -251,8 +252,11 @@ def robot_mask_factory(urdf: str, base_pose: Sequence[float], joint_names: Seque
 
     def at(camera: CameraView) -> Callable[[NDArray[np.float64]], NDArray[np.bool_]]:
         def mask(q: NDArray[np.float64]) -> NDArray[np.bool_]:
-            return robot.render(camera.camera_matrix, camera.t_world_camera, camera.width,
-                                camera.height, names, q)[0]
+            try:
+                return robot.render(camera.camera_matrix, camera.t_world_camera, camera.width,
+                                    camera.height, names, q).mask
+            except ValueError:
+                return np.ones((camera.height, camera.width), dtype=bool)
         return mask
 
     return at, ""

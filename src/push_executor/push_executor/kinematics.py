@@ -34,11 +34,10 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["DEFAULT_ACCELERATION", "DEFAULT_JERK", "MAX_URDF_CHARS", "ArmKinematics", "IkResult",
-           "ToolSpec", "base_transform"]
+from push_core.robot_view import MAX_URDF_CHARS, base_transform
 
-#: Longest URDF text accepted, characters (a 10 MB string is refused before parsing).
-MAX_URDF_CHARS = 4_000_000
+__all__ = ["DEFAULT_ACCELERATION", "DEFAULT_JERK", "ArmKinematics", "IkResult", "ToolSpec"]
+
 #: Default joint acceleration (rad/s^2) and jerk (rad/s^3) limits: the Franka Panda's lowest
 #: (its joint 2: 7.5 rad/s^2; 3750 rad/s^3 in its datasheet, here far less: the acceleration
 #: ramps up in 15 ms).
@@ -92,24 +91,6 @@ def _per_joint(values: float | ArrayLike, n: int, what: str) -> NDArray[np.float
         raise ValueError(f"{what}: expected 1 or {n} positive values, got "
                          f"{arr.tolist()[:16]}")
     return np.broadcast_to(arr, (n,)).copy()
-
-
-def base_transform(base_pose: ArrayLike) -> NDArray[np.float64]:
-    """4 x 4 homogeneous transform ``world <- base`` of ``base_pose`` = (x, y, z, yaw).
-
-    Raises
-    ------
-    ValueError
-        Not 4 finite values.
-    """
-    pose = np.asarray(base_pose, dtype=float)
-    if pose.shape != (4,) or not np.all(np.isfinite(pose)):
-        raise ValueError(f"base_pose: expected 4 finite values (x, y, z, yaw), got {pose!r}")
-    c, s = math.cos(pose[3]), math.sin(pose[3])
-    t = np.eye(4)
-    t[:3, :3] = [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]
-    t[:3, 3] = pose[:3]
-    return t
 
 
 @dataclass(frozen=True)

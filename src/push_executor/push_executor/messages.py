@@ -24,8 +24,9 @@ from nav_msgs.msg import Path
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from push_core.robot_view import joint_positions
 from push_executor.motion import MotionPlan
-from push_executor.tracking import ContactSegment, chain_positions
+from push_executor.tracking import ContactSegment
 from push_ros.paths import path_from_points, push_points_from_path
 from push_ros.poses import pose_msg
 from push_ros.stamps import check_not_ahead, seconds_from_stamp, stamp_from_seconds
@@ -55,7 +56,7 @@ def joint_state_from_msg(msg: JointState, chain: Sequence[str], clock: float | N
         raise ValueError(f"{len(msg.name)} joints")
     stamp = seconds_from_stamp(msg.header.stamp)
     check_not_ahead(stamp, clock, max_future, "joint state stamp")
-    return stamp, chain_positions(tuple(chain), list(msg.name), msg.position)
+    return stamp, joint_positions(chain, list(msg.name), msg.position)
 
 
 def executed_msg(segment: ContactSegment, frame_id: str) -> Path:

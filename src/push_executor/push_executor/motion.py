@@ -86,8 +86,12 @@ PANDA_PARK = (0.0, -1.2, 0.0, -2.9, 0.0, 1.75, 0.785)
 PANDA_SIM_BASE_POSE = (-0.47, 0.0, 0.15, 0.0)
 #: Franka Panda "ready" posture, the default redundancy reference of the inverse kinematics.
 PANDA_READY = (0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785)
-#: The transit may dip this far below its clearance height, m.
-TRANSIT_SLACK = 1e-3
+#: The joint-space stages may dip this far below their clearance height, m (a motion from
+#: rest at that height starts with a dip of a few millimetres).
+TRANSIT_SLACK = 5e-3
+#: The lift ends this far above the approach height (so the next transit starting there may
+#: dip), m.
+LIFT_EXTRA = 0.01
 #: The clear stage lifts this much above the approach height (the transit then comes down to
 #: it instead of crossing at it), m.
 CLEAR_EXTRA = 0.05
@@ -644,7 +648,7 @@ class _Planner:
         """Lift and withdraw to the first clear pose that passes every check (or park)."""
         cfg = self.cfg
         back, q_back = lift_from.tip[-1], lift_from.q[-1]
-        top = np.array([back[0], back[1], cfg.approach_height])
+        top = np.array([back[0], back[1], cfg.approach_height + LIFT_EXTRA])
         lifts: dict[bool, _Stage] = {}
 
         def lift(blended: bool) -> _Stage:  # the lift is the same for every candidate

@@ -32,7 +32,6 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from nav_msgs.msg import Path
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from std_srvs.srv import SetBool, Trigger
@@ -47,17 +46,12 @@ from push_executor.scene_inputs import SceneInputs
 from push_executor.tracking import Event, Execution, MeasuredArm, PlanMaker, start_plan
 from push_ros.health import NodeHealth
 from push_ros.node import declare_config, run_node
-from push_ros.qos import LATCHED_QOS, RELIABLE_QOS
+from push_ros.qos import JOINT_STATE_QOS, LATCHED_QOS, RELIABLE_QOS
 from push_ros.refusal import refusal_msg, stamp_key
 from push_ros.stamps import clock_seconds
 
 __all__ = ["PARAMETERS", "ExecutorParams", "PushExecutorNode", "main"]
 
-#: Joint states: reliable, depth 500 (docs/ARCHITECTURE.md): a second of a 500 Hz stream
-#: waits while the node plans a push, none of the contact segment's samples is lost.
-JOINT_STATE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=500,
-                             reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.VOLATILE)
 #: Watchdog timer and /diagnostics periods, s.
 WATCHDOG_PERIOD, DIAGNOSTICS_PERIOD = 0.05, 1.0
 #: The arm is parked within this of ``park_positions`` (every joint), rad; held (a pending park
@@ -96,8 +90,7 @@ class PushExecutorNode(Node):
         self.create_subscription(JointState, "/joint_states", guard(self._on_joint_state),
                                  JOINT_STATE_QOS)
         self.scene = SceneInputs(self, guard, lambda what, why: self.health.refuse(
-            what, why, "invalid"), self.params.clear, self.params.motion.approach_height,
-            lambda: self._request_park("episode over"))
+            what, why, "invalid"), self.params.clear, lambda: self._request_park("episode over"))
         if p["robot_description_file"]:
             self._load_model(FilePath(p["robot_description_file"]).read_text())
             if self._arm is None:
@@ -159,17 +152,14 @@ class PushExecutorNode(Node):
         self.health.count("joint_states")
         if self._run is not None:
             self._finish(self._run.on_state(stamp, q, steady))
-        elif self._deferred is not None and self.measured.held:
-            msg, self._deferred = self._deferred[0], None
-            self._take_push(msg)
-        elif self._park_pending and self.measured.held:
-            self._park()
+        else:
+            self._when_held(steady)
 
     def _on_push(self, msg: Path) -> None:
         self.health.count("pushes")
         self._take_push(msg)
 
-    def _take_push(self, msg: Path) -> None:
+    def _take_push(self, msg: Path, waited: bool = False) -> None:
         stamp = msg.header.stamp
         run = self._run
         if run is not None and self._enabled and not run.chainable:
@@ -184,7 +174,8 @@ class PushExecutorNode(Node):
         if self.measured.q is None or time.monotonic() - self.measured.steady > \
                 self.params.values["state_timeout"]:
             return self._refuse(stamp, "no_state", "", "no recent joint state")
-        if self._run is None and self._enabled and not self.measured.held:
+        if self._run is None and self._enabled and not waited \
+                and not self.measured.held(time.monotonic()):
             self._deferred = (msg, time.monotonic())  # planned once the states show it held
             return None
         view, why = self.scene.view(contact, end, self._robot)
@@ -235,7 +226,7 @@ class PushExecutorNode(Node):
     def _request_park(self, reason: str) -> None:
         """Park once the arm is free: now if idle, after the running motion otherwise."""
         self._park_pending = reason
-        if self._run is None and self.measured.held:
+        if self._run is None and self.measured.held(time.monotonic()):
             self._park()
 
     def _park(self) -> None:
@@ -258,11 +249,21 @@ class PushExecutorNode(Node):
     def _parked(self) -> bool:
         return self.measured.at(self.params.motion.park_positions, PARKED)
 
-    def _on_watchdog(self) -> None:
-        if self._deferred is not None and time.monotonic() - self._deferred[1] > \
-                self.params.values["state_timeout"]:
+    def _when_held(self, steady: float) -> None:
+        """A push waiting for the arm to rest (planned at the latest after state_timeout),
+        else a pending park, once the arm is held."""
+        if self._run is not None:
+            return
+        held = self.measured.held(steady)
+        if self._deferred is not None and (held or steady - self._deferred[1] >
+                                           self.params.values["state_timeout"]):
             msg, self._deferred = self._deferred[0], None
-            self._refuse(msg.header.stamp, "busy", "", "the arm did not come to rest")
+            self._take_push(msg, waited=True)
+        elif self._park_pending and held:
+            self._park()
+
+    def _on_watchdog(self) -> None:
+        self._when_held(time.monotonic())
         if self._run is not None:
             self._finish(self._run.on_timer(time.monotonic()))
 

@@ -57,16 +57,13 @@ class SceneInputs:
     clear : dict
         The ``clear.*`` parameters without the prefix: ``margin``, ``turn``,
         ``object_height``, ``distance``, ``rise``, ``scale``.
-    approach_height : float
-        m (the candidates' lowest height).
     on_episode_over : callable
         Called when ``planner/status`` turns to an episode that pushes no more.
     """
 
     def __init__(self, node: Any, guard: Callable[..., Any], refuse: Callable[[str, str], None],
-                 clear: dict[str, float], approach_height: float,
-                 on_episode_over: Callable[[], None]) -> None:
-        self._refuse, self._clear, self._approach = refuse, dict(clear), approach_height
+                 clear: dict[str, float], on_episode_over: Callable[[], None]) -> None:
+        self._refuse, self._clear = refuse, dict(clear)
         self._on_over = on_episode_over
         self.camera_matrix: NDArray[np.float64] | None = None
         self.size = (0, 0)
@@ -133,7 +130,7 @@ class SceneInputs:
                 c["scale"])
             region = object_region(self.outline, self.pose, contact, end, c["margin"],
                                    c["turn"])
-            return ClearView(camera, region, c["object_height"], robot(camera),
-                             self._approach, c["distance"], c["rise"]), ""
+            return ClearView(camera, region, c["object_height"], robot(camera), c["distance"],
+                             c["rise"]), ""
         except ValueError as exc:
             return None, f"no clear view: {exc}"

@@ -33,7 +33,6 @@ commanded line in between.
 
 from __future__ import annotations
 
-import functools
 import math
 from collections import deque
 from collections.abc import Callable
@@ -46,8 +45,7 @@ from push_executor.kinematics import ArmKinematics
 from push_executor.motion import MotionPlan, MotionState, PushRefused, chain_point
 
 __all__ = ["MAX_SAMPLES", "START_MOTION", "ContactSegment", "Event", "Execution", "MeasuredArm",
-           "StampClock",
-           "chain_positions", "expected_positions", "segment_distance", "start_plan",
+           "StampClock", "expected_positions", "segment_distance", "start_plan",
            "tracking_error"]
 
 #: Joint motion (rad) that shows a trajectory started.
@@ -68,41 +66,6 @@ MAX_SAMPLE_GAP = 0.2
 MAX_BRACKET = 0.6
 #: Samples this long (s) before and after the contact segment are kept too.
 SAMPLE_MARGIN = 0.5
-
-
-def chain_positions(chain: tuple[str, ...], names: list[str], positions: ArrayLike
-                    ) -> NDArray[np.float64]:
-    """The chain's joint positions out of a joint state (any order, extra joints ignored).
-
-    Raises
-    ------
-    ValueError
-        ``names`` and ``positions`` differ in length, a name repeats, a chain joint is missing,
-        or a chain joint's position is not finite.
-    """
-    values = np.asarray(positions, dtype=float).ravel()
-    if len(names) != len(values):
-        raise ValueError(f"{len(names)} names but {len(values)} positions")
-    order = _chain_order(tuple(chain), tuple(names))
-    q = values[list(order)]
-    if not np.all(np.isfinite(q)):
-        raise ValueError("non-finite joint position")
-    return q
-
-
-@functools.lru_cache(maxsize=16)
-def _chain_order(chain: tuple[str, ...], names: tuple[str, ...]) -> tuple[int, ...]:
-    """Indices of the chain's joints in ``names`` (a joint state stream repeats its names:
-    worked out once per layout); ``ValueError`` for a repeated name or a missing joint."""
-    index = {}
-    for i, name in enumerate(names):
-        if name in index:
-            raise ValueError(f"joint {name[:64]!r} appears twice")
-        index[name] = i
-    missing = [j for j in chain if j not in index]
-    if missing:
-        raise ValueError(f"joints {missing} missing")
-    return tuple(index[j] for j in chain)
 
 
 def expected_positions(plan: MotionPlan, elapsed: float) -> NDArray[np.float64]:
@@ -384,14 +347,16 @@ class StampClock:
 class MeasuredArm:
     """The newest measured chain posture (``q``, rad), its ``stamp`` and steady arrival time
     (s), the controller's time (:class:`StampClock`) and whether the arm is held: its last
-    ``held_states`` postures within ``held`` rad of each other."""
+    ``held_states`` postures within ``held`` rad of each other, or no state for ``quiet`` s
+    (an arm moving streams its states; a resting simulator sends a few a second, fewer on a
+    loaded machine)."""
 
-    def __init__(self, held_states: int = 3, held: float = 1e-4) -> None:
+    def __init__(self, held_states: int = 3, held: float = 1e-4, quiet: float = 0.5) -> None:
         self.q: NDArray[np.float64] | None = None
         self.stamp = self.steady = -math.inf
         self.clock = StampClock()
         self._recent: deque[NDArray[np.float64]] = deque(maxlen=held_states)
-        self._held = float(held)
+        self._held, self._quiet = float(held), float(quiet)
 
     def update(self, stamp: float, q: NDArray[np.float64], steady: float,
                replace: bool = False) -> None:
@@ -405,10 +370,11 @@ class MeasuredArm:
         """The arm was sent moving: held again only once new states show it."""
         self._recent.clear()
 
-    @property
-    def held(self) -> bool:
-        """Whether the last few postures agree (the arm stands still)."""
+    def held(self, steady: float) -> bool:
+        """Whether the arm stands still at ``steady`` (s; class docstring)."""
         recent = list(self._recent)
+        if recent and steady - self.steady > self._quiet:
+            return True
         return len(recent) == self._recent.maxlen and float(
             np.ptp(np.array(recent), axis=0).max()) <= self._held
 

@@ -26,7 +26,8 @@ from dataclasses import dataclass
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
-__all__ = ["MOVING_KINDS", "Refusal", "read_refusal", "refusal_msg", "stamp_key"]
+__all__ = ["MOVING_KINDS", "Refusal", "check_stamp_key", "read_refusal", "refusal_msg",
+           "stamp_key"]
 
 #: Refusal kinds after which the robot may still be moving or the object have moved.
 MOVING_KINDS = frozenset({"busy", "fault", "cancelled"})
@@ -37,6 +38,14 @@ MAX_REASON = 500
 def stamp_key(stamp: Time) -> str:
     """``"<sec>.<nanosec, 9 digits>"``: an exact text form of a stamp (no float rounding)."""
     return f"{int(stamp.sec)}.{int(stamp.nanosec):09d}"
+
+
+def check_stamp_key(key: str, what: str) -> str:
+    """``key`` if it is a :func:`stamp_key` text, else raise ``ValueError`` naming ``what``."""
+    sec, _, nanosec = key.partition(".")
+    if not (sec.isdigit() and len(nanosec) == 9 and nanosec.isdigit() and len(sec) <= 10):
+        raise ValueError(f"{what} must be '<sec>.<9 digits>', got {key[:40]!r}")
+    return key
 
 
 @dataclass(frozen=True)
@@ -69,10 +78,6 @@ def read_refusal(msg: DiagnosticStatus) -> Refusal:
         No ``push_stamp`` value, or one not of the form ``<sec>.<9 digits>``.
     """
     values = {kv.key: kv.value for kv in msg.values[:16]}
-    key = values.get("push_stamp", "")
-    sec, _, nanosec = key.partition(".")
-    if not (sec.isdigit() and len(nanosec) == 9 and nanosec.isdigit() and len(sec) <= 10):
-        raise ValueError(f"pusher/refused: push_stamp must be '<sec>.<9 digits>', got "
-                         f"{key[:40]!r}")
+    key = check_stamp_key(values.get("push_stamp", ""), "pusher/refused: push_stamp")
     return Refusal(who=msg.name[:200], push_stamp=key, kind=values.get("kind", "")[:64],
                    stage=values.get("stage", "")[:64], reason=msg.message[:MAX_REASON])

@@ -12,8 +12,9 @@ the clock source). ``object`` goes to the bridge's ``object`` parameter.
 finger, only with ``sim``) or ``arm`` (``push_executor_node`` turns each push into a joint
 trajectory of a ros2_control arm; with ``sim`` the bridge simulates a Franka Panda behind that
 interface, ``robot: arm``, and the executor starts enabled; without ``sim`` the executor starts
-disabled, a dry run, until ``~/enable``). The default is ``pusher`` in simulation and ``arm``
-on a robot (docs/ROBOT.md).
+disabled, a dry run, until ``~/enable``; ``segmentation_node`` gets ``robot_filter.enabled``,
+so the arm's own pixels are never taken for the object). The default is ``pusher`` in
+simulation and ``arm`` on a robot (docs/ROBOT.md).
 
 ``sim`` false (a real robot): no ``sim_bridge_node``, ``use_sim_time: false`` for every node,
 and perception's camera inputs are remapped to the topics of the Intel RealSense ROS 2 wrapper
@@ -203,6 +204,8 @@ def graph_nodes(sim: bool, object_name: str = "", config_dir: str | None = None,
                 overrides["arm.real_time_factor"] = 1.0
         if package == EXECUTOR[0]:
             overrides["start_enabled"] = sim  # a robot starts as a dry run until ~/enable
+        if package == CAMERA_CONSUMER and robot == "arm":  # the arm may be in the view
+            overrides["robot_filter.enabled"] = True
         parameters.append(overrides)
         remappings = REALSENSE_TOPICS if (not sim and package == CAMERA_CONSUMER) else ()
         nodes.append(NodeLaunch(package, executable, tuple(parameters), remappings))

@@ -98,7 +98,7 @@ class SimBridgeNode(Node):
                 self, self._params.arm_controller_topic, self._params.arm_max_duration,
                 self.timeline, lambda: self._world.sim_time, self.health, guard,
                 lambda kind, why: self._refuse("trajectory", why, kind, "trajectories_rejected"),
-                self.worker, self._run_arm, lambda: self._closing)
+                self.worker, self._run_arm, lambda: self._closing, self.scene)
 
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         for period, callback in ((1.0 / self._params.clock_rate, self._on_clock_timer),

@@ -640,6 +640,17 @@ class PushWorld:
         return render(self._client, cfg.camera, self._view, self._look, self._object,
                       cfg.depth_noise, self._rng_noise, self.sim_time, self.object_pose)
 
+    def arm_mask(self) -> NDArray[np.bool_]:
+        """The arm's pixels in the camera image, (H, W) bool: the renderer's segmentation
+        buffer, the ground truth of a robot self-filter (arm mode; ``ValueError`` in pusher
+        mode; addition). Draws no sensor noise: later frames are unchanged."""
+        arm = self._require_arm()
+        cam = self._config.camera
+        seg = self._client.getCameraImage(cam.width, cam.height, viewMatrix=self._view.view,
+                                          projectionMatrix=self._view.projection,
+                                          renderer=p.ER_TINY_RENDERER)[4]
+        return np.asarray(seg).reshape(cam.height, cam.width) == arm.body
+
 
 def push_points(pose: ArrayLike, point: ArrayLike, normal: ArrayLike, angle: float,
                 length: float, pusher_radius: float = 0.0048,

@@ -8,7 +8,7 @@ docs/ARCHITECTURE.md ("Closed loop and evaluation"). Each cycle:
    ``l = spec.limit_surface_guess()``; the outline is the
    library shape sampled every 2 mm. ``filter``: a 640 x 480 RGB-D frame rendered after every
    push goes through the segmentation CNN (``push_perception.model.Segmenter``) and the
-   mask-to-state core (``push_perception.core.EpisodeTracker``: position, orientation relative
+   mask-to-state core (``push_perception.tracker.EpisodeTracker``: position, orientation relative
    to the first frame, outline from the first frame); ``push_core.estimator.PushEKF`` is
    predicted with the executed pusher motion and updated with the perceived pose and its
    covariance, as ``ekf_node`` does. A frame without a pose (``PerceptionError``) leaves the
@@ -252,7 +252,7 @@ class _Filter:
     """The ``filter`` state source: rendered frames -> segmentation -> EKF."""
 
     def __init__(self, world: Any, segmenter: Any, config: EKFConfig) -> None:
-        from push_perception.core import EpisodeTracker
+        from push_perception.tracker import EpisodeTracker
 
         self.world = world
         self.segmenter = segmenter
@@ -262,7 +262,7 @@ class _Filter:
         self.failures = 0
 
     def _measure(self) -> Any:
-        from push_perception.core import PerceptionError
+        from push_perception.perception_config import PerceptionError
 
         try:
             return self.tracker.measure_frame(self.segmenter, self.world.render())

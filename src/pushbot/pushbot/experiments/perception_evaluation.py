@@ -2,7 +2,7 @@
 
 ROS-free: renders frames with the sim bridge's pybullet world in this process and runs the
 same code as the node (:class:`~push_perception.model.Segmenter` then
-:class:`~push_perception.core.EpisodeTracker`) on them.
+:class:`~push_perception.tracker.EpisodeTracker`) on them.
 
 Protocol (seeded; the default reproduces docs/RESULTS.md)
 ---------------------------------------------------------
@@ -124,8 +124,9 @@ def evaluate(cfg: EvalConfig, progress: bool = True) -> _Rows:
     import cv2
     import torch
 
-    from push_perception.core import EpisodeTracker, PerceptionError
     from push_perception.model import Segmenter
+    from push_perception.perception_config import PerceptionError
+    from push_perception.tracker import EpisodeTracker
     from sim_bridge.world import PushWorld, WorldConfig
 
     torch.set_num_threads(cfg.threads)

@@ -130,6 +130,8 @@ class GraphNodes:
                     params += ["-p", f"arm.real_time_factor:={ARM_REAL_TIME_FACTOR}"]
             if name == EXECUTOR_NODE:
                 params += ["-p", "start_enabled:=true"]
+            if name == "segmentation_node" and self.robot == "arm":  # the arm may be in view
+                params += ["-p", "robot_filter.enabled:=true"]
             params += [arg for value in self.node_args[name] for arg in ("-p", value)]
         params += [arg for value in extra for arg in ("-p", value)]
         with open(self.log_dir / f"{name}.log", "ab") as log:  # a restart appends
