@@ -58,6 +58,7 @@ class StandInController(Node):
         self.q = np.array(PANDA_PARK, dtype=float)
         self.t = 100.0  # sim time, s
         self.received: list[JointTrajectory] = []
+        self.received_at: list[float] = []  # wall time of each
         #: Every arm posture published on /joint_states (chain order).
         self.published: list[np.ndarray] = []
         self.traj: tuple[float, np.ndarray, np.ndarray, np.ndarray] | None = None
@@ -72,6 +73,7 @@ class StandInController(Node):
 
     def _on_traj(self, msg: JointTrajectory) -> None:
         self.received.append(msg)
+        self.received_at.append(time.monotonic())
         order = [msg.joint_names.index(j) for j in ARM]
         times = np.array([p.time_from_start.sec + 1e-9 * p.time_from_start.nanosec
                           for p in msg.points])
@@ -157,7 +159,14 @@ class Graph:
     def send_push(self, stamp: float = 7.25, points: tuple = PUSH) -> Time:
         msg = push_path(*points, stamp_seconds=stamp, speed=0.02)
         self.push_pub.publish(msg)
+        self.sent = time.monotonic()
         return msg.header.stamp
+
+    @property
+    def sent_to_received(self) -> float | None:
+        """Wall seconds from the last push sent to the first trajectory the stand-in got."""
+        got = self.arm.received_at
+        return None if not got else got[0] - self.sent
 
     def call(self, client: Any, request: Any) -> Any:
         assert client.wait_for_service(timeout_sec=10.0)
@@ -186,11 +195,13 @@ def test_a_push_is_executed(graph: Graph) -> None:
     assert graph.spin_until(lambda: graph.executed or graph.refused, 60.0)
     assert not graph.refused, read_refusal(graph.refused[0])
     traj = graph.arm.received[0]
-    # Stamped with the node's clock (the controller's time) + start_delay (0.5 s): it starts
-    # then, whatever the delivery latency.
+    # Stamped with the controller's time (the newest joint state's stamp carried forward by
+    # the wall time the node took to plan: the stand-in's idle clock stands still, so at most
+    # that much later) + start_delay: it starts then, whatever the delivery latency.
     assert len(graph.arm.received) == 1
     start = seconds_from_stamp(traj.header.stamp)
-    assert 100.0 + 0.5 <= start <= graph.arm.t + 0.5
+    delay = graph.executor_node.params.values["start_delay"]
+    assert 100.0 + delay <= start <= 100.0 + delay + (graph.sent_to_received or 0.0)
     assert traj.joint_names == ARM
     times = [p.time_from_start.sec + 1e-9 * p.time_from_start.nanosec for p in traj.points]
     assert times[0] > 0 and np.all(np.diff(times) > 0)

@@ -124,19 +124,22 @@ def test_heights_of_the_stages(plan: MotionPlan) -> None:
         return plan.tip[int(np.argmin(np.abs(plan.times - t)))]
 
     spans = {s.name: s for s in plan.stages}
-    np.testing.assert_allclose(tip_at(spans["descend"].t_start), [*PUSH[0], 0.10], atol=1e-6)
-    np.testing.assert_allclose(tip_at(spans["push"].t_start), [*PUSH[0], 0.01], atol=1e-6)
-    np.testing.assert_allclose(tip_at(spans["retreat"].t_start), [*PUSH[2], 0.01], atol=1e-6)
-    np.testing.assert_allclose(tip_at(spans["lift"].t_start), [-0.02, 0.02, 0.01], atol=1e-6)
-    np.testing.assert_allclose(tip_at(spans["park"].t_start), [-0.02, 0.02, 0.11], atol=1e-6)
+    high, low = CONFIG.approach_height, CONFIG.push_height
+    back = PUSH[2][0] - CONFIG.retreat  # the push runs along +x
+    np.testing.assert_allclose(tip_at(spans["descend"].t_start), [*PUSH[0], high], atol=1e-6)
+    np.testing.assert_allclose(tip_at(spans["push"].t_start), [*PUSH[0], low], atol=1e-6)
+    np.testing.assert_allclose(tip_at(spans["retreat"].t_start), [*PUSH[2], low], atol=1e-6)
+    np.testing.assert_allclose(tip_at(spans["lift"].t_start), [back, 0.02, low], atol=1e-6)
+    np.testing.assert_allclose(tip_at(spans["park"].t_start), [back, 0.02, high + 0.01],
+                               atol=1e-6)  # the lift ends 1 cm above the approach height
     for name in ("transit", "park"):  # joint space: clear of the object over the workspace
         during = (plan.times >= spans[name].t_start) & (plan.times <= spans[name].t_end)
         over = np.all(np.abs(plan.tip[during, :2]) <= [0.3, 0.35], axis=1)
-        assert np.min(plan.tip[during][over, 2]) >= 0.10 - 5e-3
+        assert np.min(plan.tip[during][over, 2]) >= high - 5e-3
 
 
 def test_transit_blends_into_the_descend(plan: MotionPlan) -> None:
-    """No stop between transit and descend (the tip is 9 cm above the table there), nor between
+    """No stop between transit and descend (the tip is 5 cm above the table there), nor between
     lift and park; the push's own stages start and end at rest."""
     def speed_at(t: float) -> float:
         return float(np.max(np.abs(plan.velocities[int(np.argmin(np.abs(plan.times - t)))])))
@@ -323,7 +326,8 @@ def test_transit_clearance(arm: ArmKinematics) -> None:
     ready = np.array(PANDA_READY)
     beside = arm.solve_ik([-0.1, 0.38, 0.02], ready, ready).q
     r = refusal(arm, push=((0.0, 0.1), (0.0, 0.095), (0.0, 0.05)), q=beside)
-    assert (r.kind, r.stage) == ("tool_height", "transit") and "below 0.0950 m" in r.reason
+    floor = CONFIG.approach_height - 0.005  # the joint-space stages' 5 mm slack
+    assert (r.kind, r.stage) == ("tool_height", "transit") and f"below {floor:.4f} m" in r.reason
 
 
 def test_singular(arm: ArmKinematics) -> None:

@@ -112,7 +112,7 @@ LINE_POSTURE_GAIN, LINE_POSTURE_STEP = 1.0, 1e-8
 RAMP_SCALES = (1.0, 0.5, 0.25)
 #: Spacing of the inverse kinematics solutions along a Cartesian stage, m: the samples between
 #: them lie on a cubic spline through them (checked against the line by forward kinematics).
-LINE_KNOT = 0.0025
+LINE_KNOT = 0.01
 
 
 class PushRefused(Exception):  # noqa: N818 - a refusal, not an error of the code
@@ -161,19 +161,19 @@ class MotionConfig:
         interpolates from its own state to it instead of jumping).
     """
 
-    approach_height: float = 0.10
+    approach_height: float = 0.06
     push_height: float = 0.01
     push_speed: float = 0.02
-    cartesian_speed: float = 0.25
-    cartesian_acceleration: float = 1.0
-    cartesian_jerk: float = 10.0
-    retreat: float = 0.02
+    cartesian_speed: float = 0.35
+    cartesian_acceleration: float = 1.5
+    cartesian_jerk: float = 30.0
+    retreat: float = 0.01
     park_positions: tuple[float, ...] = PANDA_PARK
     reference_positions: tuple[float, ...] = PANDA_READY
     workspace: tuple[float, float, float, float] = (-0.25, 0.25, -0.3, 0.3)
     min_tool_height: float = 0.003
     limit_margin: float = 0.05
-    speed_margin: float = 0.5
+    speed_margin: float = 0.6
     min_manipulability: float = 0.005
     waypoint_period: float = 0.01
     max_push_length: float = 0.3
@@ -561,8 +561,9 @@ class _Planner:
                               f"(URDF limits with margin {margin})")
         z = stage.tip[:, 2]
         floor = np.broadcast_to(min_height, z.shape)
-        if np.any(z < floor - 1e-9):
-            i = int(np.argmax(z < floor - 1e-9))
+        low = z < floor - self.cfg.ik_tolerance  # the tip is only known to the IK's accuracy
+        if np.any(low):
+            i = int(np.argmax(low))
             raise PushRefused("tool_height", stage.name, f"tip at ({stage.tip[i, 0]:.3f}, "
                               f"{stage.tip[i, 1]:.3f}, {z[i]:.4f}) m, below {floor[i]:.4f} m "
                               f"at t = {stage.times[i]:.2f} s")

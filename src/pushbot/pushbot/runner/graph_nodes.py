@@ -55,6 +55,12 @@ ARM_PUSH_TIMEOUT = 60.0
 #: trajectory start stay within its tracking window (unpaced, the simulator ran ~50x real time
 #: and the executor's clock lagged its joint states by over 10 s of sim time).
 ARM_REAL_TIME_FACTOR = 5.0
+#: The simulated arm's ``/joint_states`` rate in protocol graphs, Hz of sim time
+#: (``arm.joint_state_rate``; 250 a second of wall time at ARM_REAL_TIME_FACTOR): at 100 Hz
+#: (500 a second) the Python readers -- the executor, perception's self-filter, this client --
+#: fell behind on a loaded machine, by seconds, and dropped states; 20 ms apart the contact
+#: segment and the tool tip's ground truth are still sampled every 0.4 mm at 20 mm/s.
+ARM_JOINT_STATE_RATE = 50.0
 #: Grace periods of the shutdown: SIGINT, then SIGTERM, then SIGKILL.
 STOP_GRACE = (10.0, 5.0)
 
@@ -127,7 +133,8 @@ class GraphNodes:
             if name == "sim_bridge_node":
                 params += ["-p", f"robot:={self.robot}"]
                 if self.robot == "arm":
-                    params += ["-p", f"arm.real_time_factor:={ARM_REAL_TIME_FACTOR}"]
+                    params += ["-p", f"arm.real_time_factor:={ARM_REAL_TIME_FACTOR}",
+                               "-p", f"arm.joint_state_rate:={ARM_JOINT_STATE_RATE}"]
             if name == EXECUTOR_NODE:
                 params += ["-p", "start_enabled:=true"]
             if name == "segmentation_node" and self.robot == "arm":  # the arm may be in view
