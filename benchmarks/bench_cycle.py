@@ -54,11 +54,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import format_section, update_section  # noqa: E402
 from bench_arm import paired  # noqa: E402
 
-from push_core.episode import new_record  # noqa: E402
 from pushbot.experiments.evaluate import EvalOptions, build_trials  # noqa: E402
 from pushbot.experiments.protocol import Trial  # noqa: E402
 from pushbot.experiments.pusht_adapter import wilson_interval  # noqa: E402
-from pushbot.runner.episode import GraphError, GraphRunner  # noqa: E402
+from pushbot.runner.episode import GraphRunner, run_graph_trials  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "out" / "bench_cycle"
@@ -129,37 +128,25 @@ def run_engine(trials: list[Trial], engine: str, baseline_exe: Path | None, doma
                ) -> tuple[list[dict[str, Any]], list[dict[str, float]], float]:
     """The records, the stage splits of every cycle and the wall time of one engine."""
     robot, today = ENGINES[engine]
-    log_dir = OUT / engine / "graph_logs"
-    log_dir.mkdir(parents=True, exist_ok=True)
     if domain is not None:
         os.environ["ROS_DOMAIN_ID"] = str(domain)
-    records, splits, started = [], [], time.monotonic()
-    with GraphRunner(log_dir=log_dir, robot=robot,
-                     node_exe=baseline_exe if today else None) as graph:
-        for i, trial in enumerate(trials):
-            rec_before = (len(graph.rec.push_stamps), len(graph.rec.executed),
-                          len(graph.rec.executor_status), len(graph.rec.est))
-            try:
-                record = graph.run(trial)
-            except GraphError as exc:
-                record = new_record(trial.as_dict(), reason=f"graph error: {exc}",
-                                    engine="graph")
-                graph.restart()
-                rec_before = (0, 0, 0, 0)
-            else:
-                n_push, n_exec, n_status, n_est = rec_before
-                pushes = graph.rec.push_stamps[n_push:]
-                estimates = [s for s, _ in graph.rec.est[n_est:]]
-                if robot == "arm":
-                    splits += arm_stages(pushes, graph.rec.executor_status[n_status:],
-                                         estimates)
-                else:
-                    splits += pusher_stages(pushes, [(a, b) for _, a, b in
-                                                     graph.rec.executed[n_exec:]], estimates)
-            records.append(record)
-            print(f"{engine} {i + 1}/{len(trials)}: {trial.object} #{trial.index}: "
-                  f"{record['reason']}, {record['steps']} pushes, robot "
-                  f"{record.get('robot_time_s', math.nan):.1f} s", file=sys.stderr, flush=True)
+    splits: list[dict[str, float]] = []
+
+    def run(graph: GraphRunner, trial: Trial) -> dict[str, Any]:
+        rec = graph.rec
+        n_push, n_exec, n_status, n_est = (len(rec.push_stamps), len(rec.executed),
+                                           len(rec.executor_status), len(rec.est))
+        record = graph.run(trial)
+        pushes, estimates = rec.push_stamps[n_push:], [s for s, _ in rec.est[n_est:]]
+        splits.extend(arm_stages(pushes, rec.executor_status[n_status:], estimates)
+                      if robot == "arm" else
+                      pusher_stages(pushes, [(a, b) for _, a, b in rec.executed[n_exec:]],
+                                    estimates))
+        return record
+
+    started = time.monotonic()
+    records = run_graph_trials(trials, out_dir=OUT / engine, robot=robot,
+                               node_exe=baseline_exe if today else None, run=run)
     return records, splits, time.monotonic() - started
 
 

@@ -14,6 +14,7 @@ import pytest
 from push_executor.kinematics import ArmKinematics, ToolSpec
 from push_executor.motion import (
     CLEAR,
+    LIFT_EXTRA,
     PANDA_PARK,
     PANDA_READY,
     PARK,
@@ -130,8 +131,8 @@ def test_heights_of_the_stages(plan: MotionPlan) -> None:
     np.testing.assert_allclose(tip_at(spans["push"].t_start), [*PUSH[0], low], atol=1e-6)
     np.testing.assert_allclose(tip_at(spans["retreat"].t_start), [*PUSH[2], low], atol=1e-6)
     np.testing.assert_allclose(tip_at(spans["lift"].t_start), [back, 0.02, low], atol=1e-6)
-    np.testing.assert_allclose(tip_at(spans["park"].t_start), [back, 0.02, high + 0.01],
-                               atol=1e-6)  # the lift ends 1 cm above the approach height
+    np.testing.assert_allclose(tip_at(spans["park"].t_start), [back, 0.02, high + LIFT_EXTRA],
+                               atol=1e-6)  # the lift ends above the approach height
     for name in ("transit", "park"):  # joint space: clear of the object over the workspace
         during = (plan.times >= spans[name].t_start) & (plan.times <= spans[name].t_end)
         over = np.all(np.abs(plan.tip[during, :2]) <= [0.3, 0.35], axis=1)
@@ -318,6 +319,25 @@ def test_a_low_start_is_cleared_first(arm: ArmKinematics) -> None:
                                atol=1e-6)
     after = (plan.times >= transit.t_start) & (plan.times <= transit.t_end)
     assert np.min(plan.tip[after, 2]) >= CONFIG.approach_height - 1e-3
+
+
+def test_a_transit_that_dips_rises_first(arm: ArmKinematics) -> None:
+    """From rest at the approach height over the workspace (a clear pose), the joint-space
+    transit to the far side dips below its clearance: the arm first rises straight up, then
+    crosses; a push, not a refusal."""
+    ready = np.array(PANDA_READY)
+    start = arm.solve_ik([0.017, 0.218, CONFIG.approach_height], ready, ready).q
+    far = ((0.126, -0.249), (0.131, -0.249), (0.166, -0.249))
+    plan = plan_push(arm, CONFIG, *far, start)
+    assert tuple(s.name for s in plan.stages) == (CLEAR, *PARKING)
+    rise = plan.stages[0]
+    during = plan.times <= rise.t_end + 1e-9
+    np.testing.assert_allclose(plan.tip[during, :2], [[0.017, 0.218]] * int(np.sum(during)),
+                               atol=1e-6)
+    transit = plan.stages[1]
+    during = (plan.times >= transit.t_start) & (plan.times <= transit.t_end)
+    assert np.min(plan.tip[during, 2]) >= CONFIG.approach_height - 5e-3 - 1e-5
+    assert_within_limits(arm, plan)
 
 
 def test_transit_clearance(arm: ArmKinematics) -> None:

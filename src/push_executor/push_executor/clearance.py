@@ -24,9 +24,9 @@ Inputs (all in ``world`` unless said otherwise; REP 103, metres):
   :class:`push_core.robot_view.RobotGeometry`, as perception's self-filter does).
 
 Candidates (:func:`clear_candidates`): the tip where the lift ends (the retreat point at the
-approach height), then points around the region's centre at ``distance`` beyond its radius, in
-eight directions starting from the lift's, at the lift's height and ``rise`` above it, nearest
-to the lift's end first.
+approach height), then points around the region's centre at half ``distance`` and at
+``distance`` beyond its radius, in eight directions starting from the lift's, at the lift's
+height and ``rise`` above it, nearest to the lift's end first.
 """
 
 from __future__ import annotations
@@ -181,14 +181,15 @@ def clear_candidates(top: ArrayLike, region: ArrayLike, distance: float, rise: f
     top = np.asarray(top, dtype=float)
     region = np.asarray(region, dtype=float).reshape(-1, 2)
     centre = region.mean(axis=0)
-    radius = float(np.max(np.linalg.norm(region - centre, axis=1))) + distance
+    radius = float(np.max(np.linalg.norm(region - centre, axis=1)))
     away = top[:2] - centre
     heading = math.atan2(away[1], away[0]) if np.linalg.norm(away) > 1e-9 else 0.0
     ring = []
     for z in (top[2], top[2] + rise):
-        for a in DIRECTIONS:
-            xy = centre + radius * np.array([math.cos(heading + a), math.sin(heading + a)])
-            ring.append(np.array([xy[0], xy[1], z]))
+        for r in (radius + distance / 2, radius + distance):
+            for a in DIRECTIONS:
+                xy = centre + r * np.array([math.cos(heading + a), math.sin(heading + a)])
+                ring.append(np.array([xy[0], xy[1], z]))
     ring.sort(key=lambda p: float(np.linalg.norm(p - top)))
     return [top, *ring]
 

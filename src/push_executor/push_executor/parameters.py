@@ -48,7 +48,7 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               "base_frame -> tool.flange_link (the set must equal the chain's).",
               read_only=True, type=_STRINGS),
     ParamSpec("approach_height", _M.approach_height, "Tip height of the transit (the lift "
-              "ends 1 cm higher, the lowest of the clear poses), m above the table; above the "
+              "ends 2.5 cm higher, the lowest of the clear poses), m above the table; above the "
               "tallest object.", (0.0, 2.0), read_only=True),
     ParamSpec("push_height", _M.push_height, "Tip height while pushing, m above the table.",
               (0.0, 1.0), read_only=True),
@@ -95,7 +95,7 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               (1e-3, 2.0), read_only=True),
     ParamSpec("tracking_tolerance", 0.05, "Largest joint deviation from the plan while moving "
               "before the arm is stopped, rad.", (1e-4, 3.0), read_only=True),
-    ParamSpec("start_delay", 0.25, "The trajectory's header stamp is the node's clock plus "
+    ParamSpec("start_delay", 0.1, "The trajectory's header stamp is the node's clock plus "
               "this: the controller holds the arm until then, so the motion starts when the "
               "tracking expects it whatever the delivery latency (below this), s.",
               (0.0, 5.0), read_only=True),
@@ -120,8 +120,9 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               "the region allows for, rad.", (0.0, 3.2), read_only=True),
     ParamSpec("clear.object_height", 0.03, "Height of the object's region above the table "
               "(its silhouette is the image of that prism), m.", (0.0, 1.0), read_only=True),
-    ParamSpec("clear.distance", 0.05, "Distance of the candidate clear poses beyond the "
-              "region's radius, m.", (0.0, 1.0), read_only=True),
+    ParamSpec("clear.distance", 0.05, "Distance of the outer ring of candidate clear poses "
+              "beyond the region's radius (the inner ring: half of it), m.", (0.0, 1.0),
+              read_only=True),
     ParamSpec("clear.rise", 0.1, "Height of the upper ring of candidate clear poses above "
               "approach_height, m.", (0.0, 1.0), read_only=True),
     ParamSpec("clear.scale", 0.25, "Image resolution of the silhouette check, a fraction of "

@@ -351,7 +351,7 @@ class GraphRunner:
             "seed": int(world["seed"]), "randomize": bool(world["randomize"]),
             "support_cell": float(world["support_cell"]), **NO_BRIDGE_FAULTS,
             **fault.bridge_params(trial)})
-        message = self.reset("sim_bridge_node")
+        message = self._reset_simulator()
         match = _COM_RE.search(message)
         self._com_true = (np.array([float(match.group(1)), float(match.group(2))])
                           if match else None)
@@ -368,6 +368,20 @@ class GraphRunner:
             after = _INPUTS_AFTER_RE.search(answer) if name == "ekf_node" else None
             if after is not None:  # estimates of the old episode are stamped at or before it
                 self._last_stamp = max(self._last_stamp, float(after.group(1)))
+
+    def _reset_simulator(self) -> str:
+        """``/sim_bridge_node/reset``, again while it answers busy: the arm may still settle
+        after the episode's park (the executor reports it idle once the trajectory has ended,
+        the simulator's run ends when the arm and the object are at rest)."""
+        deadline = time.monotonic() + STEP_TIMEOUT
+        while True:
+            try:
+                return self.reset("sim_bridge_node")
+            except GraphError as exc:
+                if "busy" not in str(exc) or time.monotonic() > deadline:
+                    raise
+            pause = time.monotonic() + 0.2
+            self.wait(lambda until=pause: time.monotonic() >= until, 5.0, "a pause")
 
     def _first_estimate(self, trial: Trial, fault: Fault) -> tuple[float, float, np.ndarray]:
         """Set the episode up and wait for the first estimate of the new scene: (the stamp of
@@ -605,7 +619,10 @@ def check_trial(trial: Trial) -> None:
 
 
 def run_graph_trials(trials: list[Trial], *, out_dir: Path | str | None = None,
-                     progress: bool = True, robot: str = "pusher") -> list[dict[str, Any]]:
+                     progress: bool = True, robot: str = "pusher",
+                     node_exe: Path | None = None,
+                     run: Callable[[GraphRunner, Trial], dict[str, Any]] | None = None
+                     ) -> list[dict[str, Any]]:
     """Run ``trials`` through the ROS graph (four node processes, started once) in order.
 
     Parameters
@@ -618,6 +635,11 @@ def run_graph_trials(trials: list[Trial], *, out_dir: Path | str | None = None,
         One line per trial on stderr.
     robot : str
         ``pusher`` or ``arm`` (:class:`GraphRunner`).
+    node_exe : Path, optional
+        The ``pushbot`` executable of the node processes (:class:`GraphNodes`).
+    run : callable, optional
+        ``run(graph, trial) -> record`` instead of ``graph.run(trial)`` (a benchmark that also
+        reads what the graph's client recorded meanwhile).
 
     Returns
     -------
@@ -630,10 +652,11 @@ def run_graph_trials(trials: list[Trial], *, out_dir: Path | str | None = None,
         check_trial(trial)
     log_dir = Path(out_dir) / "graph_logs" if out_dir is not None else None
     records: list[dict[str, Any]] = []
-    with sigterm_as_keyboard_interrupt(), GraphRunner(log_dir=log_dir, robot=robot) as graph:
+    with sigterm_as_keyboard_interrupt(), GraphRunner(log_dir=log_dir, robot=robot,
+                                                       node_exe=node_exe) as graph:
         for i, trial in enumerate(trials):
             try:
-                record = graph.run(trial)
+                record = graph.run(trial) if run is None else run(graph, trial)
             except GraphError as exc:
                 record = new_record(trial.as_dict(), reason=f"graph error: {exc}",
                                     engine="graph")
