@@ -37,9 +37,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.spatial import ConvexHull, QhullError
 
 from push_core.geometry import object_to_world, rot2
-from push_core.procedural import convex_hull
 from push_core.robot_view import RobotGeometry
 
 __all__ = ["CameraView", "ClearView", "clear_candidates", "fill_convex", "object_region",
@@ -99,6 +99,16 @@ class CameraView:
         return uv, z
 
 
+def _hull(points: ArrayLike) -> NDArray[np.float64]:
+    """Counter-clockwise convex hull (H, 2) of points (N, 2) (qhull; fewer than 3 points or
+    collinear ones: the points themselves)."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    try:
+        return pts[ConvexHull(pts).vertices]  # counter-clockwise in 2-D
+    except (QhullError, ValueError):
+        return pts
+
+
 def object_region(outline: ArrayLike, pose: ArrayLike, contact: ArrayLike, end: ArrayLike,
                   margin: float, turn: float) -> NDArray[np.float64]:
     """Where the object may lie after the push: a convex polygon (M, 2) in ``world``, m.
@@ -122,13 +132,13 @@ def object_region(outline: ArrayLike, pose: ArrayLike, contact: ArrayLike, end: 
     moved = [footprint, footprint + shift]
     for angle in (-turn, turn):
         moved.append((footprint + shift - centre) @ rot2(angle).T + centre)
-    hull = convex_hull(np.vstack(moved))
+    hull = _hull(np.vstack(moved))
     if margin > 0:
         circle = margin * np.stack([np.cos(np.linspace(0, 2 * np.pi, MARGIN_POINTS,
                                                        endpoint=False)),
                                     np.sin(np.linspace(0, 2 * np.pi, MARGIN_POINTS,
                                                        endpoint=False))], axis=1)
-        hull = convex_hull((hull[:, None, :] + circle[None, :, :]).reshape(-1, 2))
+        hull = _hull((hull[:, None, :] + circle[None, :, :]).reshape(-1, 2))
     return hull
 
 
@@ -140,7 +150,7 @@ def fill_convex(polygon: ArrayLike, width: int, height: int) -> NDArray[np.bool_
     mask = np.zeros((height, width), dtype=bool)
     if len(poly) < 3:
         return mask
-    hull = convex_hull(poly)  # counter-clockwise in (u, v)
+    hull = _hull(poly)  # counter-clockwise in (u, v)
     if len(hull) < 3:
         return mask
     lo = np.clip(np.floor(hull.min(axis=0)).astype(int), 0, [width - 1, height - 1])

@@ -95,7 +95,7 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               (1e-3, 2.0), read_only=True),
     ParamSpec("tracking_tolerance", 0.05, "Largest joint deviation from the plan while moving "
               "before the arm is stopped, rad.", (1e-4, 3.0), read_only=True),
-    ParamSpec("start_delay", 0.1, "The trajectory's header stamp is the node's clock plus "
+    ParamSpec("start_delay", 0.05, "The trajectory's header stamp is the node's clock plus "
               "this: the controller holds the arm until then, so the motion starts when the "
               "tracking expects it whatever the delivery latency (below this), s.",
               (0.0, 5.0), read_only=True),
