@@ -50,8 +50,8 @@ __all__ = ["MAX_SAMPLES", "START_MOTION", "ContactSegment", "Event", "Execution"
 
 #: Joint motion (rad) that shows a trajectory started.
 START_MOTION = 1e-3
-#: Joint states closer than this (s of their stamps) to the last checked one are recorded but
-#: not checked against the plan (a blocked arm still leaves it within a fraction of a second;
+#: Joint states stamped less than this (s) after the last checked one are recorded but not
+#: checked against the plan (one with the same or an older stamp is) (a blocked arm still leaves it within a fraction of a second;
 #: at 500 states a second the check alone took a core).
 CHECK_PERIOD = 0.02
 #: Spacing of the plan times the tracking window tries, s, and their largest number.
@@ -226,7 +226,8 @@ class Execution:
         if self._keep[0] <= elapsed <= self._keep[1] and len(self._times) < MAX_SAMPLES:
             self._times.append(float(stamp))
             self._qs.append(np.array(q, dtype=float))
-        if stamp < self._checked + CHECK_PERIOD and elapsed < self.plan.duration:
+        if self._checked < stamp < self._checked + CHECK_PERIOD and \
+                elapsed < self.plan.duration:
             dev = 0.0  # checked a moment ago (joint states may come at hundreds of hertz)
         else:
             self._checked = float(stamp)
