@@ -40,8 +40,8 @@ from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
 from push_core.robot_view import MAX_URDF_CHARS  # noqa: E402
-from push_executor.motion import PANDA_PARK  # noqa: E402
-from push_executor.push_executor_node import PushExecutorNode  # noqa: E402
+from push_executor.motion_types import PANDA_PARK  # noqa: E402
+from push_executor.push_executor_node import HELD_STATES, PushExecutorNode  # noqa: E402
 from push_executor.tracking import MAX_SAMPLES  # noqa: E402
 from push_ros.paths import push_path  # noqa: E402
 from push_ros.refusal import read_refusal  # noqa: E402
@@ -196,7 +196,7 @@ def test_fuzz_joint_states(probe: Probe) -> None:
 
     run()
     probe.send("joint_states", valid_state())
-    np.testing.assert_allclose(probe.node._q, PANDA_PARK)
+    np.testing.assert_allclose(probe.node.measured.q, PANDA_PARK)
 
 
 def test_fuzz_joint_states_while_moving(probe: Probe) -> None:
@@ -214,7 +214,8 @@ def test_fuzz_joint_states_while_moving(probe: Probe) -> None:
         nonlocal stops
         if node._run is None:
             stops += 1
-            probe.send("joint_states", valid_state(10.0))
+            for _ in range(HELD_STATES):  # the arm held: the push is planned at once
+                probe.send("joint_states", valid_state(10.0))
             probe.send("planner/push", push_path((-0.055, 0.02), (-0.05, 0.02), (0.0, 0.02),
                                                  5.0, 0.02))
         probe.send("joint_states", msg)

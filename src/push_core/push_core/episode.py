@@ -70,6 +70,7 @@ continuously symmetric outline (:mod:`push_core.symmetry`).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -93,6 +94,7 @@ __all__ = [
     "min_pushes",
     "new_record",
     "precedes_episode",
+    "robot_times",
     "true_errors",
 ]
 
@@ -459,6 +461,33 @@ def new_record(trial: dict[str, Any], **extra: Any) -> dict[str, Any]:
                            "wall_s": 0.0, "reason": ""}
     rec.update(extra)
     return rec
+
+
+def robot_times(goal: float, commands: Sequence[float], stop: float) -> dict[str, Any]:
+    """The episode record's robot time: ``robot_time_s``, the robot's (simulated) seconds
+    from the goal to the final stop (``stop - goal``), and ``cycle_s``, the seconds between
+    successive push commands (one per push after the first).
+
+    Parameters
+    ----------
+    goal : float
+        When the goal was given, s of the robot's clock.
+    commands : sequence of float
+        When each push was commanded, s, in order.
+    stop : float
+        When the robot came to rest after the last push (``goal`` without pushes), s.
+
+    Raises
+    ------
+    ValueError
+        Non-finite times, commands out of order, or one before the goal or after the stop.
+    """
+    times = np.asarray([goal, *commands, stop], dtype=float)
+    if not np.all(np.isfinite(times)) or np.any(np.diff(times) < 0.0):
+        raise ValueError(f"robot times must be finite and in order (goal <= commands <= stop), "
+                         f"got goal {goal}, commands {list(commands)[:8]}, stop {stop}")
+    return {"robot_time_s": float(stop - goal),
+            "cycle_s": np.diff(np.asarray(commands, dtype=float)).tolist()}
 
 
 def end_score(polyline: ArrayLike, end_true: ArrayLike, goal_true: ArrayLike,

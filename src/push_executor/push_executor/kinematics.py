@@ -36,8 +36,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from push_core.robot_view import MAX_URDF_CHARS, base_transform
 
-__all__ = ["ArmKinematics", "IkResult", "ToolSpec"]
+__all__ = ["DEFAULT_ACCELERATION", "DEFAULT_JERK", "ArmKinematics", "IkResult", "ToolSpec"]
 
+#: Default joint acceleration (rad/s^2) and jerk (rad/s^3) limits: the Franka Panda's lowest
+#: (its joint 2: 7.5 rad/s^2; 3750 rad/s^3 in its datasheet, here far less: the acceleration
+#: ramps up in 15 ms).
+DEFAULT_ACCELERATION, DEFAULT_JERK = 7.5, 500.0
 #: Unit vector of the tool axis' target direction in ``world``: straight down.
 DOWN = np.array([0.0, 0.0, -1.0])
 
@@ -80,6 +84,15 @@ class ToolSpec:
         return self.flange_offset + self.length
 
 
+def _per_joint(values: float | ArrayLike, n: int, what: str) -> NDArray[np.float64]:
+    """One positive limit per joint from one value for all or one each; ``ValueError``."""
+    arr = np.asarray(values, dtype=float).ravel()
+    if arr.size not in (1, n) or not np.all(np.isfinite(arr)) or np.any(arr <= 0):
+        raise ValueError(f"{what}: expected 1 or {n} positive values, got "
+                         f"{arr.tolist()[:16]}")
+    return np.broadcast_to(arr, (n,)).copy()
+
+
 @dataclass(frozen=True)
 class IkResult:
     """Outcome of :meth:`ArmKinematics.solve_ik`.
@@ -115,25 +128,28 @@ class ArmKinematics:
         (x, y, z, yaw) of ``base_frame`` in ``world``, m and rad.
     acceleration_limits : float or (n,) array_like
         Joint acceleration limits, rad/s^2 (m/s^2 for prismatic joints); one value for all.
+    jerk_limits : float or (n,) array_like
+        Joint jerk limits, rad/s^3 (m/s^3); one value for all.
 
     Raises
     ------
     ValueError
         Unparsable or too long URDF, a link that is not there, a flange not below the base, a
         chain joint that is not 1-DOF, a joint without finite position and velocity limits, bad
-        acceleration limits.
+        acceleration or jerk limits.
 
     Attributes
     ----------
     joint_names : tuple of str
         The chain's joints, base to flange.
-    lower, upper, velocity_limits, acceleration_limits : (n,) ndarray
-        Limits from the URDF (position: rad or m; velocity: rad/s or m/s) and the parameter.
+    lower, upper, velocity_limits, acceleration_limits, jerk_limits : (n,) ndarray
+        Limits from the URDF (position: rad or m; velocity: rad/s or m/s) and the parameters.
     """
 
     def __init__(self, urdf: str, base_frame: str, tool: ToolSpec,
                  base_pose: ArrayLike = (0.0, 0.0, 0.0, 0.0),
-                 acceleration_limits: float | ArrayLike = 5.0) -> None:
+                 acceleration_limits: float | ArrayLike = DEFAULT_ACCELERATION,
+                 jerk_limits: float | ArrayLike = DEFAULT_JERK) -> None:
         if not isinstance(urdf, str) or not urdf.strip():
             raise ValueError("robot description: empty")
         if len(urdf) > MAX_URDF_CHARS:
@@ -164,12 +180,8 @@ class ArmKinematics:
         if bad:
             raise ValueError(f"robot description: joints {bad} have no finite position limits "
                              "or velocity limit in the URDF")
-        acc = np.broadcast_to(np.asarray(acceleration_limits, dtype=float), (n,)) \
-            if np.size(acceleration_limits) in (1, n) else None
-        if acc is None or not np.all(np.isfinite(acc)) or np.any(acc <= 0):
-            raise ValueError(f"acceleration limits: expected 1 or {n} positive values, got "
-                             f"{np.asarray(acceleration_limits).ravel().tolist()[:16]}")
-        self.acceleration_limits = acc.copy()
+        self.acceleration_limits = _per_joint(acceleration_limits, n, "acceleration limits")
+        self.jerk_limits = _per_joint(jerk_limits, n, "jerk limits")
         self._base_id = model.getFrameId(base_frame)
         flange_id = model.getFrameId(tool.flange_link)
         flange = model.frames[flange_id]

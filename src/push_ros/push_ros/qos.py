@@ -14,8 +14,9 @@
 - :data:`CLOCK_QOS`: ``/clock`` of the sim bridge, reliable, volatile, keep last 1 (matches the
   best-effort clock subscription of rclpy/rclcpp nodes and reliable ones);
 - :data:`JOINT_STATE_QOS`: the readers of ``/joint_states`` (push_executor_node,
-  segmentation_node's self-filter): reliable, volatile, depth 50 (a burst at 100 Hz and more
-  waits in the queue rather than being dropped).
+  segmentation_node's self-filter): reliable, volatile, depth 500 (a second of a 500 Hz
+  stream -- the simulated arm at 5x real time -- waits in the queue while a node plans a push,
+  rather than being dropped: the executor needs the contact segment's samples).
 """
 
 from rclpy.qos import (
@@ -40,7 +41,7 @@ GOAL_QOS = LATCHED_QOS
 CLOCK_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                        reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.VOLATILE)
-JOINT_STATE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50,
+JOINT_STATE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=500,
                              reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.VOLATILE)
 

@@ -109,7 +109,8 @@ class SimBridgeNode(Node):
                 on_rejected=self._refuse_trajectory,
                 worker=self.worker,
                 run=self._run_arm,
-                closing=lambda: self._closing)
+                closing=lambda: self._closing,
+                scene=self.scene)
 
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(1.0 / self._params.clock_rate, guard(self._on_clock_timer),

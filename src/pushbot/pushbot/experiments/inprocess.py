@@ -52,7 +52,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from push_core.episode import EpisodeEngine, end_score, new_record, true_errors
+from push_core.episode import EpisodeEngine, end_score, new_record, robot_times, true_errors
 from push_core.estimator import EKFConfig, PushEKF
 from push_core.geometry import rot2, wrap_angle
 from push_core.planner import Planner, PlannerConfig, prepare_outline
@@ -163,6 +163,7 @@ class EpisodeRunner:
         rec["poses_est"].append(state[:3].tolist())
         engine = EpisodeEngine(planner, trial.max_steps)
         engine.new_goal(goal)
+        t_goal, commands = world.sim_time, []
         engine.set_outline(outline)
         engine.estimate(world.sim_time, state, source.covariance())
         while True:
@@ -179,6 +180,7 @@ class EpisodeRunner:
             rec["pushes"].append([plan.approach.tolist(), plan.contact.tolist(),
                                   plan.end.tolist()])
             rec["poses_predicted"].append(np.asarray(plan.predicted_pose).tolist())
+            commands.append(world.sim_time)
             try:
                 result = world.execute_push(plan.approach, plan.contact, plan.end)
                 engine.push_executed(world.sim_time)
@@ -192,6 +194,7 @@ class EpisodeRunner:
             rec["poses_est"].append(state[:3].tolist())
         rec["perception_failures"] = source.failures
         rec["com_error"] = source.com_error(pose0_true[2], order)
+        rec.update(robot_times(t_goal, commands, world.sim_time))
         return self._finish(rec, world, goal_true, t_start)
 
     def _ekf_config(self, trial: Trial) -> EKFConfig:

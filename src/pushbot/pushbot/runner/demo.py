@@ -241,6 +241,10 @@ def _summary(rec: dict[str, Any], trial: Trial, wall: float, files: list[Path | 
         print(f'centre of mass (object frame, mm): estimated ({1e3 * est[0]:.1f}, '
               f'{1e3 * est[1]:.1f}), true ({1e3 * true[0]:.1f}, {1e3 * true[1]:.1f}), error '
               f'{1e3 * rec["com_error"]:.1f} mm')
+    cycles = rec.get("cycle_s") or []
+    print(f'robot time: {rec.get("robot_time_s", math.nan):.1f} s from the goal to the final '
+          f'stop (simulated)' + (f"; {np.median(cycles):.1f} s between pushes, median"
+                                 if cycles else ""))
     lat = rec.get("step_latency_ms") or []
     lat_text = f"; push executed -> next plan {np.median(lat):.0f} ms median" if lat else ""
     print(f'wall time: {wall:.1f} s in all, episode {rec["wall_s"]:.1f} s{lat_text}')

@@ -72,6 +72,7 @@ from pushbot.runner.graph_nodes import NODES, GraphError, GraphNodes
 from pushbot.runner.graph_record import (
     end_reason,
     first_estimate,
+    graph_robot_times,
     latencies,
     line_deviation,
     same_goal,
@@ -112,11 +113,13 @@ class GraphRunner:
     robot : str
         ``pusher`` (the simulator's finger) or ``arm`` (``push_executor_node`` and the
         simulated Panda; :class:`pushbot.runner.graph_nodes.GraphNodes`).
+    node_exe : Path, optional
+        The ``pushbot`` executable of the node processes (:class:`GraphNodes`).
     """
 
     def __init__(self, log_dir: Path | None = None, record_frames: bool = False,
-                 node_args: dict[str, Sequence[str]] | None = None, robot: str = "pusher"
-                 ) -> None:
+                 node_args: dict[str, Sequence[str]] | None = None, robot: str = "pusher",
+                 node_exe: Path | None = None) -> None:
         self._tmp = None
         if log_dir is None:
             self._tmp = tempfile.TemporaryDirectory(prefix="pushbot_graph_")
@@ -124,7 +127,7 @@ class GraphRunner:
         self.log_dir = Path(log_dir)
         self.record_frames = record_frames
         self.robot = robot
-        self.nodes = GraphNodes(self.log_dir, node_args, robot=robot)
+        self.nodes = GraphNodes(self.log_dir, node_args, robot=robot, node_exe=node_exe)
         self.rec = Recorded()
         self.client: GraphClient | None = None
         self._com_true: np.ndarray | None = None
@@ -168,7 +171,8 @@ class GraphRunner:
         """Stop everything and start again (after a failed episode)."""
         self.close()
         self.rec = Recorded()
-        self.nodes = GraphNodes(self.log_dir, self.nodes.node_args, robot=self.robot)
+        self.nodes = GraphNodes(self.log_dir, self.nodes.node_args, robot=self.robot,
+                                node_exe=self.nodes.node_exe)
         self.start()
 
     # ---- the client's waits and calls -----------------------------------------------------------
@@ -258,6 +262,7 @@ class GraphRunner:
         goal = trial.goal(first_est)
         n_push, n_exec, n_status = (len(self.rec.pushes), len(self.rec.executed),
                                     len(self.rec.status))
+        t_goal = self.rec.clock  # the simulated time when the goal goes out
         goal_text = self._client().publish_goal(goal)
         episode = Episode(trial, n_push, n_exec, n_status, np.asarray(goal, dtype=float),
                           np.asarray(trial.goal_offset(), dtype=float), goal_text)
@@ -281,6 +286,8 @@ class GraphRunner:
         rec["frame_stamps"] = [first_stamp] + [
             next((st for st, _ in self.rec.est if st >= t1), t1) for _, _, t1 in executed]
         rec["step_latency_ms"] = latencies(executed, pushes)
+        rec.update(graph_robot_times(t_goal, first_stamp, self.rec.push_stamps[n_push:],
+                                     rec["frame_stamps"][-1] if executed else None))
         if self.robot == "arm":
             rec["contact_line_error_mm"] = self._line_errors(executed, pushes)
         end_true = self._true_after(executed[-1][2]) if executed else pose0_true
@@ -301,7 +308,21 @@ class GraphRunner:
                                    else self._c_true_episode.tolist())
         rec["com_est"] = self.rec.com[-1][1].tolist() if self.rec.com else None
         rec["wall_s"] = time.perf_counter() - t_start
+        if self.robot == "arm":
+            self._wait_arm_parked()
         return rec
+
+    def _wait_arm_parked(self) -> None:
+        """The executor parks the arm once the episode is over; the next scene is not set up
+        while it moves (the simulator refuses ``~/reset`` while it follows a trajectory). A
+        stopped arm stays where it is (the next scene's reset parks it)."""
+        def parked() -> bool:
+            status = self.rec.executor_status[-1] if self.rec.executor_status else {}
+            return status.get("state") == "stopped" or (
+                status.get("state") in ("idle", "disabled")
+                and status.get("at_park", "true") == "true")
+
+        self.wait(parked, STEP_TIMEOUT, "the arm parked after the episode (executor/status)")
 
     def _line_errors(self, executed: list[tuple[float, float, float]],
                      pushes: list[tuple[float, np.ndarray]]) -> list[float]:
@@ -340,7 +361,7 @@ class GraphRunner:
             "seed": int(world["seed"]), "randomize": bool(world["randomize"]),
             "support_cell": float(world["support_cell"]), **NO_BRIDGE_FAULTS,
             **fault.bridge_params(trial)})
-        message = self.reset("sim_bridge_node")
+        message = self._reset_simulator()
         match = _COM_RE.search(message)
         self._com_true = (np.array([float(match.group(1)), float(match.group(2))])
                           if match else None)
@@ -357,6 +378,20 @@ class GraphRunner:
             after = _INPUTS_AFTER_RE.search(answer) if name == "ekf_node" else None
             if after is not None:  # estimates of the old episode are stamped at or before it
                 self._last_stamp = max(self._last_stamp, float(after.group(1)))
+
+    def _reset_simulator(self) -> str:
+        """``/sim_bridge_node/reset``, again while it answers busy: the arm may still settle
+        after the episode's park (the executor reports it idle once the trajectory has ended,
+        the simulator's run ends when the arm and the object are at rest)."""
+        deadline = time.monotonic() + STEP_TIMEOUT
+        while True:
+            try:
+                return self.reset("sim_bridge_node")
+            except GraphError as exc:
+                if "busy" not in str(exc) or time.monotonic() > deadline:
+                    raise
+            pause = time.monotonic() + 0.2
+            self.wait(lambda until=pause: time.monotonic() >= until, 5.0, "a pause")
 
     def _first_estimate(self, trial: Trial, fault: Fault) -> tuple[float, float, np.ndarray]:
         """Set the episode up and wait for the first estimate of the new scene: (the stamp of
@@ -486,7 +521,10 @@ def check_trial(trial: Trial) -> None:
 
 
 def run_graph_trials(trials: list[Trial], *, out_dir: Path | str | None = None,
-                     progress: bool = True, robot: str = "pusher") -> list[dict[str, Any]]:
+                     progress: bool = True, robot: str = "pusher",
+                     node_exe: Path | None = None,
+                     run: Callable[[GraphRunner, Trial], dict[str, Any]] | None = None
+                     ) -> list[dict[str, Any]]:
     """Run ``trials`` through the ROS graph (four node processes, started once) in order.
 
     Parameters
@@ -499,6 +537,11 @@ def run_graph_trials(trials: list[Trial], *, out_dir: Path | str | None = None,
         One line per trial on stderr.
     robot : str
         ``pusher`` or ``arm`` (:class:`GraphRunner`).
+    node_exe : Path, optional
+        The ``pushbot`` executable of the node processes (:class:`GraphNodes`).
+    run : callable, optional
+        ``run(graph, trial) -> record`` instead of ``graph.run(trial)`` (a benchmark that also
+        reads what the graph's client recorded meanwhile).
 
     Returns
     -------
@@ -511,10 +554,11 @@ def run_graph_trials(trials: list[Trial], *, out_dir: Path | str | None = None,
         check_trial(trial)
     log_dir = Path(out_dir) / "graph_logs" if out_dir is not None else None
     records: list[dict[str, Any]] = []
-    with sigterm_as_keyboard_interrupt(), GraphRunner(log_dir=log_dir, robot=robot) as graph:
+    with sigterm_as_keyboard_interrupt(), GraphRunner(log_dir=log_dir, robot=robot,
+                                                       node_exe=node_exe) as graph:
         for i, trial in enumerate(trials):
             try:
-                record = graph.run(trial)
+                record = graph.run(trial) if run is None else run(graph, trial)
             except GraphError as exc:
                 record = new_record(trial.as_dict(), reason=f"graph error: {exc}",
                                     engine="graph")

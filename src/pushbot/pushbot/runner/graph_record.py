@@ -1,5 +1,6 @@
 """The ROS-free arithmetic of a graph episode's record: which estimate starts the episode,
-the planner's status fields, the end reason, step latencies and the arm's contact-line error.
+the planner's status fields, the end reason, step latencies, robot time and the arm's
+contact-line error.
 
 :class:`pushbot.runner.episode.GraphRunner` applies these to what its client received; they
 take plain stamps, strings and arrays, so they are tested without a graph.
@@ -13,8 +14,10 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["CONTACT_HEIGHT", "end_reason", "first_estimate", "latencies", "line_deviation",
-           "same_goal", "status_seconds"]
+from push_core.episode import robot_times
+
+__all__ = ["CONTACT_HEIGHT", "end_reason", "first_estimate", "graph_robot_times", "latencies",
+           "line_deviation", "same_goal", "status_seconds"]
 
 
 def first_estimate(outline_stamps: Sequence[float], estimates: Sequence[tuple[float, Any]],
@@ -111,3 +114,19 @@ def latencies(executed: list[tuple[float, float, float]],
         if following:
             out.append(1e3 * (following[0] - t_exec))
     return out
+
+
+def graph_robot_times(t_goal: float, first_frame: float, stamps: Sequence[float],
+                      stop: float | None) -> dict[str, Any]:
+    """``robot_time_s`` and ``cycle_s`` of a graph episode (:func:`push_core.episode.robot_times`).
+
+    ``t_goal``: the client's newest ``/clock`` when it sent the goal (the episode's first
+    frame's stamp if none had come), at most the first push's stamp (two nodes' clocks differ
+    by their ``/clock`` delivery); ``stamps``: the header stamps of the pushes seen since, of
+    which those before the goal (another client's, stamped 0) are not the robot's commands;
+    ``stop``: the stamp of the frame after the last executed push (None: nothing executed)."""
+    goal = t_goal if math.isfinite(t_goal) else first_frame
+    commands = [s for s in stamps if s >= goal - 1.0]
+    goal = min([goal, *commands])
+    end = goal if stop is None else max(stop, commands[-1] if commands else goal)
+    return robot_times(goal, sorted(commands), end)
