@@ -33,7 +33,7 @@ Usage::
 
     .venv/bin/python benchmarks/bench_cycle.py [--trials 20] [--objects butter tri1 hex]
         [--baseline-exe /tmp/cycle-base/.venv/bin/pushbot] [--engines arm today pusher]
-        [--no-write]
+        [--reuse arm] [--no-write]
 """
 
 from __future__ import annotations
@@ -150,6 +150,17 @@ def run_engine(trials: list[Trial], engine: str, baseline_exe: Path | None, doma
     return records, splits, time.monotonic() - started
 
 
+def reuse_engine(trials: list[Trial], engine: str
+                 ) -> tuple[list[dict[str, Any]], list[dict[str, float]], float]:
+    """An earlier run's records and splits of ``engine`` (``--reuse``); the wall time is the
+    sum of its episodes'. ``SystemExit`` unless they are of the same trials."""
+    records = json.loads((OUT / engine / "records.json").read_text())
+    splits = json.loads((OUT / engine / "splits.json").read_text())
+    if [r["trial"] for r in records] != [t.as_dict() for t in trials]:
+        raise SystemExit(f"--reuse {engine}: {OUT / engine / 'records.json'} holds other trials")
+    return records, splits, float(sum(r.get("wall_s") or 0.0 for r in records))
+
+
 def _row(label: str, records: list[dict[str, Any]]) -> str:
     n = len(records)
     ok = [r for r in records if r["success"]]
@@ -227,6 +238,9 @@ def main() -> int:
                         help="the pushbot executable of the installation whose nodes are "
                              "'today' (required with engine today)")
     parser.add_argument("--domain", type=int, default=None, help="ROS_DOMAIN_ID to run in")
+    parser.add_argument("--reuse", nargs="+", default=[], choices=list(ENGINES),
+                        help="engines whose records and splits are read from an earlier run's "
+                             "out/bench_cycle/<engine>/ instead of run again (same trials)")
     parser.add_argument("--no-write", action="store_true", help="do not update docs/RESULTS.md")
     args = parser.parse_args()
     if "today" in args.engines and (args.baseline_exe is None or not args.baseline_exe.exists()):
@@ -235,6 +249,9 @@ def main() -> int:
     load_before = os.getloadavg()[0]
     results, splits, walls = {}, {}, {}
     for engine in args.engines:
+        if engine in args.reuse:
+            results[engine], splits[engine], walls[engine] = reuse_engine(trials, engine)
+            continue
         results[engine], splits[engine], walls[engine] = run_engine(
             trials, engine, args.baseline_exe, args.domain)
         (OUT / engine).mkdir(parents=True, exist_ok=True)

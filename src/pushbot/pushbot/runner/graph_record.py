@@ -124,9 +124,10 @@ def graph_robot_times(t_goal: float, first_frame: float, stamps: Sequence[float]
     frame's stamp if none had come), at most the first push's stamp (two nodes' clocks differ
     by their ``/clock`` delivery); ``stamps``: the header stamps of the pushes seen since, of
     which those before the goal (another client's, stamped 0) are not the robot's commands;
-    ``stop``: the stamp of the frame after the last executed push (None: nothing executed)."""
+    ``stop``: the stamp of the frame after the last executed push (None: nothing executed; the
+    episode then ends at its last command, as when every push was refused)."""
     goal = t_goal if math.isfinite(t_goal) else first_frame
-    commands = [s for s in stamps if s >= goal - 1.0]
+    commands = sorted(s for s in stamps if s >= goal - 1.0)
     goal = min([goal, *commands])
-    end = goal if stop is None else max(stop, commands[-1] if commands else goal)
-    return robot_times(goal, sorted(commands), end)
+    end = max(goal if stop is None else stop, commands[-1] if commands else goal)
+    return robot_times(goal, commands, end)
