@@ -192,6 +192,7 @@ def test_push_core_sources_never_import_ros() -> None:
     assert not offenders, offenders
 
 
+@pytest.mark.slow
 def test_push_core_import_loads_no_ros_module() -> None:
     # Import the package and every submodule in a fresh interpreter, then look at sys.modules.
     code = (

@@ -452,6 +452,7 @@ def test_topic_echo_accepts_once() -> None:
     assert "not allowed with argument" in result.stderr
 
 
+@pytest.mark.slow
 def test_service_call_prints_the_response_as_ros2_does(ros_context: Any) -> None:
     import threading
 

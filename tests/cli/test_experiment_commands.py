@@ -136,6 +136,7 @@ def test_small_perception_set_trains_into_out_not_the_package(in_tmp: Path, caps
     assert _digest(bundled) == before
 
 
+@pytest.mark.slow
 def test_affordances_train_into_out_and_install_keeps_the_metrics(
         in_tmp: Path, affordance_set: Path, monkeypatch: pytest.MonkeyPatch, capsys) -> None:
     bundled = affordance_training.installed_weights()

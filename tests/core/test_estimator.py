@@ -161,6 +161,7 @@ def test_scalar_twist_equals_the_model() -> None:
     assert modes == {"off", "stick", "slide"}
 
 
+@pytest.mark.slow
 def test_twist_jacobian_equals_autodiff_of_the_model() -> None:
     torch = pytest.importorskip("torch")
 
@@ -283,6 +284,7 @@ def test_push_jacobian_at_a_vertex_contact_matches_finite_differences() -> None:
     assert not np.allclose(pred.jacobian[:3, :3], np.eye(3))
 
 
+@pytest.mark.slow
 def test_fine_substeps_agree_with_the_rollout() -> None:
     points, normals = library_outline("butter")
     outline = ContactOutline.from_points(points, normals)

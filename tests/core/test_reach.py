@@ -24,6 +24,7 @@ def test_turn_radius_by_hand() -> None:
     assert turn_radius(SQUARE, [0.02, 0.0], 0.03) == pytest.approx(0.03**2 / math.hypot(0.07, 0.05))
 
 
+@pytest.mark.slow
 def test_the_square_cannot_turn_half_a_radian_in_place_in_one_push() -> None:
     # the COM moves >= 2 kappa sin(phi / 2) for a turn phi >= 0.5 rad - 5 deg:
     # 2 * 0.020701 * sin(0.20637) = 8.48 mm > 7.5 mm, so no single push reaches the goal
@@ -35,6 +36,7 @@ def test_the_square_cannot_turn_half_a_radian_in_place_in_one_push() -> None:
                                 0.05)
 
 
+@pytest.mark.slow
 def test_one_push_reaches_a_small_turn_and_a_straight_move() -> None:
     # 0.25 rad: the bound allows 2 * 0.020701 * sin(0.0814) = 3.4 mm, and a push finds it
     assert one_push_reaches(SQUARE, [0.0, 0.0], SQUARE_L, [0.0, 0.0, 0.25], TOL, 0.05)
@@ -45,6 +47,7 @@ def test_one_push_reaches_a_small_turn_and_a_straight_move() -> None:
     assert not one_push_reaches(SQUARE, [0.0, 0.0], SQUARE_L, [0.06, 0.0, 0.0], TOL, 0.05)
 
 
+@pytest.mark.slow
 def test_no_push_the_search_finds_breaks_the_turning_bound() -> None:
     # the module's claim, checked against the search: wherever 2 kappa sin(phi_min / 2) exceeds
     # the position tolerance, no single push reaches a turn in place

@@ -34,6 +34,9 @@ from push_core.estimator import EKFConfig
 from push_core.objects import load_object
 from pushbot.experiments.estimator_episodes import chi2_band, run_model_episodes
 
+#: Monte Carlo over hundreds of filter episodes: the full tier's (``make test``), not the fast one.
+pytestmark = pytest.mark.slow
+
 POINTS, NORMALS = load_object("tri1").outline(0.002)
 PUSHES = 10
 TRUTH = replace(EKFConfig(), com_prior_fraction=0.5, l_sigma_fraction=0.125, m_sigma=0.075)

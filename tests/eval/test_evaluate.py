@@ -184,6 +184,7 @@ def test_cli_bad_task_exit_code(tmp_path, capsys):
     assert "--tasks: unknown value(s) fly" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_same_seed_same_json_in_process_and_with_workers(tmp_path):
     opts = EvalOptions(**SMALL)
     a = evaluate(opts, workers=1, progress=False)
@@ -253,6 +254,7 @@ def test_ray_missing_is_a_clear_error(tmp_path, capsys, monkeypatch):
     assert "pip install 'pushbot[ray]'" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(importlib.util.find_spec("ray") is None, reason="ray is not installed")
 def test_ray_local_runs_the_same_trials():
     opts = EvalOptions(objects=["rect1"], tasks=["mixed"], trials=2, k=[1])

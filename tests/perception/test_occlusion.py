@@ -142,6 +142,7 @@ def cover(scene: dict[str, Any], name: str) -> float:
     return 1.0 - scene[name][2] / scene["clear"][2]
 
 
+@pytest.mark.slow
 def test_partial_cover_gives_the_pose(arm_scene: dict[str, Any], segmenter: Segmenter) -> None:
     tracker = EpisodeTracker()
     m0 = measure(arm_scene, tracker, segmenter, "reference")

@@ -378,6 +378,7 @@ def test_object_out_of_view_gives_no_pose(name: str, kind: str, harness: Harness
     h.pose_for(frames["a"])
 
 
+@pytest.mark.slow
 def test_a_restarted_node_re_anchors_to_the_estimators_episode(
         ros_context: Any, frames: dict[str, Rendered]) -> None:
     # A perception restarted mid-episode keeps the episode's orientation reference:

@@ -124,6 +124,7 @@ def test_an_episode_reaches_success_from_state(runner: P.PushTRunner) -> None:
     assert rec.max_coverage > 0.95 and rec.failures == 0
 
 
+@pytest.mark.slow
 def test_image_fit_is_sub_pixel() -> None:
     r = P.PushTRunner("pixels")
     try:
@@ -137,6 +138,7 @@ def test_image_fit_is_sub_pixel() -> None:
         r.close()
 
 
+@pytest.mark.slow
 def test_an_episode_reaches_success_from_pixels() -> None:
     r = P.PushTRunner("pixels")
     try:
@@ -147,6 +149,7 @@ def test_an_episode_reaches_success_from_pixels() -> None:
     assert max(rec.pose_error) < 2.0  # mm (= render pixels) at every planning step
 
 
+@pytest.mark.slow
 def test_evaluate_writes_lerobot_metrics(tmp_path: Path) -> None:
     result = P.evaluate(2, seed0=0, obs="state", out=tmp_path, video=1)
     keys = list(result)

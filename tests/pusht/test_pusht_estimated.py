@@ -74,6 +74,7 @@ def test_outline_from_the_image_is_within_tolerance_of_the_true_tee(truth, seed)
     assert residual < 0.05
 
 
+@pytest.mark.slow
 def test_goal_is_fitted_in_the_image(truth) -> None:
     env, ring, _ = truth
     obs, info = env.reset(seed=3)

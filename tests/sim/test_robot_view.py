@@ -35,6 +35,7 @@ def robot(world: PushWorld) -> RobotGeometry:
     return RobotGeometry.from_urdf(world.robot_description, base_pose=world.config.arm_base_pose)
 
 
+@pytest.mark.slow
 def test_the_robot_mask_matches_the_simulators_arm_pixels(world: PushWorld,
                                                           robot: RobotGeometry) -> None:
     arm = world.arm
