@@ -104,8 +104,8 @@ def test_rgb_from_color_swaps_bgr_and_refuses_other_encodings() -> None:
     np.testing.assert_array_equal(swapped[..., 0], pixels[..., 2])
     np.testing.assert_array_equal(swapped[..., 2], pixels[..., 0])
     assert swapped.flags.c_contiguous
-    with pytest.raises(InputError, match="encoding 'rgba8'; expected rgb8 or bgr8"):
-        rgb_from_color(pixels, "rgba8")
+    with pytest.raises(InputError, match="encoding 'yuv422'; expected one of rgb8, bgr8"):
+        rgb_from_color(pixels, "yuv422")
     with pytest.raises(InputError, match=r"shape \(2, 3\); expected \(H, W, 3\)"):
         rgb_from_color(pixels[..., 0], "rgb8")
 

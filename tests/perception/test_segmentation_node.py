@@ -41,7 +41,9 @@ from push_perception.segmentation_node import PARAMETERS, SegmentationNode  # no
 from push_ros.frames import CAMERA_FRAME, WORLD_FRAME  # noqa: E402
 from push_ros.images import (  # noqa: E402
     camera_info_msg,
+    color_image_msg,
     depth_image_msg,
+    depth_mm_image_msg,
     image_to_array,
     rgb_image_msg,
 )
@@ -307,6 +309,12 @@ def _camera_info_of_other_size(h: Harness, f: Rendered) -> tuple[Any, ...]:
     return rgb, depth, info
 
 
+def _fisheye_camera_info(h: Harness, f: Rendered) -> tuple[Any, ...]:
+    rgb, depth, info = h.frame_messages(f)
+    info.distortion_model, info.d = "equidistant", [0.1, 0.01, 0.0, 0.0]
+    return rgb, depth, info
+
+
 #: case -> (the input, the /diagnostics counter it increments: refusals of an input are
 #: ``refused_<kind>``, a blind camera is the measurement outcome ``no_depth``).
 BAD_INPUTS = {
@@ -317,6 +325,7 @@ BAD_INPUTS = {
     "no_depth_nan": (_depth_filled_with(np.nan), "no_depth"),
     "no_depth_zero": (_depth_filled_with(0.0), "no_depth"),
     "bad_camera_info": (_camera_info_of_other_size, "refused_camera_info"),
+    "unsupported_distortion": (_fisheye_camera_info, "refused_camera_info"),
 }
 
 
@@ -339,6 +348,22 @@ def test_bad_frames_are_reported_and_the_node_keeps_working(
     h.pose_for(frames["a"])  # still working
     err = capfd.readouterr().err
     assert ("refused " if key.startswith("refused_") else f"no pose ({key})") in err
+
+
+def test_a_driver_shaped_frame_gives_the_pose(harness: Harness,
+                                              frames: dict[str, Rendered]) -> None:
+    """bgra8 colour, 16UC1 depth in mm and a plumb_bob camera_info with (zero-effect) d: read,
+    not refused, and measured as the ideal frame."""
+    h, a = harness, frames["a"]
+    h.send_extrinsics(a.t)
+    rgb, depth, info = h.frame_messages(a)
+    stamp = rgb.header.stamp
+    info = camera_info_msg(a.k, info.width, info.height, stamp,
+                           distortion=np.array([1e-9, 0.0, 0.0, 0.0, 0.0]))
+    msgs = (color_image_msg(a.rgb, stamp, "bgra8"), depth_mm_image_msg(a.depth, stamp), info)
+    pose = h.wait(lambda: next((p for p in h.poses if p.header.stamp == stamp), None),
+                  "a pose for the driver-shaped frame", resend=lambda: h.publish(msgs))
+    assert np.linalg.norm(xytheta_from_pose(pose.pose.pose)[:2] - a.pose[:2]) < 0.003
 
 
 def test_missing_extrinsics_then_recovery(harness: Harness,

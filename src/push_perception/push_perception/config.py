@@ -16,8 +16,10 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
 from rcl_interfaces.msg import ParameterType
 
+from push_core.geometry import matrix_from_quaternion
 from push_core.robot_view import SIM_PANDA_BASE_POSE
 from push_perception.perception_config import PerceptionConfig
 from push_perception.robot_filter import RobotFilterConfig
@@ -33,11 +35,31 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec("weights", "", "Segmentation network weights (.pt) written by `pushbot train "
               "segmentation`; empty = the bundled push_perception/models/segmentation.pt (model "
               "card: models/segmentation.md).", read_only=True),
+    ParamSpec("segmentation.method", "cnn", "How the object's mask is found: cnn (the "
+              "network; where its confidence is below segmentation.min_confidence or it finds "
+              "nothing, the depth segmentation instead) or depth (no network, no training: the "
+              "points above the fitted table plane inside the workspace; "
+              "docs/design/cameras.md).", read_only=True, constraints="cnn or depth"),
+    ParamSpec("segmentation.min_confidence", 0.9, "With segmentation.method cnn: a CNN mask "
+              "whose mean object probability is below this is replaced by the depth "
+              "segmentation (counted as depth_fallback); 0 = only when the CNN finds nothing.",
+              (0.0, 1.0), read_only=True),
     ParamSpec("torch_threads", 1, "torch intra-op threads for the CNN; 1 keeps the latency "
               "steady on a shared CPU.", (1, 16), read_only=True),
     ParamSpec("sync_queue", 5, "Stamps kept per camera stream while matching colour, depth and "
               "camera_info by identical header stamps; an image pair pushed out without its "
               "camera_info is reported.", (1, 100), read_only=True),
+    ParamSpec("camera.depth_aligned", True, "Depth is aligned to colour (the driver's "
+              "aligned_depth_to_color: camera/aligned_depth_to_color/image_raw, colour's "
+              "pixels and camera_info). False: depth in its own optical frame on "
+              "camera/depth/image_raw with its own camera/depth/camera_info (same stamps as "
+              "colour), registered into the colour camera with camera.depth_to_color.",
+              read_only=True),
+    ParamSpec("camera.depth_to_color", [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0], "With "
+              "camera.depth_aligned false: pose of the depth optical frame in the colour "
+              "optical frame, x, y, z (m) and quaternion qx, qy, qz, qw (the driver's "
+              "depth-to-colour extrinsics).", read_only=True,
+              constraints="7 finite values, a non-zero quaternion"),
     ParamSpec("threshold", 0.5, "Probability above which a pixel is the object.",
               (0.01, 0.99), read_only=True),
     ParamSpec("min_coarse_cells", 3, "Smallest coarse CNN component accepted as the object, "
@@ -172,6 +194,14 @@ class SegmentationParams:
         The mask-to-state parameters.
     anchor_timeout : float
         Seconds to wait for a re-anchoring after start-up (module docstring).
+    depth_aligned : bool
+        ``camera.depth_aligned``.
+    t_color_depth : (4, 4) ndarray
+        ``camera.depth_to_color`` as a homogeneous transform (colour <- depth).
+    method : str
+        ``segmentation.method``: ``cnn`` or ``depth``.
+    min_confidence : float
+        ``segmentation.min_confidence``.
     robot_filter : RobotFilterConfig or None
         The self-filter's settings; None: ``robot_filter.enabled`` is false.
     description_file : str
@@ -188,6 +218,10 @@ class SegmentationParams:
     anchor_timeout: float = 5.0
     robot_filter: RobotFilterConfig | None = None
     description_file: str = ""
+    depth_aligned: bool = True
+    t_color_depth: Any = None
+    method: str = "cnn"
+    min_confidence: float = 0.9
 
     @classmethod
     def from_values(cls, values: dict[str, Any]) -> SegmentationParams:
@@ -207,9 +241,29 @@ class SegmentationParams:
                 depth_margin=float(values["robot_filter.depth_margin"]),
                 joint_state_tolerance=float(values["robot_filter.joint_state_tolerance"]),
                 still_tolerance=float(values["robot_filter.still_tolerance"]))
+        method = str(values["segmentation.method"])
+        if method not in ("cnn", "depth"):
+            raise ValueError(f"segmentation.method: must be cnn or depth, got {method[:32]!r}")
         return cls(weights=str(values["weights"]), torch_threads=int(values["torch_threads"]),
+                   method=method,
+                   min_confidence=float(values["segmentation.min_confidence"]),
+                   depth_aligned=bool(values["camera.depth_aligned"]),
+                   t_color_depth=_pose_matrix(values["camera.depth_to_color"]),
                    sync_queue=int(values["sync_queue"]), threshold=float(values["threshold"]),
                    min_coarse_cells=int(values["min_coarse_cells"]),
                    publish_mask=bool(values["publish_mask"]), geometry=config,
                    anchor_timeout=float(values["anchor_timeout"]), robot_filter=robot,
                    description_file=str(values["robot_filter.description_file"]))
+
+
+def _pose_matrix(values: Any) -> np.ndarray:
+    """(4, 4) transform of ``x, y, z, qx, qy, qz, qw``; raises ``ValueError`` naming
+    ``camera.depth_to_color``."""
+    v = np.asarray(list(values or ()), dtype=float)
+    if v.shape != (7,) or not np.all(np.isfinite(v)) or np.linalg.norm(v[3:]) < 1e-9:
+        raise ValueError(f"camera.depth_to_color: expected x y z qx qy qz qw (7 finite values, "
+                         f"a non-zero quaternion), got {list(values or ())!r}")
+    t = np.eye(4)
+    t[:3, :3] = matrix_from_quaternion(v[3:] / np.linalg.norm(v[3:]))
+    t[:3, 3] = v[:3]
+    return t

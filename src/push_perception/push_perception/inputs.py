@@ -53,7 +53,7 @@ __all__ = [
 ]
 
 #: Encodings of the colour and of the depth stream.
-COLOR_ENCODINGS = ("rgb8", "bgr8")
+COLOR_ENCODINGS = ("rgb8", "bgr8", "rgba8", "bgra8")
 DEPTH_ENCODINGS = ("32FC1", "16UC1", "mono16")
 #: Smallest fraction of valid depth pixels in a frame (below it the camera is blind).
 MIN_VALID_DEPTH = 0.05
@@ -99,6 +99,9 @@ class FrameSync:
     ----------
     queue : int
         Incomplete stamps kept, >= 1.
+    streams : tuple of str
+        The streams of one frame (default :data:`STREAMS`; a depth camera with its own
+        camera_info adds ``"depth_info"``).
 
     Raises
     ------
@@ -106,40 +109,42 @@ class FrameSync:
         ``queue`` < 1.
     """
 
-    def __init__(self, queue: int) -> None:
+    def __init__(self, queue: int, streams: tuple[str, ...] = STREAMS) -> None:
         if isinstance(queue, bool) or int(queue) != queue or queue < 1:
             raise ValueError(f"queue must be an integer >= 1, got {queue!r}")
         self.queue = int(queue)
+        self.streams = tuple(streams)
         self._pending: OrderedDict[Hashable, dict[str, Any]] = OrderedDict()
 
     def add(self, stream: str, key: Hashable, msg: Any
             ) -> tuple[tuple[Any, Any, Any] | None, list[Hashable]]:
-        """Add ``msg`` of ``stream`` (one of :data:`STREAMS`) at stamp ``key``.
+        """Add ``msg`` of ``stream`` (one of :attr:`streams`) at stamp ``key``.
 
         Returns
         -------
         frame : tuple or None
-            ``(rgb, depth, info)`` once all three of ``key`` are in (they leave the queue).
+            The messages in the order of :attr:`streams` (``(rgb, depth, info)`` by default)
+            once all of ``key`` are in (they leave the queue).
         missing_info : list
             Keys of dropped colour + depth pairs that had no camera_info, oldest first.
 
         Raises
         ------
         ValueError
-            ``stream`` not one of :data:`STREAMS`.
+            ``stream`` not one of :attr:`streams`.
         """
-        if stream not in STREAMS:
-            raise ValueError(f"stream must be one of {STREAMS}, got {stream!r}")
+        if stream not in self.streams:
+            raise ValueError(f"stream must be one of {self.streams}, got {stream!r}")
         entry = self._pending.setdefault(key, {})
         entry[stream] = msg
         dropped: list[Hashable] = []
-        if len(entry) == len(STREAMS):
+        if len(entry) == len(self.streams):
             for old in list(self._pending):  # everything that arrived before is stale
                 if old == key:
                     break
                 dropped += self._drop(old)
             del self._pending[key]
-            return tuple(entry[s] for s in STREAMS), dropped  # type: ignore[return-value]
+            return tuple(entry[s] for s in self.streams), dropped  # type: ignore[return-value]
         while len(self._pending) > self.queue:
             dropped += self._drop(next(iter(self._pending)))
         return None, dropped
@@ -158,21 +163,27 @@ class FrameSync:
 
 
 def rgb_from_color(pixels: NDArray[np.uint8], encoding: str) -> NDArray[np.uint8]:
-    """(H, W, 3) RGB pixels of a colour image decoded as ``encoding`` (channels as stored).
+    """(H, W, 3) RGB pixels of a colour image decoded as ``encoding`` (channels as stored;
+    the alpha of ``rgba8`` / ``bgra8`` is dropped: a camera's alpha carries no scene).
 
     Raises
     ------
     InputError
         kind ``"color"``: ``encoding`` not one of :data:`COLOR_ENCODINGS`, or pixels not
-        (H, W, 3).
+        (H, W, 3) (H, W, 4 with alpha).
     """
     if encoding not in COLOR_ENCODINGS:
         raise InputError("color", f"colour image encoding {encoding[:_QUOTE]!r}; expected "
-                         "rgb8 or bgr8")
+                         f"one of {', '.join(COLOR_ENCODINGS)}")
     pixels = np.asarray(pixels)
-    if pixels.ndim != 3 or pixels.shape[2] != 3:
-        raise InputError("color", f"colour pixels of shape {pixels.shape}; expected (H, W, 3)")
-    return np.ascontiguousarray(pixels[:, :, ::-1]) if encoding == "bgr8" else pixels
+    channels = 4 if encoding.endswith("a8") else 3
+    if pixels.ndim != 3 or pixels.shape[2] != channels:
+        raise InputError("color", f"colour pixels of shape {pixels.shape}; expected "
+                         f"(H, W, {channels}) for {encoding}")
+    order = [2, 1, 0] if encoding.startswith("bgr") else [0, 1, 2]
+    if order == [0, 1, 2] and channels == 3:
+        return pixels
+    return np.ascontiguousarray(pixels[:, :, order])
 
 
 def check_depth_coverage(depth: NDArray[np.floating]) -> float:

@@ -251,11 +251,15 @@ class Segmentation:
         Crop refined at full resolution (None: nothing found).
     coarse_pixels : int
         Size of the coarse component, in coarse cells (0: nothing found).
+    confidence : float
+        Mean object probability of the mask's pixels, [0, 1] (1 for a segmentation without
+        probabilities, e.g. from depth; 0 when nothing was found).
     """
 
     mask: NDArray[np.bool_]
     box: tuple[int, int, int, int] | None
     coarse_pixels: int
+    confidence: float = 1.0
 
 
 class Segmenter:
@@ -338,7 +342,7 @@ class Segmenter:
         small = normalise_inputs(cv2.resize(rgb, small_size, interpolation=cv2.INTER_AREA),
                                  cv2.resize(np.nan_to_num(height, nan=0.0), small_size,
                                             interpolation=cv2.INTER_AREA))
-        empty = Segmentation(np.zeros((h, w), dtype=bool), None, 0)
+        empty = Segmentation(np.zeros((h, w), dtype=bool), None, 0, 0.0)
         with torch.inference_mode():
             coarse = self.net.coarse(torch.from_numpy(small)[None])
             cmask = (coarse[0, 0] > self.logit_threshold).numpy().astype(np.uint8)
@@ -364,9 +368,11 @@ class Segmenter:
             fine = self.net.fine(x_crop)[0, 0].numpy()
         fmask = (fine > self.logit_threshold).astype(np.uint8)
         mask = np.zeros((h, w), dtype=bool)
-        mask[v0:v1, u0:u1] = _largest_piece(
-            fmask, None if robot is None else robot[v0:v1, u0:u1], connectivity=4)
-        return Segmentation(mask, box, cells)
+        piece = _largest_piece(fmask, None if robot is None else robot[v0:v1, u0:u1],
+                               connectivity=4)
+        mask[v0:v1, u0:u1] = piece
+        confidence = float(np.mean(1.0 / (1.0 + np.exp(-fine[piece])))) if piece.any() else 0.0
+        return Segmentation(mask, box, cells, confidence)
 
 
 def _largest_piece(mask: NDArray[np.uint8], robot: NDArray[np.bool_] | None,

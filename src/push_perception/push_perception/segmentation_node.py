@@ -45,11 +45,13 @@ from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image, PointCloud2
 from std_srvs.srv import Trigger
 
+from push_perception.camera_input import CameraModel, FrameRectifier
 from push_perception.config import NODE_NAME, PARAMETERS, SegmentationParams
 from push_perception.inputs import (
     COLOR_ENCODINGS,
     DEPTH_ENCODINGS,
     REFUSAL_KINDS,
+    STREAMS,
     AnchorWait,
     FrameSync,
     InputError,
@@ -71,6 +73,7 @@ from push_ros.images import (
     camera_matrix_from_info,
     check_image_layout,
     depth_to_metres,
+    distortion_from_info,
     image_to_array,
     mask_image_msg,
 )
@@ -93,6 +96,7 @@ OUTCOME_KINDS = ("empty_mask", "out_of_view", "few_pixels", "no_depth", "fragmen
                  "too_large", "occluded", "bad_input")
 #: The node's counters, all on /diagnostics from the first status on.
 COUNTERS = ("frames", "poses", "resets", "previous_episode", "waiting_for_anchor", "anchored",
+            "depth_fallback",
             *OUTCOME_KINDS, *(f"refused_{kind}" for kind in REFUSAL_KINDS))
 
 
@@ -104,6 +108,13 @@ def _decode(kind: str, what: str, decode: Callable[[Any], Any], msg: Any) -> Any
         raise
     except ValueError as exc:
         raise InputError(kind, f"{what}: {exc}") from None
+
+
+def _camera_model(info: CameraInfo) -> CameraModel:
+    """The stream's intrinsics and distortion by the codec's rules (``ValueError`` names the
+    field: a distortion model that cannot be undistorted is refused, never dropped)."""
+    k = camera_matrix_from_info(info)
+    return CameraModel(k, distortion_from_info(info)[1], (int(info.width), int(info.height)))
 
 
 class SegmentationNode(Node):
@@ -121,20 +132,16 @@ class SegmentationNode(Node):
                                  on_error=self._on_callback_error)
         self._params = declare_config(self, PARAMETERS, SegmentationParams.from_values)
 
-        import torch
-
-        from push_perception.model import Segmenter
-
-        torch.set_num_threads(self._params.torch_threads)
         cv2.setNumThreads(1)  # small images: OpenCV's thread pool only adds latency
-        self._segmenter = Segmenter.load(self._params.weights or None,
-                                         threshold=self._params.threshold,
-                                         min_coarse_cells=self._params.min_coarse_cells)
+        self._segmenter = self._make_segmenter(self._params)
         self._tracker = EpisodeTracker(self._params.geometry)
         self._robot_pixels = -1  # the robot's pixels in the frame being processed
         self._robot = None if self._params.robot_filter is None else RobotInputs(
             self, self._params.robot_filter, self._params.description_file, self.health)
-        self._sync = FrameSync(self._params.sync_queue)
+        aligned = self._params.depth_aligned
+        self._sync = FrameSync(self._params.sync_queue,
+                               STREAMS if aligned else (*STREAMS, "depth_info"))
+        self._rectifier = FrameRectifier(self._params.t_color_depth)
         self._anchor = AnchorWait(self._params.anchor_timeout, time.monotonic())
         self._anchor_msg: PointCloud2 | None = None  # the estimator's outline to re-publish
         self._problem = ""
@@ -152,6 +159,7 @@ class SegmentationNode(Node):
         self.on_color = guard(self._on_color)
         self.on_depth = guard(self._on_depth)
         self.on_camera_info = guard(self._on_camera_info)
+        self.on_depth_info = guard(self._on_depth_info)
         self.on_reset = guard(self._on_reset)
         self.on_estimator_outline = guard(self._on_estimator_outline)
         self.on_estimate = guard(self._on_estimate)
@@ -161,8 +169,11 @@ class SegmentationNode(Node):
             self.create_subscription(PoseWithCovarianceStamped, "estimator/object_pose",
                                      self.on_estimate, LATCHED_QOS)
         self.create_subscription(Image, "camera/color/image_raw", self.on_color, SENSOR_QOS)
-        self.create_subscription(Image, "camera/aligned_depth_to_color/image_raw",
-                                 self.on_depth, SENSOR_QOS)
+        self.create_subscription(Image, "camera/aligned_depth_to_color/image_raw" if aligned
+                                 else "camera/depth/image_raw", self.on_depth, SENSOR_QOS)
+        if not aligned:
+            self.create_subscription(CameraInfo, "camera/depth/camera_info", self.on_depth_info,
+                                     SENSOR_QOS)
         self.create_subscription(CameraInfo, "camera/color/camera_info", self.on_camera_info,
                                  SENSOR_QOS)
         self._extrinsics = CameraExtrinsics(
@@ -176,7 +187,25 @@ class SegmentationNode(Node):
         self.get_logger().info(
             f"segmentation node ready (use_sim_time="
             f"{self.get_parameter('use_sim_time').value}, torch threads "
-            f"{self._params.torch_threads}, weights {self._params.weights or 'bundled'})")
+            f"{self._params.torch_threads}, segmentation {self._params.method}, weights "
+            f"{self._params.weights or 'bundled'}, depth "
+            f"{'aligned' if self._params.depth_aligned else 'registered'})")
+
+    @staticmethod
+    def _make_segmenter(params: SegmentationParams) -> Any:
+        """The depth segmentation (no network is loaded), or the CNN falling back to it."""
+        from push_perception.depth_segmentation import DepthSegmenter, FallbackSegmenter
+
+        if params.method == "depth":
+            return DepthSegmenter()
+        import torch
+
+        from push_perception.model import Segmenter
+
+        torch.set_num_threads(params.torch_threads)
+        cnn = Segmenter.load(params.weights or None, threshold=params.threshold,
+                             min_coarse_cells=params.min_coarse_cells)
+        return FallbackSegmenter(cnn, DepthSegmenter(), params.min_confidence)
 
     # ---- inputs ------------------------------------------------------------------------------
     def _on_callback_error(self, name: str, message: str) -> None:
@@ -192,7 +221,10 @@ class SegmentationNode(Node):
         self._accept("depth", msg, "depth", lambda m: check_image_layout(m, DEPTH_ENCODINGS))
 
     def _on_camera_info(self, msg: CameraInfo) -> None:
-        self._accept("info", msg, "camera_info", camera_matrix_from_info)
+        self._accept("info", msg, "camera_info", _camera_model)
+
+    def _on_depth_info(self, msg: CameraInfo) -> None:
+        self._accept("depth_info", msg, "camera_info", _camera_model)
 
     def _accept(self, stream: str, msg: Any, kind: str, check: Callable[[Any], Any]) -> None:
         """Check one message (its codec's rules, then its stamp); a refused one never reaches
@@ -231,7 +263,8 @@ class SegmentationNode(Node):
             self._fail(InputError("estimator_pose", str(exc)), "estimator/object_pose")
 
     # ---- processing --------------------------------------------------------------------------
-    def _process(self, rgb_msg: Image, depth_msg: Image, info: CameraInfo) -> None:
+    def _process(self, rgb_msg: Image, depth_msg: Image, info: CameraInfo,
+                 depth_info: CameraInfo | None = None) -> None:
         started = time.perf_counter()
         stamp = rgb_msg.header.stamp
         action = self._anchor.admit(seconds_from_stamp(stamp), self._tracker.outline is not None,
@@ -245,7 +278,7 @@ class SegmentationNode(Node):
         self.health.count("frames")
         self._robot_pixels = -1
         try:
-            meas = self._measure(rgb_msg, depth_msg, info)
+            meas = self._measure(rgb_msg, depth_msg, info, depth_info)
         except PerceptionError as exc:
             self._fail(exc, "frame")
             if self._robot is not None:
@@ -270,32 +303,50 @@ class SegmentationNode(Node):
             f"re-anchoring to the running episode: the estimator's outline of "
             f"t={outline.stamp:.3f} s and estimate of t={stamp:.3f} s (yaw {yaw:.4f} rad)")
 
-    def _measure(self, rgb_msg: Image, depth_msg: Image, info: CameraInfo) -> Measurement:
+    def _measure(self, rgb_msg: Image, depth_msg: Image, info: CameraInfo,
+                 depth_info: CameraInfo | None) -> Measurement:
         """The frame's measurement; raises :class:`InputError` (refused) or
-        :class:`PerceptionError` (no pose)."""
+        :class:`PerceptionError` (no pose). Colour and depth are made the ideal pinhole
+        frame of the colour camera first (:class:`push_perception.camera_input.FrameRectifier`)."""
         rgb = _decode("color", "colour image",
                       lambda m: rgb_from_color(image_to_array(m), m.encoding), rgb_msg)
         depth = _decode("depth", "depth image", depth_to_metres, depth_msg)
+        color_model = _decode("camera_info", "camera_info", _camera_model, info)
+        depth_model = None if depth_info is None else _decode(
+            "camera_info", "depth camera_info", _camera_model, depth_info)
+        if depth_model is None:
+            check_frame_inputs(rgb.shape[1::-1], depth.shape[::-1], (info.width, info.height))
+        else:
+            check_frame_inputs(rgb.shape[1::-1], rgb.shape[1::-1], (info.width, info.height))
+            check_frame_inputs(depth.shape[::-1], depth.shape[::-1],
+                               (depth_info.width, depth_info.height))
+        rgb = self._rectifier.color(rgb, color_model)
+        depth = self._rectifier.depth(depth, color_model, depth_model)
         check_depth_coverage(depth)
-        k = _decode("camera_info", "camera_info", camera_matrix_from_info, info)
-        check_frame_inputs(rgb.shape[1::-1], depth.shape[::-1], (info.width, info.height))
+        k = color_model.k
         frame = rgb_msg.header.frame_id
         extrinsics, extrinsics_frame = self._extrinsics.lookup(frame)
         if extrinsics is None:
             raise InputError("no_extrinsics", "no camera extrinsics yet (tf2 world -> "
                              f"{frame[:64]!r} or the latched camera/color/extrinsics)")
-        check_frame_ids(frame, depth_msg.header.frame_id, extrinsics_frame)
+        # registered depth is in the colour frame; its own frame is the depth camera's
+        check_frame_ids(frame, frame if depth_model is not None else depth_msg.header.frame_id,
+                        extrinsics_frame)
         robot = None  # the robot's pixels (robot_filter.enabled), or no robot in view
         if self._robot is not None:
             robot = self._robot.pixels(seconds_from_stamp(rgb_msg.header.stamp), k, extrinsics,
                                        depth)
             self._robot_pixels = int(robot.mask.sum())
+        fallbacks = getattr(self._segmenter, "fallbacks", 0)
         seg = segment(self._segmenter, rgb, depth, k, extrinsics,
                       None if robot is None else robot.mask)
+        if getattr(self._segmenter, "fallbacks", 0) > fallbacks:
+            self.health.count("depth_fallback")
         if self._params.publish_mask:
             self._pub_mask.publish(mask_image_msg(seg.mask, rgb_msg.header.stamp, frame))
         if seg.box is None:
-            raise PerceptionError("empty_mask", "the CNN found no object in the frame")
+            raise PerceptionError("empty_mask", f"the {self._params.method} segmentation found "
+                                  "no object in the frame")
         return self._tracker.update(seg.mask, depth, k, extrinsics,
                                     *(() if robot is None else (robot.mask, robot.cover)))
 

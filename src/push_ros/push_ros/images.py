@@ -1,13 +1,15 @@
 """Images and camera info <-> arrays: the one image codec, with validation before reshaping.
 
-Encodings: ``rgb8`` / ``bgr8`` (H, W, 3) uint8, ``mono8`` (H, W) uint8 (the perception mask,
+Encodings: ``rgb8`` / ``bgr8`` (H, W, 3) uint8, ``rgba8`` / ``bgra8`` (H, W, 4) uint8 (the ZED
+wrapper's colour, some drivers' RGBA), ``mono8`` (H, W) uint8 (the perception mask,
 255 = object), ``32FC1`` (H, W) float32 (depth in metres along the optical axis, NaN = no
 return: the sim bridge) and ``16UC1`` / ``mono16`` (depth in millimetres, 0 = no return: the
 RealSense driver's ``aligned_depth_to_color``). Rows may be padded (``step >= width *
 bytes_per_pixel``); ``is_bigendian`` selects the byte order; ``len(data) != height * step`` is
-refused before any reshape (the cv_bridge pitfall). CameraInfo: an ideal pinhole (``plumb_bob``
-with zero distortion) is written; a valid K (finite, fx, fy > 0, last row (0, 0, 1)) is
-required when reading.
+refused before any reshape (the cv_bridge pitfall). CameraInfo: K and the distortion (``plumb_bob``
+with 5 coefficients, zero by default, or ``rational_polynomial`` with 8) are written; when
+reading, a valid K (finite, fx, fy > 0, last row (0, 0, 1)) is required and the distortion is
+read by its own rule (:func:`distortion_from_info`): never dropped without a word.
 
 Reader rules (one per field; a message outside them raises ``ValueError`` naming the field,
 before anything proportional to the claimed size is allocated):
@@ -20,6 +22,11 @@ before anything proportional to the claimed size is allocated):
 - ``CameraInfo.k``: finite, ``fx``, ``fy`` in ``[MIN_FOCAL_PX, MAX_FOCAL_PX]`` (1 px to 1e5
   px), last row (0, 0, 1), principal point within the image extended by
   ``PRINCIPAL_POINT_MARGIN`` (half the image size) on every side.
+- ``CameraInfo.distortion_model`` / ``d``: ``plumb_bob`` with 5 coefficients (k1, k2, p1, p2,
+  k3) or ``rational_polynomial`` with 8 (k1, k2, p1, p2, k3, k4, k5, k6), the OpenCV order;
+  every coefficient finite and within ``MAX_DISTORTION`` in magnitude. An empty model with an
+  empty or all-zero ``d`` is an ideal pinhole. Any other model (``equidistant``, a vendor's
+  name) is refused with its name: the pixels of such a camera cannot be read as a pinhole's.
 """
 
 from __future__ import annotations
@@ -41,8 +48,13 @@ __all__ = [
     "camera_info_msg",
     "check_image_layout",
     "check_image_size",
+    "DISTORTION_MODELS",
+    "MAX_DISTORTION",
     "camera_matrix_from_info",
+    "color_image_msg",
     "depth_image_msg",
+    "depth_mm_image_msg",
+    "distortion_from_info",
     "depth_to_metres",
     "image_to_array",
     "mask_image_msg",
@@ -57,10 +69,17 @@ MAX_FOCAL_PX = 1e5
 #: The principal point may lie this fraction of the image size outside the image.
 PRINCIPAL_POINT_MARGIN = 0.5
 
+#: Distortion models read, with their number of coefficients (OpenCV's order).
+DISTORTION_MODELS: dict[str, int] = {"plumb_bob": 5, "rational_polynomial": 8}
+#: Largest magnitude of a distortion coefficient accepted when reading (real lenses: < 10).
+MAX_DISTORTION = 1e3
+
 #: Numpy dtype and channels of the encodings :func:`image_to_array` decodes.
 _ENCODINGS: dict[str, tuple[np.dtype, int]] = {
     "rgb8": (np.dtype(np.uint8), 3),
     "bgr8": (np.dtype(np.uint8), 3),
+    "rgba8": (np.dtype(np.uint8), 4),
+    "bgra8": (np.dtype(np.uint8), 4),
     "mono8": (np.dtype(np.uint8), 1),
     "32FC1": (np.dtype(np.float32), 1),
     "16UC1": (np.dtype(np.uint16), 1),
@@ -69,7 +88,18 @@ _ENCODINGS: dict[str, tuple[np.dtype, int]] = {
 
 
 def rgb_image_msg(rgb: np.ndarray, stamp: Time, frame_id: str = CAMERA_FRAME) -> Image:
-    """Build an ``rgb8`` ``sensor_msgs/Image`` from an RGB array.
+    """An ``rgb8`` ``sensor_msgs/Image`` (``step = 3 * W``) of an (H, W, 3) uint8 RGB array:
+    :func:`color_image_msg` with ``encoding="rgb8"`` (its parameters and errors)."""
+    return color_image_msg(rgb, stamp, "rgb8", frame_id)
+
+
+#: Channel order of each colour encoding, as indices into R, G, B (alpha is added at 255).
+_COLOR_ORDER = {"rgb8": (0, 1, 2), "bgr8": (2, 1, 0), "rgba8": (0, 1, 2), "bgra8": (2, 1, 0)}
+
+
+def color_image_msg(rgb: np.ndarray, stamp: Time, encoding: str = "rgb8",
+                    frame_id: str = CAMERA_FRAME) -> Image:
+    """Build a colour ``sensor_msgs/Image`` in ``encoding`` from an RGB array.
 
     Parameters
     ----------
@@ -77,26 +107,57 @@ def rgb_image_msg(rgb: np.ndarray, stamp: Time, frame_id: str = CAMERA_FRAME) ->
         Colour image, channels in R, G, B order.
     stamp : Time
         Capture time.
+    encoding : str
+        ``rgb8``, ``bgr8``, ``rgba8`` or ``bgra8`` (alpha 255: opaque).
     frame_id : str
         Frame of the image, by default the colour optical frame.
-
-    Returns
-    -------
-    Image
-        ``encoding="rgb8"``, ``step = 3 * W``, row-major data.
 
     Raises
     ------
     ValueError
-        If the array is not (H, W, 3) uint8 with H, W > 0.
+        If the array is not (H, W, 3) uint8 with H, W > 0, or the encoding is another.
     """
+    if encoding not in _COLOR_ORDER:
+        raise ValueError(f"colour encoding must be one of {sorted(_COLOR_ORDER)}, got "
+                         f"{encoding[:32]!r}")
     rgb = np.asarray(rgb)
     if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.dtype != np.uint8 or rgb.size == 0:
         raise ValueError(
             f"rgb image must be a non-empty (H, W, 3) uint8 array, got shape {rgb.shape} "
             f"dtype {rgb.dtype}"
         )
-    return _image_msg(rgb, "rgb8", stamp, frame_id)
+    pixels = rgb[:, :, list(_COLOR_ORDER[encoding])]
+    if _ENCODINGS[encoding][1] == 4:
+        pixels = np.concatenate([pixels, np.full(rgb.shape[:2] + (1,), 255, np.uint8)], axis=2)
+    return _image_msg(pixels, encoding, stamp, frame_id)
+
+
+def depth_mm_image_msg(depth: np.ndarray, stamp: Time, frame_id: str = CAMERA_FRAME) -> Image:
+    """Build a ``16UC1`` depth image in millimetres (the RealSense / Orbbec drivers' unit).
+
+    Parameters
+    ----------
+    depth : (H, W) float ndarray
+        Depth along the optical axis, metres; NaN (no return) becomes 0, depth is rounded to
+        the millimetre and clipped to [1, 65535] mm.
+    stamp : Time
+    frame_id : str
+
+    Raises
+    ------
+    ValueError
+        If the array is not 2-D, non-empty and floating point.
+    """
+    depth = np.asarray(depth)
+    if depth.ndim != 2 or depth.size == 0 or not np.issubdtype(depth.dtype, np.floating):
+        raise ValueError(
+            f"depth image must be a non-empty (H, W) float array, got shape {depth.shape} "
+            f"dtype {depth.dtype}"
+        )
+    valid = np.isfinite(depth) & (depth > 0)
+    mm = np.zeros(depth.shape, dtype="<u2")
+    mm[valid] = np.clip(np.round(depth[valid] * 1e3), 1, 65535)
+    return _image_msg(mm, "16UC1", stamp, frame_id)
 
 
 def depth_image_msg(depth: np.ndarray, stamp: Time, frame_id: str = CAMERA_FRAME) -> Image:
@@ -230,9 +291,10 @@ def check_image_layout(msg: Image, encodings: tuple[str, ...] | None = None
 
 
 def camera_info_msg(
-    camera_matrix: np.ndarray, width: int, height: int, stamp: Time, frame_id: str = CAMERA_FRAME
+    camera_matrix: np.ndarray, width: int, height: int, stamp: Time, frame_id: str = CAMERA_FRAME,
+    distortion: np.ndarray | None = None, distortion_model: str = "plumb_bob",
 ) -> CameraInfo:
-    """Build a ``sensor_msgs/CameraInfo`` for an ideal pinhole camera.
+    """Build a ``sensor_msgs/CameraInfo`` (by default for an ideal pinhole camera).
 
     Parameters
     ----------
@@ -244,29 +306,40 @@ def camera_info_msg(
         Stamp of the image this info belongs to.
     frame_id : str
         Optical frame, by default the colour optical frame.
+    distortion : (N,) array, optional
+        Distortion coefficients in OpenCV's order (:data:`DISTORTION_MODELS` gives N); None:
+        zero (an ideal pinhole).
+    distortion_model : str
+        ``plumb_bob`` or ``rational_polynomial``.
 
     Returns
     -------
     CameraInfo
-        ``plumb_bob`` with zero distortion ``d = [0] * 5``, ``k = K``, ``r = I``,
-        ``p = [K | 0]`` (monocular), no binning or ROI.
+        ``distortion_model``, ``d`` (zeros by default), ``k = K``, ``r = I``,
+        ``p = [K | 0]`` (monocular; the driver's rectified K is K), no binning or ROI.
 
     Raises
     ------
     ValueError
         If K is not a finite (3, 3) matrix with positive focal lengths and last row
-        (0, 0, 1), or the size is not positive.
+        (0, 0, 1), the size is not positive, or the model or coefficients break the reader's
+        rule (module docstring).
     """
     k = _check_camera_matrix(camera_matrix)
     if int(width) <= 0 or int(height) <= 0:
         raise ValueError(f"image size must be positive, got {width} x {height}")
+    if distortion_model not in DISTORTION_MODELS:
+        raise ValueError(f"distortion model must be one of {sorted(DISTORTION_MODELS)}, got "
+                         f"{distortion_model[:32]!r}")
+    n = DISTORTION_MODELS[distortion_model]
+    d = np.zeros(n) if distortion is None else _check_distortion(distortion_model, distortion)
     msg = CameraInfo()
     msg.header.stamp = stamp
     msg.header.frame_id = frame_id
     msg.width = int(width)
     msg.height = int(height)
-    msg.distortion_model = "plumb_bob"
-    msg.d = [0.0] * 5
+    msg.distortion_model = distortion_model
+    msg.d = [float(v) for v in d]
     msg.k = k.ravel().tolist()
     msg.r = np.eye(3).ravel().tolist()
     msg.p = np.hstack([k, np.zeros((3, 1))]).ravel().tolist()
@@ -303,6 +376,52 @@ def camera_matrix_from_info(msg: CameraInfo) -> np.ndarray:
             raise ValueError(f"camera_info principal point {name} = {value:g} px lies outside "
                              f"the {msg.width} x {msg.height} image (margin {margin:g} px)")
     return k
+
+
+def distortion_from_info(msg: CameraInfo) -> tuple[str, np.ndarray]:
+    """The distortion model and coefficients of a ``CameraInfo``, by the reader's rule.
+
+    Parameters
+    ----------
+    msg : CameraInfo
+
+    Returns
+    -------
+    model : str
+        ``plumb_bob`` or ``rational_polynomial`` (an empty model with no or zero coefficients
+        reads as ``plumb_bob`` with zeros).
+    d : (5,) or (8,) float ndarray
+        The coefficients in OpenCV's order (all zero: an ideal pinhole).
+
+    Raises
+    ------
+    ValueError
+        Naming the model or the coefficient count: another model (``equidistant``, a vendor
+        name), a count that does not match the model, a coefficient not finite or larger than
+        ``MAX_DISTORTION`` in magnitude.
+    """
+    model = str(msg.distortion_model)
+    d = np.asarray(msg.d, dtype=float).ravel()
+    if model == "" and (d.size == 0 or (np.all(np.isfinite(d)) and not np.any(d))):
+        return "plumb_bob", np.zeros(DISTORTION_MODELS["plumb_bob"])
+    if model not in DISTORTION_MODELS:
+        raise ValueError(f"camera_info distortion_model {model[:32]!r} is not supported (read: "
+                         f"{', '.join(sorted(DISTORTION_MODELS))}); its pixels cannot be "
+                         "undistorted here, so the camera is refused rather than read as an "
+                         "ideal pinhole")
+    return model, _check_distortion(model, d)
+
+
+def _check_distortion(model: str, coefficients: np.ndarray) -> np.ndarray:
+    d = np.asarray(coefficients, dtype=float).ravel()
+    n = DISTORTION_MODELS[model]
+    if d.size != n:
+        raise ValueError(f"camera_info {model} distortion needs {n} coefficients in d, got "
+                         f"{d.size}")
+    if not np.all(np.isfinite(d)) or np.any(np.abs(d) > MAX_DISTORTION):
+        raise ValueError(f"camera_info distortion coefficients must be finite and within "
+                         f"+-{MAX_DISTORTION:g}, got {d.tolist()}")
+    return d
 
 
 def _check_camera_matrix(camera_matrix: np.ndarray) -> np.ndarray:

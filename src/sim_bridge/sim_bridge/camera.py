@@ -42,6 +42,7 @@ __all__ = [
     "CameraConfig",
     "add_depth_noise",
     "deproject",
+    "depth_edges",
     "depth_from_zbuffer",
     "intrinsics",
     "jittered",
@@ -245,6 +246,20 @@ def depth_from_zbuffer(zbuffer: ArrayLike, near: float, far: float) -> NDArray[n
     return depth.astype(np.float32)
 
 
+def depth_edges(z: NDArray[np.floating], step: float = 0.005) -> NDArray[np.bool_]:
+    """Pixels on a depth discontinuity (H, W) bool: a right or lower neighbour (or the pixel
+    it is the neighbour of) differs by more than ``step`` m (NaN never counts)."""
+    edge = np.zeros(z.shape, dtype=bool)
+    with np.errstate(invalid="ignore"):
+        jump_u = np.abs(np.diff(z, axis=1)) > step
+        jump_v = np.abs(np.diff(z, axis=0)) > step
+    edge[:, :-1] |= jump_u
+    edge[:, 1:] |= jump_u
+    edge[:-1, :] |= jump_v
+    edge[1:, :] |= jump_v
+    return edge
+
+
 def add_depth_noise(depth: NDArray[np.float32], rng: np.random.Generator,
                     focal_px: float = D415_FOCAL_PX) -> NDArray[np.float32]:
     """RealSense-like depth noise (see the module docstring); returns a new float32 array.
@@ -263,16 +278,7 @@ def add_depth_noise(depth: NDArray[np.float32], rng: np.random.Generator,
     noisy = z + sigma * rng.standard_normal(z.shape)
     noisy = np.round(noisy / DEPTH_UNIT) * DEPTH_UNIT
     drop = rng.random(z.shape) < 0.005
-    # Depth discontinuities: compare each pixel with its right and lower neighbours.
-    edge = np.zeros(z.shape, dtype=bool)
-    with np.errstate(invalid="ignore"):
-        jump_u = np.abs(np.diff(z, axis=1)) > 0.005
-        jump_v = np.abs(np.diff(z, axis=0)) > 0.005
-    edge[:, :-1] |= jump_u
-    edge[:, 1:] |= jump_u
-    edge[:-1, :] |= jump_v
-    edge[1:, :] |= jump_v
-    drop |= edge & (rng.random(z.shape) < 0.5)
+    drop |= depth_edges(z) & (rng.random(z.shape) < 0.5)
     noisy[drop] = np.nan
     return noisy.astype(np.float32)
 

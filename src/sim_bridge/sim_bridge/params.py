@@ -19,6 +19,7 @@ import numpy as np
 from push_core.objects import library_names, load_object
 from push_ros.node import ParamSpec
 from sim_bridge.arm_robot import DEFAULT_BASE_POSE, DEFAULT_PARK
+from sim_bridge.camera_profiles import profile
 from sim_bridge.config import SUPPORT_CELL_RANGE
 from sim_bridge.faults import FaultConfig
 from sim_bridge.world import CameraConfig, MonitorConfig, WorldConfig
@@ -64,6 +65,13 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec("image_width", 640, "Camera image width, px (D415-like colour stream, depth "
               "aligned to colour; the focal length scales with the size).", (32, 1920)),
     ParamSpec("image_height", 480, "Camera image height, px.", (24, 1080)),
+    ParamSpec("camera.profile", "default", "How the camera publishes: default (640 x 480, "
+              "rgb8, 32FC1 m, ideal pinhole, aligned depth), d415, d435, orbbec or zed (the "
+              "driver's resolution, encodings, distortion and depth noise; orbbec publishes "
+              "depth in its own frame on camera/depth/image_raw with camera/depth/camera_info). "
+              "A profile other than default sets the image size (image_width and image_height "
+              "are ignored) and always adds its own depth noise (docs/design/cameras.md).",
+              read_only=True, constraints="default, d415, d435, orbbec or zed"),
     ParamSpec("depth_noise", False, "Add D415-like depth noise, quantisation and dropouts "
               "(NaN)."),
     ParamSpec("randomize_appearance", False, "Randomise lighting, table and object colours "
@@ -185,6 +193,8 @@ class SimBridgeParams:
     randomize, depth_noise, randomize_appearance, randomize_camera : bool
     image_width, image_height : int
         px.
+    camera_profile : str
+        ``camera.profile`` (:mod:`sim_bridge.camera_profiles`).
     idle_frame_rate, clock_rate, idle_clock_rate : float
         Hz of wall time.
     push_speed : float
@@ -229,6 +239,7 @@ class SimBridgeParams:
     push_speed: float
     pusher_radius: float
     support_cell: float = 0.0
+    camera_profile: str = "default"
     faults: FaultConfig = FaultConfig()
     monitor: MonitorConfig | None = None
     robot: str = "pusher"
@@ -294,6 +305,7 @@ class SimBridgeParams:
             image_width=int(values["image_width"]),
             image_height=int(values["image_height"]),
             depth_noise=bool(values["depth_noise"]),
+            camera_profile=profile(str(values.get("camera.profile", "default"))).name,
             randomize_appearance=bool(values["randomize_appearance"]),
             randomize_camera=bool(values["randomize_camera"]),
             idle_frame_rate=float(values["idle_frame_rate"]),
@@ -340,8 +352,10 @@ class SimBridgeParams:
             pusher_radius=self.pusher_radius,
             support_cell=self.support_cell,
             push_speed=self.push_speed,
-            camera=CameraConfig(width=self.image_width, height=self.image_height),
-            depth_noise=self.depth_noise,
+            camera=(CameraConfig(width=self.image_width, height=self.image_height)
+                    if self.camera_profile == "default"
+                    else profile(self.camera_profile).camera_config()),
+            depth_noise=self.depth_noise and self.camera_profile == "default",
             randomize_appearance=self.randomize_appearance,
             randomize_camera=self.randomize_camera,
             robot=self.robot,
@@ -349,12 +363,18 @@ class SimBridgeParams:
             arm_park=self.arm_park,
         )
 
+    def _camera_text(self) -> str:
+        if self.camera_profile == "default":
+            return f"{self.image_width}x{self.image_height}"
+        prof = profile(self.camera_profile)
+        return f"{prof.name} profile {prof.width}x{prof.height}"
+
     def summary(self) -> str:
         """One line naming what these parameters build."""
         x, y, theta = self.initial_pose
         return (
             f"object {self.object!r} at (x={x:.4f} m, y={y:.4f} m, theta={theta:.4f} rad), "
-            f"camera {self.image_width}x{self.image_height}, seed {self.seed}"
+            f"camera {self._camera_text()}, seed {self.seed}"
             f"{', randomized' if self.randomize else ''}"
         )
 

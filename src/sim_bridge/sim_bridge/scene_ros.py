@@ -18,7 +18,13 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import CameraInfo, Image
 
 from push_ros.frames import CAMERA_FRAME, PUSHER_FRAME, WORLD_FRAME
-from push_ros.images import camera_info_msg, depth_image_msg, rgb_image_msg
+from push_ros.images import (
+    camera_info_msg,
+    color_image_msg,
+    depth_image_msg,
+    depth_mm_image_msg,
+    rgb_image_msg,
+)
 from push_ros.node import ThrottledLog
 from push_ros.paths import path_from_points
 from push_ros.poses import pose_stamped_msg, transform_msg
@@ -26,10 +32,14 @@ from push_ros.qos import CLOCK_QOS, LATCHED_QOS, RELIABLE_QOS, SENSOR_QOS
 from push_ros.refusal import refusal_msg
 from push_ros.stamps import stamp_from_seconds
 from push_ros.tf import tf_publisher
+from sim_bridge.camera_profiles import PROFILES, CameraProfile, driver_frame
 from sim_bridge.worker import Timeline
 from sim_bridge.world import Frame, PushWorld
 
-__all__ = ["Capture", "SceneEndpoints"]
+__all__ = ["DEPTH_FRAME", "Capture", "SceneEndpoints"]
+
+#: Optical frame of a depth stream with its own camera_info (RealSense's name).
+DEPTH_FRAME = "camera_depth_optical_frame"
 
 
 @dataclass(frozen=True)
@@ -43,6 +53,7 @@ class Capture:
     pusher_xy: np.ndarray
     time: float
     frame: Frame | None = None  # the rendered frame (its clean images make still frames)
+    depth_info: CameraInfo | None = None  # a depth stream with its own camera_info
 
 
 class SceneEndpoints:
@@ -59,16 +70,28 @@ class SceneEndpoints:
         ``frames(capture)``: the captures to publish for one publication (fault injection).
     log : push_ros.node.ThrottledLog
         Where a monitor frame that could not be published is reported.
+    camera : CameraProfile, optional
+        How the camera publishes (:mod:`sim_bridge.camera_profiles`; default: this project's
+        camera). A profile whose depth is not aligned publishes ``camera/depth/image_raw`` and
+        ``camera/depth/camera_info`` instead of the aligned depth.
+    seed : int
+        Seed of the profile's depth noise stream.
     """
 
     def __init__(self, node: Any, timeline: Timeline, closing: Callable[[], bool],
-                 frames: Callable[[Capture], list[Capture]], log: ThrottledLog) -> None:
+                 frames: Callable[[Capture], list[Capture]], log: ThrottledLog,
+                 camera: CameraProfile = PROFILES["default"], seed: int = 0) -> None:
         self._node, self.timeline, self._closing, self._frames = node, timeline, closing, frames
         self._log = log
+        self.camera = camera
+        self._rng = np.random.default_rng([int(seed), 34])
         pub = node.create_publisher
         self.pub_rgb = pub(Image, "camera/color/image_raw", SENSOR_QOS)
-        self.pub_depth = pub(Image, "camera/aligned_depth_to_color/image_raw", SENSOR_QOS)
+        self.pub_depth = pub(Image, "camera/aligned_depth_to_color/image_raw"
+                             if camera.depth_aligned else "camera/depth/image_raw", SENSOR_QOS)
         self.pub_info = pub(CameraInfo, "camera/color/camera_info", SENSOR_QOS)
+        self.pub_depth_info = None if camera.depth_aligned else pub(
+            CameraInfo, "camera/depth/camera_info", SENSOR_QOS)
         self.pub_extrinsics = pub(TransformStamped, "camera/color/extrinsics", LATCHED_QOS)
         self.pub_clock = pub(ClockMsg, "/clock", CLOCK_QOS)
         self.pub_pose = pub(PoseStamped, "sim/object_pose", RELIABLE_QOS)
@@ -108,11 +131,26 @@ class SceneEndpoints:
         t = self.timeline.at(frame.stamp)
         stamp = stamp_from_seconds(t)
         height, width = frame.depth.shape
+        pose = pose_stamped_msg(object_pose, stamp)
+        prof = self.camera
+        if prof.name == "default":
+            return Capture(
+                rgb=rgb_image_msg(frame.rgb, stamp), depth=depth_image_msg(frame.depth, stamp),
+                info=camera_info_msg(camera_matrix, width, height, stamp),
+                object_pose=pose, pusher_xy=pusher_xy, time=t, frame=frame)
+        clean = frame.depth if frame.clean_depth is None else frame.clean_depth
+        sent = driver_frame(prof, frame.rgb, clean, camera_matrix, self._rng)
+        depth_frame = CAMERA_FRAME if prof.depth_aligned else DEPTH_FRAME
+        encode = depth_mm_image_msg if prof.depth_encoding == "16UC1" else depth_image_msg
         return Capture(
-            rgb=rgb_image_msg(frame.rgb, stamp), depth=depth_image_msg(frame.depth, stamp),
-            info=camera_info_msg(camera_matrix, width, height, stamp),
-            object_pose=pose_stamped_msg(object_pose, stamp), pusher_xy=pusher_xy, time=t,
-            frame=frame)
+            rgb=color_image_msg(sent.rgb, stamp, prof.color_encoding),
+            depth=encode(sent.depth, stamp, depth_frame),
+            info=camera_info_msg(camera_matrix, width, height, stamp,
+                                 distortion=np.asarray(prof.distortion),
+                                 distortion_model=prof.distortion_model),
+            object_pose=pose, pusher_xy=pusher_xy, time=t, frame=frame,
+            depth_info=None if sent.depth_k is None else camera_info_msg(
+                sent.depth_k, sent.depth.shape[1], sent.depth.shape[0], stamp, DEPTH_FRAME))
 
     def executed(self, start: Any, end: Any, t_start: float, t_end: float) -> Path:
         """``pusher/executed``: the pusher at the push's start and end (world, m; times s)."""
@@ -138,8 +176,10 @@ class SceneEndpoints:
         """
         for shown in self._frames(capture):
             for publisher, msg in ((self.pub_rgb, shown.rgb), (self.pub_depth, shown.depth),
-                                   (self.pub_info, shown.info)):
-                self.publish(publisher, msg)
+                                   (self.pub_info, shown.info),
+                                   (self.pub_depth_info, shown.depth_info)):
+                if publisher is not None and msg is not None:
+                    self.publish(publisher, msg)
         self.publish(self.pub_pose, capture.object_pose)
         if self._tf is not None and not self._closing():
             pusher = np.eye(4)

@@ -41,6 +41,7 @@ from push_ros.qos import RELIABLE_QOS
 from push_ros.stamps import stamp_from_seconds
 from sim_bridge import commands
 from sim_bridge.arm_ros import ArmEndpoints
+from sim_bridge.camera_profiles import profile
 from sim_bridge.faults import FaultInjector
 from sim_bridge.params import NODE_NAME, PARAMETERS, SimBridgeParams
 from sim_bridge.resting import Rest
@@ -76,7 +77,9 @@ class SimBridgeNode(Node):
         self.faults: FaultInjector[Capture] = FaultInjector(self._params.faults,
                                                             self.health.count)
         self.scene = SceneEndpoints(self, Timeline(), lambda: self._closing,
-                                    lambda c: self.faults.frames(c, c.time), self.health.log)
+                                    lambda c: self.faults.frames(c, c.time), self.health.log,
+                                    camera=profile(self._params.camera_profile),
+                                    seed=self._params.seed)
         self.timeline = self.scene.timeline
         self._capture: Capture | None = None
         self._next_idle_clock = 0.0  # monotonic s: the next resting /clock is due then

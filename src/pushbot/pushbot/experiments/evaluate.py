@@ -237,14 +237,39 @@ def _run_ray(trials: list[Trial], address: str,
     return out
 
 
-def _run_graph(trials: list[Trial], out_dir: Path, progress: bool, robot: str = "pusher"
-               ) -> list[dict[str, Any]]:
+def camera_node_args(camera: str = "default", segmentation: str = "cnn"
+                     ) -> dict[str, list[str]]:
+    """Start-up parameters of the graph's nodes for a simulated camera profile
+    (``sim_bridge.camera_profiles``) and a segmentation method (``cnn`` or ``depth``).
+
+    Raises
+    ------
+    ValueError
+        An unknown profile or method.
+    """
+    from sim_bridge.camera_profiles import profile
+
+    prof = profile(camera)
+    if segmentation not in ("cnn", "depth"):
+        raise ValueError(f"--segmentation: cnn or depth, got {segmentation!r}")
+    perception = [f"segmentation.method:={segmentation}"]
+    if not prof.depth_aligned:
+        offset = ", ".join(f"{v:.6f}" for v in prof.depth_offset)
+        perception += ["camera.depth_aligned:=false",
+                       f"camera.depth_to_color:=[{offset}, 0.0, 0.0, 0.0, 1.0]"]
+    return {"sim_bridge_node": [f"camera.profile:={prof.name}"],
+            "segmentation_node": perception}
+
+
+def _run_graph(trials: list[Trial], out_dir: Path, progress: bool, robot: str = "pusher",
+               node_args: dict[str, list[str]] | None = None) -> list[dict[str, Any]]:
     try:
         from pushbot.runner.episode import run_graph_trials
     except ImportError as exc:
         raise ValueError(f"--graph needs pushbot.runner.episode (the ROS-graph episodes), which "
                          f"is not available in this install: {exc}") from None
-    return list(run_graph_trials(trials, out_dir=out_dir, progress=progress, robot=robot))
+    return list(run_graph_trials(trials, out_dir=out_dir, progress=progress, robot=robot,
+                                 node_args=node_args))
 
 
 def _order(records: list[dict[str, Any]], trials: list[Trial]) -> list[dict[str, Any]]:
@@ -255,7 +280,8 @@ def _order(records: list[dict[str, Any]], trials: list[Trial]) -> list[dict[str,
 
 def evaluate(opts: EvalOptions, *, workers: int | None = None, ray_address: str | None = None,
              graph: bool = False, out_dir: Path | str | None = None,
-             progress: bool = True, robot: str = "pusher") -> dict[str, Any]:
+             progress: bool = True, robot: str = "pusher", camera: str = "default",
+             segmentation: str = "cnn") -> dict[str, Any]:
     """Run the options' trials and summarise them (the ``results.json`` document).
 
     Parameters
@@ -274,8 +300,15 @@ def evaluate(opts: EvalOptions, *, workers: int | None = None, ray_address: str 
         Handed to the graph runner (its logs); the caller writes the outputs.
     progress : bool
         Progress bar on stderr.
+    camera, segmentation : str
+        With ``graph``: the simulated camera profile and the perception's segmentation method
+        (:func:`camera_node_args`).
     """
     trials = build_trials(opts)
+    node_args = camera_node_args(camera, segmentation)
+    if not graph and (camera, segmentation) != ("default", "cnn"):
+        raise ValueError("--camera and --segmentation need --graph (they configure the "
+                         "graph's sim_bridge_node and segmentation_node)")
     workers = usable_cores() if workers is None else int(workers)
     if workers < 1:
         raise ValueError(f"--workers: must be >= 1, got {workers}")
@@ -289,7 +322,7 @@ def evaluate(opts: EvalOptions, *, workers: int | None = None, ray_address: str 
     t0 = time.perf_counter()
     try:
         if graph:
-            records = _run_graph(trials, Path(out_dir or "out/eval"), progress, robot)
+            records = _run_graph(trials, Path(out_dir or "out/eval"), progress, robot, node_args)
             engine = "graph" if robot == "pusher" else f"graph ({robot})"
         elif ray_address:
             records = _run_ray(trials, ray_address, tick)
@@ -376,6 +409,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="with --graph: what executes the pushes, the simulator's free "
                              "pusher or push_executor_node driving the simulated Panda arm "
                              "(default %(default)s)")
+    parser.add_argument("--camera", default="default",
+                        choices=("default", "d415", "d435", "orbbec", "zed"),
+                        help="with --graph: the simulated camera publishes like this driver "
+                             "(sim_bridge_node camera.profile; default %(default)s)")
+    parser.add_argument("--segmentation", default="cnn", choices=("cnn", "depth"),
+                        help="with --graph: segmentation_node's segmentation.method, the CNN "
+                             "(falling back to depth where unsure) or depth alone (default "
+                             "%(default)s)")
     parser.add_argument("--out", default="out/eval",
                         help="output directory for results.json, figures and tables "
                              "(default out/eval)")
@@ -410,7 +451,8 @@ def run(args: argparse.Namespace) -> int:
                                  "'pushbot[ray]' (or pip install ray)")
         out_dir = Path(args.out)
         doc = evaluate(opts, workers=args.workers, ray_address=args.ray, graph=args.graph,
-                       out_dir=out_dir, progress=not args.no_progress, robot=args.robot)
+                       out_dir=out_dir, progress=not args.no_progress, robot=args.robot,
+                       camera=args.camera, segmentation=args.segmentation)
     except ValueError as exc:
         print(f"pushbot eval push: error: {exc}", file=sys.stderr)
         return 2

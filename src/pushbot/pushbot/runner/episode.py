@@ -523,7 +523,8 @@ def check_trial(trial: Trial) -> None:
 def run_graph_trials(trials: list[Trial], *, out_dir: Path | str | None = None,
                      progress: bool = True, robot: str = "pusher",
                      node_exe: Path | None = None,
-                     run: Callable[[GraphRunner, Trial], dict[str, Any]] | None = None
+                     run: Callable[[GraphRunner, Trial], dict[str, Any]] | None = None,
+                     node_args: dict[str, Sequence[str]] | None = None
                      ) -> list[dict[str, Any]]:
     """Run ``trials`` through the ROS graph (four node processes, started once) in order.
 
@@ -542,6 +543,9 @@ def run_graph_trials(trials: list[Trial], *, out_dir: Path | str | None = None,
     run : callable, optional
         ``run(graph, trial) -> record`` instead of ``graph.run(trial)`` (a benchmark that also
         reads what the graph's client recorded meanwhile).
+    node_args : dict, optional
+        Extra start-up parameters per node (:class:`GraphRunner`): a camera profile, the
+        segmentation method.
 
     Returns
     -------
@@ -555,7 +559,8 @@ def run_graph_trials(trials: list[Trial], *, out_dir: Path | str | None = None,
     log_dir = Path(out_dir) / "graph_logs" if out_dir is not None else None
     records: list[dict[str, Any]] = []
     with sigterm_as_keyboard_interrupt(), GraphRunner(log_dir=log_dir, robot=robot,
-                                                       node_exe=node_exe) as graph:
+                                                       node_exe=node_exe,
+                                                       node_args=node_args) as graph:
         for i, trial in enumerate(trials):
             try:
                 record = graph.run(trial) if run is None else run(graph, trial)
