@@ -232,8 +232,9 @@ def test_graph_flag_hands_the_trials_to_the_graph_runner(tmp_path, monkeypatch):
 
     seen = {}
 
-    def fake(trials, *, out_dir, progress, robot):
+    def fake(trials, *, out_dir, progress, robot, node_args=None):
         seen["trials"], seen["out_dir"], seen["robot"] = list(trials), out_dir, robot
+        seen["node_args"] = node_args
         return [_record(True, 3, 0.002, 0.01, **t.as_dict()) for t in trials]
 
     monkeypatch.setitem(sys.modules, "pushbot.runner.episode",
