@@ -36,12 +36,14 @@ from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 from nav_msgs.msg import Path  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
+from rosgraph_msgs.msg import Clock  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
-from push_executor.kinematics import MAX_URDF_CHARS  # noqa: E402
+from push_executor.kinematics import MAX_URDF_CHARS, ArmKinematics, ToolSpec  # noqa: E402
 from push_executor.motion import PANDA_PARK  # noqa: E402
 from push_executor.push_executor_node import PushExecutorNode  # noqa: E402
+from push_executor.state_check import StateCheckConfig  # noqa: E402
 from push_executor.tracking import MAX_SAMPLES  # noqa: E402
 from push_ros.paths import push_path  # noqa: E402
 from push_ros.refusal import read_refusal  # noqa: E402
@@ -50,6 +52,8 @@ from push_ros.stamps import stamp_from_seconds  # noqa: E402
 from .test_kinematics import panda_urdf  # noqa: E402
 
 N_FUZZ = 2000
+#: Hostile postures each followed by a push (a posture within the limits is planned: slower).
+N_POSTURES = 300
 FUZZ = settings(max_examples=N_FUZZ, deadline=None, derandomize=True, database=None,
                 suppress_health_check=list(HealthCheck))
 ARM = [f"panda_joint{i}" for i in range(1, 8)]
@@ -61,6 +65,16 @@ STAMP = st.one_of(st.floats(0.0, 50.0).map(stamp_from_seconds),
                   st.builds(Time, sec=st.integers(-(2**31), 2**31 - 1),
                             nanosec=st.integers(0, 2**32 - 1)))
 URDF = panda_urdf()
+#: Joint positions far outside every Panda joint's limits (the probe's 100 and -1e6 rad).
+FAR = st.one_of(st.sampled_from([100.0, -1e6, 1e6, 1e300, -1e300, 7.0, -4.0]),
+                st.floats(10.0, 1e12), st.floats(-1e12, -10.0))
+_PANDA = ArmKinematics(URDF, "panda_link0", ToolSpec())
+PANDA_LOWER, PANDA_UPPER = tuple(_PANDA.lower), tuple(_PANDA.upper)
+STATE_MARGIN = StateCheckConfig().state_margin
+#: The node's simulated clock, s: valid joint states are stamped at it (their age is checked).
+CLOCK = 10.0
+#: The clock while a push runs under fuzzing: ahead of every drawn joint state stamp (0-50 s).
+MOVING_CLOCK = 60.0
 
 
 class Probe:
@@ -76,6 +90,10 @@ class Probe:
         node._pub_refused.publish = self.refused.append
         node._pub_path.publish = self.paths.append
 
+    def set_clock(self, seconds: float) -> None:
+        """The node's simulated clock, through its own ``/clock`` callback."""
+        self.callbacks["clock"](Clock(clock=stamp_from_seconds(seconds)))
+
     def send(self, topic: str, msg: Any) -> None:
         self.callbacks[topic](msg)
         assert self.errors == 0, self.node.health.last_error
@@ -85,7 +103,7 @@ class Probe:
         return self.node.health.get("callback_errors")
 
 
-def valid_state(stamp: float = 10.0, q: Any = PANDA_PARK) -> JointState:
+def valid_state(stamp: float = CLOCK, q: Any = PANDA_PARK) -> JointState:
     msg = JointState(name=[*ARM, "panda_finger_joint1"], position=[*q, 0.0])
     msg.header.stamp = stamp_from_seconds(stamp)
     return msg
@@ -94,9 +112,10 @@ def valid_state(stamp: float = 10.0, q: Any = PANDA_PARK) -> JointState:
 @pytest.fixture(scope="module")
 def probe(module_ros_context: Any) -> Iterator[Probe]:
     node = PushExecutorNode(context=module_ros_context, parameter_overrides=[
-        Parameter("start_enabled", value=False)])
+        Parameter("start_enabled", value=False), Parameter("use_sim_time", value=True)])
     try:
         p = Probe(node)
+        p.set_clock(CLOCK)
         p.send("robot_description", String(data=URDF))
         assert node._arm is not None
         yield p
@@ -120,14 +139,16 @@ def pushes(draw: Callable) -> Path:
 
 
 @st.composite
-def joint_states(draw: Callable) -> JointState:
-    kind = draw(st.sampled_from(["ok", "ok", "nan", "short", "long", "mismatch", "repeat",
-                                 "unknown", "huge", "stamp", "empty"]))
+def joint_states(draw: Callable, far: bool = True) -> JointState:
+    kind = draw(st.sampled_from(["ok", "ok", "nan", *(["far"] if far else []), "short", "long",
+                                 "mismatch", "repeat", "unknown", "huge", "stamp", "empty"]))
     rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
     q = np.array(PANDA_PARK) + rng.normal(0.0, draw(st.sampled_from([1e-3] * 20 + [0.2])), 7)
     msg = valid_state(draw(st.floats(0.0, 20.0)), q)
     if kind == "nan":
         msg.position[int(rng.integers(7))] = draw(st.sampled_from(SPECIAL[:3]))
+    elif kind == "far":  # a glitched encoder: far outside the joint's limits
+        msg.position[int(rng.integers(7))] = draw(FAR)
     elif kind == "short":
         msg.position = msg.position[:int(rng.integers(0, 7))]
     elif kind == "long":
@@ -201,11 +222,15 @@ def test_fuzz_joint_states(probe: Probe) -> None:
 
 def test_fuzz_joint_states_while_moving(probe: Probe) -> None:
     """A push is running (enabled, a controller 'matched'): hostile joint states may stop it
-    (deviation, a far-future stamp) but never raise; samples stay bounded."""
+    (deviation, a far-future stamp) but never raise; samples stay bounded. The clock is ahead
+    of the drawn stamps (0-50 s), so most states are older than the motion's start (tracked
+    against its start posture, as a delayed stream would be); impossible postures are never
+    tracked (they are not a posture the arm can be in)."""
     node = probe.node
     node._enabled = True
     node._pub_traj.get_subscription_count = lambda: 1  # the captured publisher is "matched"
-    probe.send("joint_states", valid_state(10.0))
+    probe.set_clock(MOVING_CLOCK)
+    probe.send("joint_states", valid_state(MOVING_CLOCK))
     stops = 0
 
     @settings(FUZZ, max_examples=N_FUZZ)
@@ -214,7 +239,7 @@ def test_fuzz_joint_states_while_moving(probe: Probe) -> None:
         nonlocal stops
         if node._run is None:
             stops += 1
-            probe.send("joint_states", valid_state(10.0))
+            probe.send("joint_states", valid_state(MOVING_CLOCK))
             probe.send("planner/push", push_path((-0.055, 0.02), (-0.05, 0.02), (0.0, 0.02),
                                                  5.0, 0.02))
         probe.send("joint_states", msg)
@@ -225,8 +250,78 @@ def test_fuzz_joint_states_while_moving(probe: Probe) -> None:
     finally:
         node._enabled = False
         node._run = None
+        probe.set_clock(CLOCK)
+        probe.send("joint_states", valid_state())
     holds = [t for t in probe.trajectories if len(t.points) == 1]
     assert stops >= 2 and len(holds) >= stops - 1
+
+
+@st.composite
+def postures(draw: Callable) -> list[float]:
+    """A posture as a glitching encoder reports it: mostly one joint far out (or non-finite),
+    sometimes one just inside or just outside the limits widened by state_margin."""
+    q = list(PANDA_PARK)
+    j = draw(st.integers(0, 6))
+    kind = draw(st.sampled_from(["far"] * 6 + ["nonfinite", "outside", "outside", "inside"]))
+    lower, upper = PANDA_LOWER[j], PANDA_UPPER[j]
+    if kind == "far":
+        q[j] = draw(FAR)
+    elif kind == "nonfinite":
+        q[j] = draw(st.sampled_from(SPECIAL[:3]))
+    elif kind == "outside":
+        q[j] = draw(st.sampled_from([upper, lower])) + draw(st.sampled_from([1, -1])) * \
+            draw(st.floats(STATE_MARGIN * 1.01, 3.0))
+        q[j] = q[j] if not lower - STATE_MARGIN <= q[j] <= upper + STATE_MARGIN else upper + 1.0
+    else:
+        q[j] = upper + draw(st.floats(0.0, 0.9 * STATE_MARGIN))
+    return q
+
+
+def test_fuzz_impossible_postures_then_a_push(probe: Probe) -> None:
+    """Enabled, a controller matched: after each hostile posture a valid push. A posture
+    outside the limits (+ state_margin) or non-finite is refused with kind ``state`` naming
+    the joint and nothing is sent; one just inside is planned and sent with its first point
+    at the measured posture."""
+    node = probe.node
+    node._enabled = True
+    node._pub_traj.get_subscription_count = lambda: 1
+    planned = 0
+
+    @settings(FUZZ, max_examples=N_POSTURES)
+    @given(postures())
+    def run(q: list[float]) -> None:
+        nonlocal planned
+        node._run = None  # the previous push's motion is not watched here
+        probe.send("joint_states", valid_state(CLOCK, q))
+        sent, refused = len(probe.trajectories), len(probe.refused)
+        probe.send("planner/push", push_path((-0.055, 0.02), (-0.05, 0.02), (0.0, 0.02), 5.0,
+                                             0.02))
+        inside = all(math.isfinite(v) and lo - STATE_MARGIN <= v <= hi + STATE_MARGIN
+                     for v, lo, hi in zip(q, PANDA_LOWER, PANDA_UPPER, strict=True))
+        if inside:  # not refused for its state (the push's own motion may still be refused)
+            refusals = [read_refusal(r) for r in probe.refused[refused:]]
+            assert all(r.kind not in ("state", "plan") for r in refusals), refusals
+            if len(probe.trajectories) == sent + 1:
+                order = [probe.trajectories[-1].joint_names.index(j) for j in ARM]
+                np.testing.assert_allclose(np.array(probe.trajectories[-1].points[0]
+                                                    .positions)[order], q)
+                planned += 1
+        else:
+            assert len(probe.trajectories) == sent
+            refusal = read_refusal(probe.refused[-1])
+            assert len(probe.refused) == refused + 1 and refusal.kind == "state", refusal
+            assert ARM[int(np.argmax([not (math.isfinite(v) and lo - STATE_MARGIN <= v
+                                                <= hi + STATE_MARGIN)
+                                         for v, lo, hi in zip(q, PANDA_LOWER, PANDA_UPPER,
+                                                              strict=True)]))] in refusal.reason
+
+    try:
+        run()
+    finally:
+        node._enabled = False
+        node._run = None
+        probe.send("joint_states", valid_state())
+    assert planned >= 1
 
 
 def test_fuzz_pushes(probe: Probe) -> None:
@@ -279,6 +374,7 @@ def test_memory_is_bounded(probe: Probe) -> None:
 def test_after_fuzzing_the_node_still_plans(probe: Probe) -> None:
     node = probe.node
     probe.send("robot_description", String(data=URDF))
+    probe.set_clock(30.0)
     probe.send("joint_states", valid_state(30.0))
     probe.refused.clear()
     probe.paths.clear()

@@ -60,6 +60,21 @@ Rules (docs/design/episode-engine.md):
    by :meth:`EpisodeEngine.status_text` until the next push is planned: the same push is not
    planned again, the planner tries another contact region (with the estimator's
    ``EKFConfig.relearn`` the model is re-learnt from the same observation).
+9. **A robot that is not available pauses the episode** (:meth:`EpisodeEngine.robot_unavailable`:
+   the robot refused a push for a reason no other push avoids: disabled for a dry run, no joint
+   states, no controller, an impossible measured posture). The push in flight is given back
+   (not a step; a push the robot had started counts as lost), the phase becomes
+   ``unavailable`` (:meth:`EpisodeEngine.status_text`: ``robot unavailable: <kind>: <reason>``)
+   and nothing is planned, so no step is spent while waiting. :meth:`EpisodeEngine.robot_available`
+   (the robot says it is ready) resumes the episode from an estimate stamped after the given
+   time (a fresh frame: the world may have changed meanwhile);
+   :meth:`EpisodeEngine.robot_waited` fails the episode (``robot unavailable``) once the robot
+   has been unavailable for ``robot_timeout`` s without an executed push since. These times
+   are the caller's clock (``now``), not the estimates' stamps.
+10. **A restarted clock** (:meth:`EpisodeEngine.clock_restarted`: the time source jumped back,
+    e.g. a restarted simulator starting near 0): the stamps of the old clock mean nothing any
+    more; the end of the last push, the used and the fresh-frame stamps are forgotten and so is
+    the newest estimate (the next one is of the new clock).
 
 Scoring (:func:`end_score`, :func:`true_errors`): success from the *true* end pose against the
 true goal, the orientation modulo the object's k-fold symmetry and not counted for a
@@ -97,7 +112,7 @@ __all__ = [
 
 #: Counters an :class:`EpisodeEngine` keeps (``planner_node`` reports them in its status).
 COUNTERS = ("estimates", "planned", "ignored_stale", "ignored_duplicate", "ignored_busy",
-            "lost", "left", "contradicted")
+            "lost", "left", "contradicted", "robot_unavailable", "clock_restarts")
 #: Rule 8: an executed push contradicts its prediction when the observed pose is more than this
 #: (eq. 5.1 score units, mm + lambda deg) from the predicted one ...
 CONTRADICTION_MISS = 10.0
@@ -168,16 +183,22 @@ class EpisodeEngine:
     after_goal : str
         ``resume`` | ``report``: what happens when the object leaves the goal region after
         ``reached`` (module docstring, rule 7).
+    robot_timeout : float
+        Longest wait for an unavailable robot before the episode fails (rule 9), s of the
+        caller's clock.
 
     Attributes
     ----------
     phase : str
         ``waiting`` | ``pushing`` | ``reached`` | ``left`` (after_goal ``report``) |
-        ``failed``.
+        ``unavailable`` (rule 9) | ``failed``.
     steps : int
-        Pushes sent in this episode.
+        Pushes sent in this episode (a push given back by rule 9 is not one).
     failure : str
-        ``max steps`` or ``no feasible push`` once failed.
+        ``max steps``, ``no feasible push`` or ``robot unavailable`` once failed.
+    unavailable : str
+        Why the robot is not available (``<kind>: <reason>``) while the phase is
+        ``unavailable``, else empty.
     counts : dict
         The :data:`COUNTERS` (over the engine's life, not reset by a new goal).
     """
@@ -185,9 +206,11 @@ class EpisodeEngine:
     planner: Planner | Any
     max_steps: int = 30
     after_goal: str = "resume"
+    robot_timeout: float = 300.0
     phase: str = "waiting"
     steps: int = 0
     failure: str = ""
+    unavailable: str = ""
     goal: NDArray[np.float64] | None = None
     outline: Outline | None = None
     last_push_end: float = -math.inf
@@ -203,6 +226,11 @@ class EpisodeEngine:
     _outcome: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None = None
     _planned: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None = None
     last_contradiction: str = ""
+    #: Rule 9: since when (caller's clock) the robot has been unavailable without an executed
+    #: push; the next estimate used must be stamped after ``_fresh_after``.
+    _unavailable_since: float = math.nan
+    _fresh_after: float = -math.inf
+    _failure_detail: str = ""
 
     def __post_init__(self) -> None:
         if not (callable(getattr(self.planner, "plan", None))
@@ -216,6 +244,8 @@ class EpisodeEngine:
         if self.after_goal not in AFTER_GOAL:
             raise ValueError(f"after_goal: expected one of {', '.join(AFTER_GOAL)}, got "
                              f"{self.after_goal!r}")
+        if not (isinstance(self.robot_timeout, int | float) and self.robot_timeout > 0):
+            raise ValueError(f"robot_timeout: expected > 0 s, got {self.robot_timeout!r}")
 
     # ---- events --------------------------------------------------------------------------------
     def new_goal(self, goal: ArrayLike) -> None:
@@ -225,7 +255,8 @@ class EpisodeEngine:
         if g.shape != (3,) or not np.all(np.isfinite(g)):
             raise ValueError(f"goal: expected 3 finite numbers, got {goal!r}")
         self.goal = g
-        self.phase, self.steps, self.failure = "waiting", 0, ""
+        self.phase, self.steps, self.failure, self.unavailable = "waiting", 0, "", ""
+        self._unavailable_since = math.nan
         self._used_stamp = -math.inf
         self._contradicted.clear()
         self._outcome = None
@@ -254,7 +285,7 @@ class EpisodeEngine:
         self.counts["estimates"] += 1
         if self._latest is None or stamp >= self._latest[0]:
             self._latest = (float(stamp), s, cov)
-        if stamp < self.last_push_end:
+        if stamp < self.last_push_end or stamp <= self._fresh_after:
             self.counts["ignored_stale"] += 1
         elif stamp <= self._used_stamp:
             self.counts["ignored_duplicate"] += 1
@@ -264,6 +295,7 @@ class EpisodeEngine:
     def push_executed(self, end_stamp: float) -> None:
         """The push in flight was executed; it ended at ``end_stamp``."""
         self.last_push_end = max(self.last_push_end, float(end_stamp))
+        self._unavailable_since = math.nan  # progress: a later wait is timed afresh
         self.in_flight, self._in_flight_point = False, None
         self._avoid.clear()
         self._outcome, self._planned = self._planned, None
@@ -285,6 +317,50 @@ class EpisodeEngine:
         self._in_flight_point = None
         self._planned = None
 
+    def robot_unavailable(self, reason: str, now: float, moved: bool = False) -> None:
+        """Rule 9: the robot cannot take any push (``reason``: ``<kind>: <reason>``). The push
+        in flight is given back (``moved``: the robot had started it, it counts as lost) and
+        the episode waits; ``now`` (s, the caller's clock) starts the ``robot_timeout``."""
+        if self.phase in ("failed", "reached", "left") and not self.in_flight:
+            return
+        if self.in_flight:
+            self.in_flight, self._in_flight_point, self._planned = False, None, None
+            if moved:
+                self.counts["lost"] += 1
+            else:
+                self.steps = max(0, self.steps - 1)
+        self.phase, self.unavailable = "unavailable", str(reason)
+        self.counts["robot_unavailable"] += 1
+        if not math.isfinite(self._unavailable_since):
+            self._unavailable_since = float(now)
+
+    def robot_available(self, fresh_after: float) -> bool:
+        """Rule 9: the robot is ready again; the episode resumes from an estimate stamped
+        after ``fresh_after`` (s, the estimates' clock). False when it was not waiting."""
+        if self.phase != "unavailable":
+            return False
+        self.phase = "pushing" if self.steps > 0 else "waiting"
+        self.unavailable = ""
+        self._fresh_after = max(self._fresh_after, float(fresh_after))
+        return True
+
+    def robot_waited(self, now: float) -> Step | None:
+        """Rule 9's time-out: ``failed`` once the robot has been unavailable for more than
+        ``robot_timeout`` s at ``now`` (the caller's clock), else None."""
+        waited = float(now) - self._unavailable_since
+        if self.phase != "unavailable" or not waited > self.robot_timeout:
+            return None
+        self.phase, self.failure = "failed", "robot unavailable"
+        self._failure_detail = (f"robot unavailable for {waited:.0f} s (robot_timeout "
+                                f"{self.robot_timeout:g} s): {self.unavailable}")
+        return Step("failed", reason=self._failure_detail)
+
+    def clock_restarted(self) -> None:
+        """Rule 10: the clock of the stamps jumped back; forget every stamp of the old one."""
+        self.last_push_end = self._used_stamp = self._fresh_after = -math.inf
+        self._latest = None
+        self.counts["clock_restarts"] += 1
+
     # ---- decision ------------------------------------------------------------------------------
     @property
     def finished(self) -> bool:
@@ -304,8 +380,9 @@ class EpisodeEngine:
     def status_text(self) -> str:
         """The episode in words: ``waiting`` (``for goal, outline, estimate`` what is missing),
         ``pushing step n``, ``goal reached`` (with ``(ORIENTATION_IGNORED)`` for a continuously
-        symmetric outline), ``goal left``, ``failed after max steps`` or ``failed: no feasible
-        push``."""
+        symmetric outline), ``goal left``, ``robot unavailable: <kind>: <reason>``, ``failed
+        after max steps``, ``failed: no feasible push`` or ``failed: robot unavailable for
+        ...``."""
         if self.phase == "pushing":
             return f"pushing step {self.steps}" + (f" - {self.last_contradiction}"
                                                    if self.last_contradiction else "")
@@ -314,9 +391,12 @@ class EpisodeEngine:
                                      else f" ({ORIENTATION_IGNORED})")
         if self.phase == "left":
             return "goal left"
+        if self.phase == "unavailable":
+            return f"robot unavailable: {self.unavailable}"
         if self.phase == "failed":
-            return ("failed after max steps" if self.failure == "max steps"
-                    else "failed: no feasible push")
+            return {"max steps": "failed after max steps",
+                    "robot unavailable": f"failed: {self._failure_detail}"}.get(
+                        self.failure, "failed: no feasible push")
         missing = [name for name, have in (("goal", self.goal is not None),
                                            ("outline", self.outline is not None),
                                            ("estimate", self._latest is not None)) if not have]
@@ -325,10 +405,10 @@ class EpisodeEngine:
     def step(self) -> Step:
         """Decide on the newest estimate if rule 1 allows it (module docstring, rules 2-3)."""
         if (self._latest is None or self.goal is None or self.outline is None
-                or self.phase == "failed" or self.in_flight):
+                or self.phase in ("failed", "unavailable") or self.in_flight):
             return Step("wait")
         stamp, state, cov = self._latest
-        if stamp < self.last_push_end or stamp <= self._used_stamp:
+        if stamp < self.last_push_end or stamp <= self._used_stamp or stamp <= self._fresh_after:
             return Step("wait")
         self._used_stamp = stamp
         self._judge_outcome(state)

@@ -19,6 +19,7 @@ docs/design/arm.md.
 from __future__ import annotations
 
 import math
+import os
 import time
 from pathlib import Path as FilePath
 from typing import Any
@@ -39,13 +40,22 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from push_executor.kinematics import ArmKinematics
 from push_executor.motion import MotionPlan, PushRefused, plan_push
 from push_executor.parameters import NODE_NAME, PARAMETERS, ExecutorParams
+from push_executor.state_check import (
+    MeasuredPosture,
+    StuckPosture,
+    check_before_planning,
+    check_plan,
+    nonfinite_joints,
+    posture_problem,
+    unavailable,
+)
 from push_executor.tracking import Event, Execution, chain_positions
 from push_ros.health import NodeHealth
 from push_ros.node import declare_config, run_node
 from push_ros.paths import path_from_points, push_points_from_path
 from push_ros.poses import pose_msg
 from push_ros.qos import LATCHED_QOS, RELIABLE_QOS
-from push_ros.refusal import refusal_msg
+from push_ros.refusal import readiness_values, refusal_msg
 from push_ros.stamps import check_not_ahead, clock_seconds, seconds_from_stamp, stamp_from_seconds
 
 __all__ = ["PARAMETERS", "ExecutorParams", "PushExecutorNode", "main"]
@@ -81,6 +91,8 @@ class PushExecutorNode(Node):
         self._push_stamp: Any = None
         self._stopped = False
         self._line_error_mm = math.nan
+        self._q_problem, self._stuck = "", StuckPosture()  # push_executor.state_check
+        self._session, self._readiness = f"{os.getpid()}-{time.time_ns()}", None
         self._pub_traj = self.create_publisher(JointTrajectory, p["controller_topic"],
                                                RELIABLE_QOS)
         self._pub_executed = self.create_publisher(Path, "pusher/executed", RELIABLE_QOS)
@@ -134,7 +146,7 @@ class PushExecutorNode(Node):
             return
         self._load_model(msg.data)
 
-    def _on_joint_state(self, msg: JointState) -> None:
+    def _on_joint_state(self, msg: JointState) -> None:  # noqa: RET503 - None either way
         if self._arm is None:
             return
         if len(msg.name) > MAX_JOINTS:
@@ -145,12 +157,18 @@ class PushExecutorNode(Node):
             check_not_ahead(stamp, clock_seconds(self.get_clock()),
                             self.params.values["max_future_stamp"], "joint state stamp")
             q = chain_positions(self._arm.joint_names, list(msg.name), msg.position)
+            problem = posture_problem(self._arm, q, self.params.checks.state_margin)
         except ValueError as exc:
-            self.health.refuse("/joint_states", str(exc), "invalid")
+            problem = nonfinite_joints(self._arm.joint_names, msg.name, msg.position)
+            self.health.refuse("/joint_states", str(exc), "state" if problem else "invalid")
+            self._q_problem = problem or self._q_problem
             return
+        if problem:  # not a posture the arm can be in: the last plausible one is kept
+            self._q_problem = problem
+            return self.health.refuse("/joint_states", problem, "state")
         steady = time.monotonic()
         if stamp >= self._q_stamp or self._run is None:
-            self._q, self._q_stamp, self._q_steady = q, stamp, steady
+            self._q, self._q_stamp, self._q_steady, self._q_problem = q, stamp, steady, ""
         self.health.count("joint_states")
         if self._run is not None:
             self._finish(self._run.on_state(stamp, q, steady))
@@ -170,12 +188,15 @@ class PushExecutorNode(Node):
             return self._refuse(stamp, "invalid", "input", str(exc))
         if self._arm is None:
             return self._refuse(stamp, "no_model", "", "no robot description yet")
-        if self._q is None or time.monotonic() - self._q_steady > \
-                self.params.values["state_timeout"]:
-            return self._refuse(stamp, "no_state", "", "no recent joint state")
         try:
-            plan = plan_push(self._arm, self.params.motion, approach, contact, end, self._q)
+            q = check_before_planning(self._arm, self._posture(), self.params.checks,
+                                      self.params.motion, time.monotonic(),
+                                      clock_seconds(self.get_clock()))
+            plan = plan_push(self._arm, self.params.motion, approach, contact, end, q)
+            check_plan(plan, self.params.checks)
         except PushRefused as refusal:
+            refusal = self._stuck.classify(refusal, self._q, float(self._arm.tip_pose(
+                self._q)[0][2]), self.params.motion) if self._q is not None else refusal
             return self._refuse(stamp, refusal.kind, refusal.stage, refusal.reason)
         self._pub_path.publish(self._path_msg(plan))
         t0 = clock_seconds(self.get_clock())
@@ -204,6 +225,19 @@ class PushExecutorNode(Node):
     def _on_watchdog(self) -> None:
         if self._run is not None:
             self._finish(self._run.on_timer(time.monotonic()))
+        if self._unavailable() != self._readiness:  # executor/status says when it changes
+            self._publish_status()
+
+    def _posture(self) -> MeasuredPosture:
+        return MeasuredPosture(self._q, self._q_stamp, self._q_steady, self._q_problem)
+
+    def _unavailable(self) -> tuple[str, str] | None:
+        """Why no push can be taken now (push_executor.state_check.unavailable), or None."""
+        return unavailable(model=self._arm is not None, enabled=self._enabled, arm=self._arm,
+                           posture=self._posture(), stuck=self._stuck,
+                           config=self.params.checks, motion=self.params.motion,
+                           controller=self._pub_traj.get_subscription_count() > 0,
+                           steady=time.monotonic(), clock=clock_seconds(self.get_clock()))
 
     def _finish(self, event: Event | None) -> None:
         if event is None or self._run is None:
@@ -267,7 +301,8 @@ class PushExecutorNode(Node):
     def _refuse(self, stamp: Any, kind: str, stage: str, reason: str) -> None:
         self.health.refuse("push", f"{kind} ({stage}): {reason}" if stage else reason, kind)
         self._pub_refused.publish(refusal_msg(self.get_fully_qualified_name(), stamp, kind,
-                                              reason, stage, "arm"))
+                                              reason, stage, "arm",
+                                              available=self._unavailable() is None))
         self._publish_status()
 
     def _trajectory_msg(self, plan: MotionPlan, start: float) -> JointTrajectory:
@@ -296,8 +331,11 @@ class PushExecutorNode(Node):
         level = DiagnosticStatus.WARN if self._arm is None or self._stopped \
             else DiagnosticStatus.OK
         model = "no robot description" if self._arm is None else f"{len(self._joints)} joints"
+        self._readiness = self._unavailable()
         extra = {"state": state, "model": model,
-                 "contact_line_error_mm": f"{self._line_error_mm:.4f}"}
+                 "contact_line_error_mm": f"{self._line_error_mm:.4f}",
+                 **readiness_values(self._run is None and self._readiness is None,
+                                    self._readiness, self._session)}
         self._pub_status.publish(self.health.status(level, f"{state}, {model}", extra))
         self.health.publish(level, f"{state}, {model}", extra)
 

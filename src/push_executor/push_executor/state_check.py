@@ -1,0 +1,309 @@
+"""The measured state before a push is planned, bounds on the plan, and whether the executor
+can take a push at all (ROS-free).
+
+Times: ``steady`` values are a monotonic clock of the executor's machine, s; ``clock`` values
+the node's clock (simulated time in simulation), s; joint positions in rad (m for prismatic
+joints), in the chain's order (``joint_names`` of :class:`push_executor.kinematics.ArmKinematics`).
+
+A joint state whose chain posture is not finite or outside the limits by more than
+``state_margin`` (:func:`nonfinite_joints`, :func:`posture_problem`) is not taken as the
+measured posture: the node keeps the last plausible one (which a stop then holds), records the
+problem and, while a push runs, does not feed it to the tracking (implausible states alone
+stop the arm as stale ones do).
+
+Before :func:`push_executor.motion.plan_push` runs, :func:`check_before_planning` refuses
+
+- ``no_state``: no joint state yet, or none for ``state_timeout`` s (steady clock);
+- ``state``: the newest joint state has a non-finite position of a chain joint (the posture
+  is unknown; the last finite one is not used), the posture is outside the URDF position
+  limits by more than ``state_margin`` (a glitched encoder: the transit from 100 rad would
+  take minutes, from -1e6 rad its samples would not fit in memory), the joint state is
+  stamped more than ``max_state_age`` s before the node's clock (a driver re-sending an old
+  state), or the worst-case joint-space stage from this posture (to any posture within the
+  limits, and the park posture) would last longer than ``max_duration``.
+
+With the posture within the limits every joint-space stage is bounded by the joint ranges and
+the velocity limits, the Cartesian stages by the workspace and the speeds, so planning is
+bounded in time and memory for every finite input. :func:`check_plan` then refuses (kind
+``plan``) a plan longer than ``max_duration`` s or with more than ``max_points`` points before
+anything is published.
+
+A refusal at the ``clear`` stage, or a ``tool_height`` refusal of the ``transit`` from a tool
+tip lower than the approach height, is a posture the executor cannot leave (re-planning
+another push starts from the same posture): :class:`StuckPosture` turns it into kind
+``state`` and keeps the executor unavailable until the measured posture has changed.
+
+:func:`unavailable` is the executor's readiness in one rule (``executor/status``'s
+``ready``): the first of ``no_model``, ``disabled``, ``no_state``, ``state`` (the checks
+above, a posture it cannot leave), ``no_controller`` that holds, or None (ready).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from push_executor.kinematics import ArmKinematics
+from push_executor.motion import CLEAR, MotionConfig, MotionPlan, PushRefused
+
+__all__ = ["STUCK_MOVE", "MeasuredPosture", "StateCheckConfig", "StuckPosture",
+           "check_before_planning", "check_plan", "check_posture", "joint_stage_bound",
+           "nonfinite_joints", "posture_problem", "unavailable"]
+
+#: A posture the executor could not leave counts as changed once a joint moved this far, rad.
+STUCK_MOVE = 0.01
+#: Peak speed and acceleration factors of the quintic time scaling of the joint-space stages
+#: (``push_executor.motion.quintic_segment``: 1.875 |dq| / T and 5.7735 |dq| / T^2).
+_QUINTIC_SPEED, _QUINTIC_ACCELERATION = 1.875, 5.7735
+
+
+@dataclass(frozen=True)
+class StateCheckConfig:
+    """Thresholds of the state checks and the plan bounds (module docstring).
+
+    Attributes
+    ----------
+    state_margin : float
+        How far (rad, m for prismatic joints) a measured joint may be outside its URDF limits.
+    state_timeout : float
+        Longest time without a joint state before a push is refused ``no_state``, s (steady).
+    max_state_age : float
+        Largest age of the newest joint state's stamp against the node's clock, s.
+    max_duration : float
+        Longest trajectory, s (``time_from_start`` of its last point).
+    max_points : int
+        Most points of a trajectory.
+    """
+
+    state_margin: float = 0.05
+    state_timeout: float = 1.0
+    max_state_age: float = 2.0
+    max_duration: float = 120.0
+    max_points: int = 20_000
+
+    def __post_init__(self) -> None:
+        for name in ("state_margin", "state_timeout", "max_state_age", "max_duration"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name}: must be finite and >= 0, got {value!r}")
+        for name in ("state_timeout", "max_duration"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"{name}: must be > 0, got {getattr(self, name)!r}")
+        if isinstance(self.max_points, bool) or int(self.max_points) != self.max_points \
+                or self.max_points < 2:
+            raise ValueError(f"max_points: must be an integer >= 2, got {self.max_points!r}")
+
+
+@dataclass
+class MeasuredPosture:
+    """The newest measured posture.
+
+    Attributes
+    ----------
+    q : (n,) ndarray or None
+        The newest finite chain posture (None before the first).
+    stamp : float
+        Its joint state's stamp, s of the node's clock.
+    steady : float
+        When it arrived, s (steady).
+    problem : str
+        Non-empty when the newest joint state's chain posture could not be read (a non-finite
+        position; the joints named): ``q`` is then older than the robot's state.
+    """
+
+    q: NDArray[np.float64] | None = None
+    stamp: float = -math.inf
+    steady: float = -math.inf
+    problem: str = ""
+
+
+def nonfinite_joints(chain: Sequence[str], names: Sequence[str], positions: ArrayLike) -> str:
+    """Which chain joints of a joint state have a non-finite position (``""``: none, or the
+    message does not map the chain's joints one to one: a malformed message, not a posture).
+
+    Parameters
+    ----------
+    chain : sequence of str
+        The chain's joint names.
+    names : sequence of str
+        The joint state's names.
+    positions : array_like
+        The joint state's positions, same length as ``names``.
+    """
+    values = np.asarray(positions, dtype=float).ravel()
+    if len(values) != len(names) or len(set(names)) != len(names):
+        return ""
+    index = {name: i for i, name in enumerate(names)}
+    if any(j not in index for j in chain):
+        return ""
+    bad = [f"{j} = {values[index[j]]}" for j in chain if not math.isfinite(values[index[j]])]
+    return f"non-finite joint position ({', '.join(bad)})" if bad else ""
+
+
+def posture_problem(arm: ArmKinematics, q: ArrayLike, margin: float) -> str:
+    """Why ``q`` is not a posture the arm can be in (``""``: it can): not finite, or outside
+    the URDF limits widened by ``margin``; the first joint outside is named with its value
+    and limits."""
+    arr = np.asarray(q, dtype=float).ravel()
+    if arr.shape != (arm.n_joints,):
+        return f"measured posture: {arr.size} values for the {arm.n_joints} chain joints"
+    lower, upper = arm.lower - margin, arm.upper + margin
+    bad = ~np.isfinite(arr) | (arr < lower) | (arr > upper)
+    if not np.any(bad):
+        return ""
+    j = int(np.argmax(bad))
+    return (f"measured {arm.joint_names[j]} = {arr[j]:.6g} is outside its URDF limits "
+            f"[{arm.lower[j]:.4f}, {arm.upper[j]:.4f}] by more than state_margin {margin} (a "
+            "faulty encoder or joint state?)")
+
+
+def check_posture(arm: ArmKinematics, q: ArrayLike, margin: float) -> None:
+    """``PushRefused`` (kind ``state``) naming :func:`posture_problem`'s joint, if any."""
+    problem = posture_problem(arm, q, margin)
+    if problem:
+        raise PushRefused("state", "", f"{problem}: not planned")
+
+
+def joint_stage_bound(arm: ArmKinematics, q: ArrayLike, motion: MotionConfig) -> float:
+    """Longest joint-space stage (quintic time scaling at ``speed_margin`` times the limits)
+    from ``q`` to any posture within the URDF limits or to ``park_positions``, s.
+
+    Parameters
+    ----------
+    arm : ArmKinematics
+    q : (n,) array_like
+        Start posture (finite; within the limits plus the state margin).
+    motion : MotionConfig
+        ``speed_margin`` and ``park_positions``.
+    """
+    start = np.asarray(q, dtype=float).ravel()
+    park = np.asarray(motion.park_positions, dtype=float)
+    # The transit ends within the limits (the inverse kinematics clips to them), the park
+    # stage goes from within them to the park posture.
+    span = np.maximum.reduce([np.abs(arm.upper - start), np.abs(start - arm.lower),
+                              np.abs(arm.upper - park), np.abs(park - arm.lower)])
+    vmax = arm.velocity_limits * motion.speed_margin
+    amax = arm.acceleration_limits * motion.speed_margin
+    return float(max(np.max(_QUINTIC_SPEED * span / vmax),
+                     np.max(np.sqrt(_QUINTIC_ACCELERATION * span / amax))))
+
+
+def check_before_planning(arm: ArmKinematics, posture: MeasuredPosture,
+                          config: StateCheckConfig, motion: MotionConfig, steady: float,
+                          clock: float | None) -> NDArray[np.float64]:
+    """The measured posture to plan from, or ``PushRefused`` (module docstring).
+
+    Parameters
+    ----------
+    arm : ArmKinematics
+    posture : MeasuredPosture
+    config : StateCheckConfig
+    motion : MotionConfig
+    steady : float
+        Now, s (steady clock).
+    clock : float or None
+        The node's clock now, s; None while a simulated clock has not started (no age check).
+
+    Returns
+    -------
+    (n,) ndarray
+        ``posture.q``.
+
+    Raises
+    ------
+    PushRefused
+        Kind ``no_state`` or ``state``.
+    """
+    if posture.q is None or steady - posture.steady > config.state_timeout:
+        raise PushRefused("no_state", "", f"no joint state for {config.state_timeout} s "
+                          "(state_timeout)" if posture.q is not None else "no joint state yet")
+    if posture.problem:
+        raise PushRefused("state", "", f"the newest joint state is unusable: "
+                          f"{posture.problem}; not planned")
+    check_posture(arm, posture.q, config.state_margin)
+    if clock is not None and clock - posture.stamp > config.max_state_age:
+        raise PushRefused("state", "", f"the newest joint state is stamped "
+                          f"{clock - posture.stamp:.3f} s before the node's clock (more than "
+                          f"max_state_age {config.max_state_age} s): a stale state, or "
+                          "clocks not synchronised")
+    bound = joint_stage_bound(arm, posture.q, motion)
+    if bound > config.max_duration:
+        raise PushRefused("state", "", f"a joint-space stage from the measured posture could "
+                          f"take up to {bound:.1f} s, more than max_trajectory_duration "
+                          f"{config.max_duration} s (URDF velocity limits x speed_margin)")
+    return posture.q
+
+
+def check_plan(plan: MotionPlan, config: StateCheckConfig) -> None:
+    """``PushRefused`` (kind ``plan``) when ``plan`` lasts longer than ``max_duration`` or has
+    more than ``max_points`` points."""
+    n = len(plan.times)
+    if not (plan.duration <= config.max_duration and n <= config.max_points):
+        raise PushRefused("plan", "", f"the planned trajectory lasts {plan.duration:.2f} s with "
+                          f"{n} points; the limits are max_trajectory_duration "
+                          f"{config.max_duration} s and max_trajectory_points "
+                          f"{config.max_points}")
+
+
+class StuckPosture:
+    """A posture the executor could not leave (module docstring), until the arm moved."""
+
+    def __init__(self) -> None:
+        self.q: NDArray[np.float64] | None = None
+        self.reason = ""
+
+    def classify(self, refusal: PushRefused, q: ArrayLike, tip_height: float,
+                 motion: MotionConfig) -> PushRefused:
+        """``refusal`` itself, or kind ``state`` when it says the posture ``q`` (tool tip
+        ``tip_height`` m above the table) cannot be left; that posture is then remembered."""
+        low = tip_height < motion.approach_height
+        if not (refusal.stage == CLEAR or (refusal.stage == "transit" and low
+                                           and refusal.kind == "tool_height")):
+            return refusal
+        self.q = np.array(q, dtype=float)
+        self.reason = (f"the arm cannot leave its posture (tool tip {tip_height:.3f} m above "
+                       f"the table; {refusal.kind} at {refusal.stage}: {refusal.reason}); "
+                       "move it clear of the table (above approach_height, e.g. to the park "
+                       "posture) with the robot's own tools")
+        return PushRefused("state", refusal.stage, self.reason)
+
+    def holds(self, q: ArrayLike | None) -> bool:
+        """Whether the remembered posture is still the measured one (``q``); forgets it once
+        a joint moved more than :data:`STUCK_MOVE`."""
+        if self.q is None:
+            return False
+        if q is not None and np.max(np.abs(np.asarray(q, dtype=float) - self.q)) > STUCK_MOVE:
+            self.q, self.reason = None, ""
+            return False
+        return True
+
+
+def unavailable(*, model: bool, enabled: bool, arm: ArmKinematics | None,
+                posture: MeasuredPosture, stuck: StuckPosture, config: StateCheckConfig,
+                motion: MotionConfig, controller: bool, steady: float, clock: float | None
+                ) -> tuple[str, str] | None:
+    """Why the executor cannot take a push now: ``(kind, reason)``, or None when it can.
+
+    One rule for ``executor/status`` and the ``available`` value of a refusal (module
+    docstring); a push arriving while it is None is planned (and may still be refused for its
+    own geometry).
+    """
+    if not model or arm is None:
+        return "no_model", "no robot description yet"
+    if not enabled:
+        return "disabled", "executor disabled (dry run): plans, moves nothing; ~/enable true"
+    try:
+        check_before_planning(arm, posture, config, motion, steady, clock)
+    except PushRefused as refusal:
+        return refusal.kind, refusal.reason
+    if clock is None:
+        return "no_state", "the node's clock has not started (no /clock yet)"
+    if stuck.holds(posture.q):
+        return "state", stuck.reason
+    if not controller:
+        return "no_controller", "no controller subscribes the trajectory topic"
+    return None
