@@ -29,6 +29,7 @@ from push_executor.state_check import (
     nonfinite_joints,
     unavailable,
 )
+from pushbot.runner.arm_faults import FOREIGN_POSTURE
 
 from .test_kinematics import panda_urdf
 
@@ -131,12 +132,18 @@ def test_a_long_plan_is_refused(plan: Any) -> None:
 
 def test_a_posture_that_cannot_be_left_until_the_arm_moves(arm: ArmKinematics) -> None:
     stuck = StuckPosture()
-    q = np.array(PANDA_PARK)
+    q = np.array(PANDA_PARK)  # the tool tip high above the table
+    low = np.array(FOREIGN_POSTURE)  # the tool tip 1.5 cm above the table
     other = PushRefused("ik", "transit", "no inverse kinematics solution")
-    assert stuck.classify(other, q, 0.01, MOTION) is other  # the target's, not the posture's
+    assert stuck.classify(other, arm, low, MOTION) is other  # the target's, not the posture's
     high = PushRefused("tool_height", "transit", "tip below")
-    assert stuck.classify(high, q, 0.3, MOTION) is high  # a high tip leaves by the transit
-    refusal = stuck.classify(PushRefused("tool_height", "clear", "tip at z = 0.001"), q, 0.001,
+    assert stuck.classify(high, arm, q, MOTION) is high  # a high tip leaves by the transit
+    assert stuck.classify(high, arm, None, MOTION) is high and stuck.q is None
+    refusal = stuck.classify(PushRefused("tool_height", "transit", "tip at z = 0.001"), arm,
+                             low, MOTION)
+    assert refusal.kind == "state" and "0.015 m above" in refusal.reason
+    q = low
+    refusal = stuck.classify(PushRefused("tool_height", "clear", "tip at z = 0.001"), arm, q,
                              MOTION)
     assert refusal.kind == "state" and "cannot leave its posture" in refusal.reason
     kwargs = dict(model=True, enabled=True, arm=arm, stuck=stuck, config=CHECKS, motion=MOTION,

@@ -195,8 +195,7 @@ class PushExecutorNode(Node):
             plan = plan_push(self._arm, self.params.motion, approach, contact, end, q)
             check_plan(plan, self.params.checks)
         except PushRefused as refusal:
-            refusal = self._stuck.classify(refusal, self._q, float(self._arm.tip_pose(
-                self._q)[0][2]), self.params.motion) if self._q is not None else refusal
+            refusal = self._stuck.classify(refusal, self._arm, self._q, self.params.motion)
             return self._refuse(stamp, refusal.kind, refusal.stage, refusal.reason)
         self._pub_path.publish(self._path_msg(plan))
         t0 = clock_seconds(self.get_clock())
@@ -331,7 +330,10 @@ class PushExecutorNode(Node):
         level = DiagnosticStatus.WARN if self._arm is None or self._stopped \
             else DiagnosticStatus.OK
         model = "no robot description" if self._arm is None else f"{len(self._joints)} joints"
-        self._readiness = self._unavailable()
+        readiness, self._readiness = self._readiness, self._unavailable()
+        if readiness != self._readiness:  # the log says why it cannot take a push, and since when
+            self.health.log.info("readiness", f"not ready: {': '.join(self._readiness)}"
+                                 if self._readiness else "ready for a push")
         extra = {"state": state, "model": model,
                  "contact_line_error_mm": f"{self._line_error_mm:.4f}",
                  **readiness_values(self._run is None and self._readiness is None,

@@ -218,12 +218,12 @@ def check_before_planning(arm: ArmKinematics, posture: MeasuredPosture,
     PushRefused
         Kind ``no_state`` or ``state``.
     """
+    if posture.problem:  # the robot's newest word on its posture: not one it can be in
+        raise PushRefused("state", "", f"the newest joint state is unusable: "
+                          f"{posture.problem}; not planned")
     if posture.q is None or steady - posture.steady > config.state_timeout:
         raise PushRefused("no_state", "", f"no joint state for {config.state_timeout} s "
                           "(state_timeout)" if posture.q is not None else "no joint state yet")
-    if posture.problem:
-        raise PushRefused("state", "", f"the newest joint state is unusable: "
-                          f"{posture.problem}; not planned")
     check_posture(arm, posture.q, config.state_margin)
     if clock is not None and clock - posture.stamp > config.max_state_age:
         raise PushRefused("state", "", f"the newest joint state is stamped "
@@ -256,10 +256,13 @@ class StuckPosture:
         self.q: NDArray[np.float64] | None = None
         self.reason = ""
 
-    def classify(self, refusal: PushRefused, q: ArrayLike, tip_height: float,
+    def classify(self, refusal: PushRefused, arm: ArmKinematics, q: ArrayLike | None,
                  motion: MotionConfig) -> PushRefused:
-        """``refusal`` itself, or kind ``state`` when it says the posture ``q`` (tool tip
-        ``tip_height`` m above the table) cannot be left; that posture is then remembered."""
+        """``refusal`` itself, or kind ``state`` when it says the measured posture ``q`` (None:
+        none yet) cannot be left; that posture is then remembered."""
+        if q is None or refusal.kind in ("state", "no_state"):
+            return refusal
+        tip_height = float(arm.tip_pose(q)[0][2])
         low = tip_height < motion.approach_height
         if not (refusal.stage == CLEAR or (refusal.stage == "transit" and low
                                            and refusal.kind == "tool_height")):

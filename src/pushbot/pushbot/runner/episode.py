@@ -249,13 +249,24 @@ class GraphRunner:
         goal = trial.goal(first_est)
         n_push, n_exec, n_status = (len(self.rec.pushes), len(self.rec.executed),
                                     len(self.rec.status))
+        fault.before_goal(self)
         goal_text = self._client().publish_goal(goal)
         episode = Episode(trial, n_push, n_exec, n_status, np.asarray(goal, dtype=float),
                           np.asarray(trial.goal_offset(), dtype=float), goal_text)
-        status = self._wait_end(episode, fault)
+        try:
+            status = self._wait_end(episode, fault)
+        finally:
+            fault.after_episode(self)
         self._wait_recorded(status, n_push, n_exec)
         pushes = self.rec.pushes[n_push:]
-        executed = [e for e in self.rec.executed[n_exec:] if e[1] >= first_stamp]
+        # A restarted simulator's clock starts again near 0: (wall time, index of the first
+        # ground truth and estimate of the new clock); later pushes are matched from there.
+        restart = episode.notes.get("clock_restart")
+        executed = [e for e in self.rec.executed[n_exec:]
+                    if e[1] >= first_stamp or (restart and e[0] >= restart[0])]
+
+        def since(e: tuple[float, float, float], which: int) -> int:
+            return restart[which] if restart and e[0] >= restart[0] else 0
         rec["steps"] = int(status.get("step", len(pushes)))
         rec["refused"] = max(0, rec["steps"] - len(executed))
         rec["reason"] = _reason(status["_message"])
@@ -265,16 +276,18 @@ class GraphRunner:
                       "sim/object_pose after the last push")
         rec["pushes"] = [p.tolist() for _, p in pushes]
         rec["poses_true"] = [pose0_true.tolist()] + [
-            self._true_after(t1).tolist() for _, _, t1 in executed]
+            self._true_after(e[2], since(e, 1)).tolist() for e in executed]
         rec["poses_est"] = [first_est.tolist()] + [
-            self._est_after(t1, first_est).tolist() for _, _, t1 in executed]
+            self._est_after(e[2], first_est, since(e, 2)).tolist() for e in executed]
         # Stamps of the camera frames the estimates came from (before the first push, after each).
         rec["frame_stamps"] = [first_stamp] + [
-            next((st for st, _ in self.rec.est if st >= t1), t1) for _, _, t1 in executed]
+            next((st for st, _ in self.rec.est[since(e, 2):] if st >= e[2]), e[2])
+            for e in executed]
         rec["step_latency_ms"] = _latencies(executed, pushes)
         if self.robot == "arm":
             rec["contact_line_error_mm"] = self._line_errors(executed, pushes)
-        end_true = self._true_after(executed[-1][2]) if executed else pose0_true
+        end_true = (self._true_after(executed[-1][2], since(executed[-1], 1)) if executed
+                    else pose0_true)
         from push_core.episode import end_score
         from push_core.objects import load_object
         from push_core.symmetry import symmetry_order_of_polygon
@@ -320,17 +333,8 @@ class GraphRunner:
                                              "after_goal": "report", **fault.planner_params()})
         self.reset("planner_node")  # drop the old goal before the scene changes under it
         self.set_parameters("ekf_node", {"relearn.enabled": trial.relearn})  # at its reset
-        world = trial.world_kwargs()
-        x, y, theta = world["object_pose"]
-        com = world.get("com_offset")
-        self.set_parameters("sim_bridge_node", {
-            "object": str(world["object"]), "initial_pose.x": float(x),
-            "initial_pose.y": float(y), "initial_pose.theta": math.remainder(theta, 2 * math.pi),
-            "use_com_offset": com is not None,
-            "com_offset": [0.0, 0.0] if com is None else [float(v) for v in com],
-            "seed": int(world["seed"]), "randomize": bool(world["randomize"]),
-            "support_cell": float(world["support_cell"]), **NO_BRIDGE_FAULTS,
-            **fault.bridge_params(trial)})
+        self.set_parameters("sim_bridge_node", {**self.bridge_scene_params(trial),
+                                                **NO_BRIDGE_FAULTS, **fault.bridge_params(trial)})
         message = self.reset("sim_bridge_node")
         match = _COM_RE.search(message)
         self._com_true = (np.array([float(match.group(1)), float(match.group(2))])
@@ -348,6 +352,21 @@ class GraphRunner:
             after = _INPUTS_AFTER_RE.search(answer) if name == "ekf_node" else None
             if after is not None:  # estimates of the old episode are stamped at or before it
                 self._last_stamp = max(self._last_stamp, float(after.group(1)))
+
+    @staticmethod
+    def bridge_scene_params(trial: Trial) -> dict[str, Any]:
+        """``sim_bridge_node``'s scene parameters of ``trial`` (object, initial pose, COM,
+        seed, randomisation, support)."""
+        world = trial.world_kwargs()
+        x, y, theta = world["object_pose"]
+        com = world.get("com_offset")
+        return {"object": str(world["object"]), "initial_pose.x": float(x),
+                "initial_pose.y": float(y),
+                "initial_pose.theta": math.remainder(theta, 2 * math.pi),
+                "use_com_offset": com is not None,
+                "com_offset": [0.0, 0.0] if com is None else [float(v) for v in com],
+                "seed": int(world["seed"]), "randomize": bool(world["randomize"]),
+                "support_cell": float(world["support_cell"])}
 
     def _first_estimate(self, trial: Trial, fault: Fault) -> tuple[float, float, np.ndarray]:
         """Set the episode up and wait for the first estimate of the new scene: (the stamp of
@@ -386,12 +405,14 @@ class GraphRunner:
 
         return self.wait(at, STEP_TIMEOUT, f"sim/object_pose stamped {stamp:.3f} s")
 
-    def _true_after(self, stamp: float) -> np.ndarray:
-        return next((p for s, p in self.rec.true if s >= stamp), self.rec.true[-1][1])
+    def _true_after(self, stamp: float, start: int = 0) -> np.ndarray:
+        """The first ground truth at or after ``stamp`` (from entry ``start`` on)."""
+        return next((p for s, p in self.rec.true[start:] if s >= stamp), self.rec.true[-1][1])
 
-    def _est_after(self, stamp: float, default: np.ndarray) -> np.ndarray:
-        """The last estimate of the frame after the push that ended at ``stamp``."""
-        later = [(s, p) for s, p in self.rec.est if s >= stamp]
+    def _est_after(self, stamp: float, default: np.ndarray, start: int = 0) -> np.ndarray:
+        """The last estimate of the frame after the push that ended at ``stamp`` (from entry
+        ``start`` on)."""
+        later = [(s, p) for s, p in self.rec.est[start:] if s >= stamp]
         if not later:
             return default
         first = later[0][0]
@@ -411,7 +432,7 @@ class GraphRunner:
             key = (len(self.rec.pushes), len(self.rec.executed), len(mine))
             if key != progress[0]:
                 progress[0], progress[1] = key, time.monotonic()
-            end = next((s for i, s in reversed(mine) if s.get("state") in ("reached", "failed")
+            end = next((s for i, s in reversed(mine) if s.get("state") in fault.end_states
                         and fault.accepts_end(self, i)), None)
             if end is not None:
                 return end
@@ -502,6 +523,10 @@ def _reason(message: str) -> str:
         return "max steps"
     if message.startswith("failed: no feasible push"):
         return "no feasible push"
+    if message.startswith("failed: robot unavailable"):
+        return "robot unavailable"
+    if message.startswith("robot unavailable: "):  # an episode that ended waiting (dry run)
+        return message.split(" - ")[0]
     return message
 
 
