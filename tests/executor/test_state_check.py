@@ -266,3 +266,21 @@ def test_an_impossible_state_while_moving_is_not_tracked_and_the_hold_is_plausib
 
     refusal = read_refusal(node.refusals[-1])
     assert refusal.kind == "fault" and "stale" in refusal.reason and refusal.available is False
+
+
+def test_a_push_waits_for_the_arm_to_come_to_rest(arm: ArmKinematics) -> None:
+    from push_executor.state_check import REST_SPEED, chain_speed
+
+    names = ["finger", *ARM]
+    assert chain_speed(ARM, names, [9.0, *[0.0] * 6, -0.3]) == pytest.approx(0.3)
+    assert math.isnan(chain_speed(ARM, names, []))  # velocities not given
+    assert math.isnan(chain_speed(ARM, names, [0.0] * 7))  # not one per name
+    moving = MeasuredPosture(np.array(PANDA_PARK), 10.0, 100.0, "", 2 * REST_SPEED)
+    with pytest.raises(PushRefused, match="still moving") as info:
+        check_before_planning(arm, moving, CHECKS, MOTION, 100.0, 10.0)
+    assert info.value.kind == "settling"
+    kwargs = dict(model=True, enabled=True, arm=arm, stuck=StuckPosture(), config=CHECKS,
+                  motion=MOTION, controller=True, steady=100.0, clock=10.0)
+    assert unavailable(posture=moving, **kwargs)[0] == "settling"
+    still = MeasuredPosture(np.array(PANDA_PARK), 10.0, 100.0, "", 0.5 * REST_SPEED)
+    assert unavailable(posture=still, **kwargs) is None

@@ -25,7 +25,6 @@ from pathlib import Path as FilePath
 from typing import Any
 
 import numpy as np
-from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
@@ -57,6 +56,7 @@ from push_ros.poses import pose_msg
 from push_ros.qos import LATCHED_QOS, RELIABLE_QOS
 from push_ros.refusal import readiness_values, refusal_msg
 from push_ros.stamps import check_not_ahead, clock_seconds, seconds_from_stamp, stamp_from_seconds
+from push_ros.stamps import duration_from_seconds as duration
 
 __all__ = ["PARAMETERS", "ExecutorParams", "PushExecutorNode", "main"]
 
@@ -269,7 +269,7 @@ class PushExecutorNode(Node):
         q = dict(zip(self._arm.joint_names, self._q, strict=True))
         msg.points = [JointTrajectoryPoint(positions=[float(q[j]) for j in self._joints],
                                            velocities=[0.0] * len(self._joints),
-                                           time_from_start=_duration(HOLD_TIME))]
+                                           time_from_start=duration(HOLD_TIME))]
         self._pub_traj.publish(msg)
         self._stopped = True
         self.health.count("stopped")
@@ -310,7 +310,7 @@ class PushExecutorNode(Node):
         msg.header.stamp = stamp_from_seconds(start, clamp=True)
         msg.points = [JointTrajectoryPoint(positions=q[order].tolist(),
                                            velocities=v[order].tolist(),
-                                           time_from_start=_duration(t))
+                                           time_from_start=duration(t))
                       for t, q, v in zip(plan.times, plan.positions, plan.velocities,
                                          strict=True)]
         return msg
@@ -340,11 +340,6 @@ class PushExecutorNode(Node):
                                     self._readiness, self._session)}
         self._pub_status.publish(self.health.status(level, f"{state}, {model}", extra))
         self.health.publish(level, f"{state}, {model}", extra)
-
-
-def _duration(seconds: float) -> Duration:
-    sec = math.floor(seconds)
-    return Duration(sec=int(sec), nanosec=min(int(round((seconds - sec) * 1e9)), 999_999_999))
 
 
 def main(args: list[str] | None = None) -> None:

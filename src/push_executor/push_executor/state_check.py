@@ -14,6 +14,7 @@ stop the arm as stale ones do).
 Before :func:`push_executor.motion.plan_push` runs, :func:`check_before_planning` refuses
 
 - ``no_state``: no joint state yet, or none for ``state_timeout`` s (steady clock);
+- ``settling``: the arm is not at rest (a joint faster than :data:`REST_SPEED`);
 - ``state``: the newest joint state has a non-finite position of a chain joint (the posture
   is unknown; the last finite one is not used), the posture is outside the URDF position
   limits by more than ``state_margin`` (a glitched encoder: the transit from 100 rad would
@@ -35,7 +36,7 @@ another push starts from the same posture): :class:`StuckPosture` turns it into 
 
 :func:`unavailable` is the executor's readiness in one rule (``executor/status``'s
 ``ready``): the first of ``no_model``, ``disabled``, ``no_state``, ``state`` (the checks
-above, a posture it cannot leave), ``no_controller`` that holds, or None (ready).
+above, a posture it cannot leave), ``settling``, ``no_controller`` that holds, or None (ready).
 """
 
 from __future__ import annotations
@@ -50,12 +51,15 @@ from numpy.typing import ArrayLike, NDArray
 from push_executor.kinematics import ArmKinematics
 from push_executor.motion import CLEAR, MotionConfig, MotionPlan, PushRefused
 
-__all__ = ["STUCK_MOVE", "MeasuredPosture", "StateCheckConfig", "StuckPosture",
-           "check_before_planning", "check_plan", "check_posture", "joint_stage_bound",
-           "nonfinite_joints", "posture_problem", "unavailable"]
+__all__ = ["REST_SPEED", "STUCK_MOVE", "MeasuredPosture", "StateCheckConfig", "StuckPosture",
+           "chain_speed", "check_before_planning", "check_plan", "check_posture",
+           "joint_stage_bound", "nonfinite_joints", "posture_problem", "unavailable"]
 
 #: A posture the executor could not leave counts as changed once a joint moved this far, rad.
 STUCK_MOVE = 0.01
+#: A measured joint faster than this (rad/s, m/s) means the arm is not at rest (still stopping
+#: after a hold, or finishing another trajectory): a push starts from rest.
+REST_SPEED = 0.05
 #: Peak speed and acceleration factors of the quintic time scaling of the joint-space stages
 #: (``push_executor.motion.quintic_segment``: 1.875 |dq| / T and 5.7735 |dq| / T^2).
 _QUINTIC_SPEED, _QUINTIC_ACCELERATION = 1.875, 5.7735
@@ -113,12 +117,15 @@ class MeasuredPosture:
     problem : str
         Non-empty when the newest joint state's chain posture could not be read (a non-finite
         position; the joints named): ``q`` is then older than the robot's state.
+    speed : float
+        Largest joint speed of that joint state (:func:`chain_speed`; NaN: not given).
     """
 
     q: NDArray[np.float64] | None = None
     stamp: float = -math.inf
     steady: float = -math.inf
     problem: str = ""
+    speed: float = math.nan
 
 
 def nonfinite_joints(chain: Sequence[str], names: Sequence[str], positions: ArrayLike) -> str:
@@ -159,6 +166,19 @@ def posture_problem(arm: ArmKinematics, q: ArrayLike, margin: float) -> str:
     return (f"measured {arm.joint_names[j]} = {arr[j]:.6g} is outside its URDF limits "
             f"[{arm.lower[j]:.4f}, {arm.upper[j]:.4f}] by more than state_margin {margin} (a "
             "faulty encoder or joint state?)")
+
+
+def chain_speed(chain: Sequence[str], names: Sequence[str], velocities: ArrayLike) -> float:
+    """Largest ``|velocity|`` of the chain's joints in a joint state, NaN when the message does
+    not give a finite velocity for each of them (velocities are optional in a JointState)."""
+    v = np.asarray(velocities, dtype=float).ravel()
+    if len(v) != len(names):
+        return math.nan
+    index = {name: i for i, name in enumerate(names)}
+    values = np.array([v[index[j]] for j in chain if j in index])
+    if len(values) != len(chain) or not np.all(np.isfinite(values)):
+        return math.nan
+    return float(np.max(np.abs(values)))
 
 
 def check_posture(arm: ArmKinematics, q: ArrayLike, margin: float) -> None:
@@ -216,7 +236,7 @@ def check_before_planning(arm: ArmKinematics, posture: MeasuredPosture,
     Raises
     ------
     PushRefused
-        Kind ``no_state`` or ``state``.
+        Kind ``no_state``, ``state`` or ``settling``.
     """
     if posture.problem:  # the robot's newest word on its posture: not one it can be in
         raise PushRefused("state", "", f"the newest joint state is unusable: "
@@ -225,6 +245,9 @@ def check_before_planning(arm: ArmKinematics, posture: MeasuredPosture,
         raise PushRefused("no_state", "", f"no joint state for {config.state_timeout} s "
                           "(state_timeout)" if posture.q is not None else "no joint state yet")
     check_posture(arm, posture.q, config.state_margin)
+    if posture.speed > REST_SPEED:
+        raise PushRefused("settling", "", f"the arm is still moving ({posture.speed:.3f} rad/s "
+                          f"> {REST_SPEED}): a push starts from rest")
     if clock is not None and clock - posture.stamp > config.max_state_age:
         raise PushRefused("state", "", f"the newest joint state is stamped "
                           f"{clock - posture.stamp:.3f} s before the node's clock (more than "

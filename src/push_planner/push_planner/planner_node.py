@@ -26,15 +26,13 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from nav_msgs.msg import Path
-from rclpy.clock import Clock, ClockType, JumpThreshold
-from rclpy.duration import Duration
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
-from push_core.episode import PREVIOUS_EPISODE_WINDOW
 from push_core.estimator.pairing import Estimate, EstimatePairing
 from push_core.planner import PushPlan, check_state, prepare_outline
 from push_planner import conversions as conv
@@ -43,7 +41,7 @@ from push_planner.config import NODE_NAME, PARAMETERS, PlannerNodeParams, episod
 from push_planner.conversions import affordance_markers, executed_end, goal_from_msg
 from push_ros.health import NodeHealth
 from push_ros.message_info import GoalSources, publishers_text, subscribe_goals
-from push_ros.node import declare_config, parameter_values, run_node
+from push_ros.node import declare_config, on_clock_jump_back, parameter_values, run_node
 from push_ros.outline import outline_from_cloud
 from push_ros.paths import push_path
 from push_ros.poses import pose_with_covariance_from_msg
@@ -115,10 +113,7 @@ class PlannerNode(Node):
         subscribe_goals(self, guard(self._on_goal))  # volatile and latched readers
         self.create_service(Trigger, "~/reset", guard(self._on_reset))
         self.create_timer(DIAGNOSTICS_PERIOD_S, guard(self._on_timer), clock=self._steady)
-        # A clock jumping back (a restarted simulator starts near 0) makes old stamps void.
-        self._jump = self.get_clock().create_jump_callback(JumpThreshold(
-            min_forward=None, min_backward=Duration(seconds=-PREVIOUS_EPISODE_WINDOW),
-            on_clock_change=False), post_callback=guard(self._on_clock_jump))
+        self._jump = on_clock_jump_back(self, guard(self._on_clock_jump))  # restarted clock
         self.get_logger().info(f"planner ready: {self.params.summary()}")
         self._publish_status()
 
@@ -286,10 +281,10 @@ class PlannerNode(Node):
             self._try_plan()
             self._publish_status()
 
-    def _on_clock_jump(self, jump: Any) -> None:
+    def _on_clock_jump(self, delta: float) -> None:
         self._engine.clock_restarted()  # rule 10 of push_core.episode
         self._pairing.clear()
-        self.health.log.warning("clock_jump", robot.clock_jump_text(jump.delta.nanoseconds * 1e-9))
+        self._publish_status()
 
     def _steady_s(self) -> float:
         return self._steady.now().nanoseconds * 1e-9

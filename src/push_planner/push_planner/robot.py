@@ -21,8 +21,8 @@ from __future__ import annotations
 from push_core.episode import EpisodeEngine
 from push_ros.refusal import MOVING_KINDS, Readiness, Refusal, robot_unavailable
 
-__all__ = ["REPLANNING", "RESTARTED", "RESUMED", "RobotLink", "clock_jump_text",
-           "ignored_refusal_text", "refusal_note", "timeout_note"]
+__all__ = ["REPLANNING", "RESTARTED", "RESUMED", "RobotLink", "ignored_refusal_text",
+           "refusal_note", "timeout_note"]
 
 #: :meth:`RobotLink.status`'s events, in the words the planner logs.
 RESTARTED = ("the executor restarted during the push (a new session on executor/status): the "
@@ -48,12 +48,6 @@ def timeout_note(step: int, push_timeout: float) -> str:
     """The status note of a push not reported within ``push_timeout`` s."""
     return (f"push of step {step} not reported on pusher/executed within {push_timeout} s; "
             "counted as a step; its contact region is avoided until a push is executed")
-
-
-def clock_jump_text(delta: float) -> str:
-    """The log line of a clock jump of ``delta`` s (< 0: back; rule 10 of the engine)."""
-    return (f"the clock jumped back by {-delta:.3f} s (a restarted simulator?): the stamps of "
-            "the old clock are forgotten")
 
 
 class RobotLink:

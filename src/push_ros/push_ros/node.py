@@ -54,9 +54,9 @@ from rcl_interfaces.msg import (
     SetParametersResult,
 )
 
-__all__ = ["ParamSpec", "ThrottledLog", "declare_config", "descriptor", "guarded",
-           "parameter_values", "parameter_yaml", "ros_start_error", "run_node", "spec_note",
-           "unknown_parameters"]
+__all__ = ["CLOCK_JUMP", "ParamSpec", "ThrottledLog", "declare_config", "descriptor", "guarded",
+           "on_clock_jump_back", "parameter_values", "parameter_yaml", "ros_start_error",
+           "run_node", "spec_note", "unknown_parameters"]
 
 T = TypeVar("T")
 
@@ -361,6 +361,30 @@ def unknown_parameters(given: Iterable[str], known: Iterable[str]) -> list[str]:
                       f" (not a parameter of this node; its parameters: "
                       f"{', '.join(names)[:400]})"))
     return out
+
+
+#: A node's clock jumping back by more than this (s) is a restarted time source (a restarted
+#: simulator starts near 0), not jitter: ``push_core.episode.PREVIOUS_EPISODE_WINDOW``.
+CLOCK_JUMP = 2.0
+
+
+def on_clock_jump_back(node: Any, callback: Callable[[float], None]) -> Any:
+    """Call ``callback(delta)`` (``delta`` < 0, s) when ``node``'s clock jumps back by more
+    than :data:`CLOCK_JUMP` (a restarted simulator): the stamps of the old clock then mean
+    nothing to the node's input rules. Returns the jump handle (keep it: the callback lives as
+    long as the handle), after logging the jump at warning level."""
+    from rclpy.clock import JumpThreshold
+    from rclpy.duration import Duration
+
+    def on_jump(jump: Any) -> None:
+        delta = jump.delta.nanoseconds * 1e-9
+        node.get_logger().warning(f"the clock jumped back by {-delta:.3f} s (a restarted "
+                                  "simulator?): the stamps of the old clock are forgotten")
+        callback(delta)
+
+    return node.get_clock().create_jump_callback(
+        JumpThreshold(min_forward=None, min_backward=Duration(seconds=-CLOCK_JUMP),
+                      on_clock_change=False), post_callback=on_jump)
 
 
 def _yaml_value(value: Any) -> str:

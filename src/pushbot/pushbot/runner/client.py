@@ -449,12 +449,11 @@ class GraphClient:
         controller topic, as another node commanding the arm would (``robot`` arm)."""
         from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-        from push_ros.stamps import stamp_from_seconds
+        from push_ros.stamps import duration_from_seconds, stamp_from_seconds
 
         point = JointTrajectoryPoint(positions=[float(v) for v in positions],
-                                     velocities=[0.0] * len(positions))
-        point.time_from_start.sec = int(seconds)
-        point.time_from_start.nanosec = int(round((seconds - int(seconds)) * 1e9))
+                                     velocities=[0.0] * len(positions),
+                                     time_from_start=duration_from_seconds(seconds))
         msg = JointTrajectory(joint_names=list(names), points=[point])
         msg.header.stamp = stamp_from_seconds(0.0)  # start now
         self._pub_trajectory.publish(msg)
