@@ -221,6 +221,7 @@ class DryRun(Fault):
             status.get("robot_unavailable", "").startswith("disabled:")
 
     def after_episode(self, runner: GraphRunner) -> None:
+        runner.reset("planner_node")  # drop the goal first: enabled, it would push at once
         runner._client().executor_enable(True)
 
     def record(self, runner: GraphRunner, episode: Episode) -> dict[str, Any]:
