@@ -172,7 +172,7 @@ def summary_row(name: str, obj: str, records: list[dict]) -> str:
                      f"{max(recoveries):.1f} s ({sum(v <= 10.0 for v in recoveries)}/"
                      f"{len(recoveries)} <= 10 s)")
     waits = [r["unavailable_s"] for r in records if r.get("unavailable_s")]
-    if waits:
+    if waits and name != "dry-run":  # the dry run ends as the wait begins
         extra.append(f"planner waited for the robot {statistics.median(waits):.1f} s median "
                      f"(max {max(waits):.1f} s) in {len(waits)}/{n}")
     ends = ", ".join(f"{k[:80]} {v}" for k, v in sorted(reasons.items()))

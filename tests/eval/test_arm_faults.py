@@ -64,3 +64,20 @@ def test_the_restarted_simulator_gets_the_scene_and_the_true_pose() -> None:
     assert values["com_offset"].startswith("[") and values["seed"].isdigit()
     assert KillLater("push_executor_node", "kill-executor").restart_args(_Runner(), episode) \
         == []
+
+
+def test_a_restarted_clock_forgets_the_stamped_records() -> None:
+    import numpy as np
+
+    from pushbot.runner.client import Recorded
+
+    rec = Recorded()
+    rec.true.append((500.0, np.zeros(3)))
+    rec.est.append((500.0, np.zeros(3)))
+    rec.executed.append((1.0, 490.0, 495.0))
+    rec.outline_stamps.append(400.0)
+    rec.status.append({"state": "reached"})
+    rec.pushes.append((1.0, np.zeros((3, 2))))
+    rec.forget_stamps()
+    assert not (rec.true or rec.est or rec.executed or rec.outline_stamps)
+    assert rec.status and rec.pushes  # matched by arrival, not by stamp: kept

@@ -67,6 +67,14 @@ class Recorded:
     camera_matrix: np.ndarray | None = None
     t_world_camera: np.ndarray | None = None
 
+    def forget_stamps(self) -> None:
+        """Forget what is matched by stamps (ground truth, estimates, the COM, executed pushes,
+        tool tips, outline stamps, joint states): after the simulator's clock restarted, the
+        old clock's stamps would match a later episode's by mistake."""
+        for items in (self.true, self.est, self.com, self.executed, self.tool_tip,
+                      self.outline_stamps, self.joint_states):
+            items.clear()
+
 
 class GraphClient:
     """The client node (module docstring).

@@ -305,6 +305,8 @@ class GraphRunner:
                                    else self._c_true_episode.tolist())
         rec["com_est"] = self.rec.com[-1][1].tolist() if self.rec.com else None
         rec["wall_s"] = time.perf_counter() - t_start
+        if restart:  # later episodes are matched on the new clock only
+            self.rec.forget_stamps()
         return rec
 
     def _line_errors(self, executed: list[tuple[float, float, float]],
