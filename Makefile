@@ -12,16 +12,19 @@ demo: $(STAMP)
 	$(BIN)/pushbot demo
 
 # The suite on every core (pytest-xdist; tests/conftest.py: one ROS domain per worker, tests
-# sharing a module-scoped graph kept on one worker). PYTEST_WORKERS=0 runs it in one process.
+# sharing a module-scoped graph kept on one worker). PYTEST_WORKERS=0 runs it in one process;
+# PYTEST_ARGS adds pytest options (benchmarks/time_tests.py passes its own).
 PYTEST_WORKERS ?= auto
+PYTEST_ARGS ?=
 XDIST := -n $(PYTEST_WORKERS) --dist loadgroup
 
+# The whole suite, as CI runs it; it prints its 30 slowest tests (docs/DEVELOPING.md).
 test: $(STAMP)
-	$(BIN)/python -m pytest $(XDIST)
+	$(BIN)/python -m pytest $(XDIST) --durations=30 $(PYTEST_ARGS)
 
 # The fast tier: unit and in-process tests, no node processes or graphs (markers graph, slow).
 test-fast: $(STAMP)
-	$(BIN)/python -m pytest $(XDIST) -m "not graph and not slow"
+	$(BIN)/python -m pytest $(XDIST) -m "not graph and not slow" $(PYTEST_ARGS)
 
 venv: $(STAMP)
 

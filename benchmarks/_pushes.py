@@ -1,4 +1,4 @@
-"""Shared helper of the closed-loop benchmarks: pushes against the physical minimum (issue 22).
+"""Shared helper of the closed-loop benchmarks: pushes against the physical minimum.
 
 ``pushes / min`` of a set of episode records is the mean, over the successful trials, of
 ``steps / n_min`` with ``n_min`` from :func:`push_core.reach.model_min_pushes` for the trial's
@@ -21,7 +21,7 @@ from push_core.objects import load_object
 from push_core.planner import PlannerConfig
 from push_core.reach import model_min_pushes
 from push_core.symmetry import symmetry_order_of_polygon
-from pushbot.experiments.protocol import Trial
+from pushbot.runner.protocol import Trial
 
 #: The planner's longest push past the contact (m), the L_max of the minimum.
 MAX_PUSH_LENGTH = PlannerConfig().max_push_length

@@ -1,4 +1,4 @@
-"""Worlds that contradict the model (issue 22): does the loop recover, and does it repeat
+"""Worlds that contradict the model: does the loop recover, and does it repeat
 futile pushes?
 
 The protocol's in-process episodes (``pushbot.experiments.inprocess.EpisodeRunner``, mixed task,
@@ -17,9 +17,9 @@ Variants: ``greedy`` (the current loop) and ``lookahead+adapt`` (``horizon`` 2,
 ``avoid_contradicted`` and, with ``filter``, the estimator's ``relearn``), as in
 ``bench_lookahead``. ``futile repeats``: pushes made at the same contact region (object frame,
 within ``push_core.planner.AVOID_RADIUS``) as the previous push after that push gained less
-than a quarter of the true eq. (5.1) score to the goal (lambda 2 mm/deg) - the issue's "the
-same useless push again", whether or not the model predicted it. ``contradicted repeats``: the
-issue's acceptance test, pushes at the contact region of an earlier push of the episode whose
+than a quarter of the true eq. (5.1) score to the goal (lambda 2 mm/deg) - "the same
+useless push again", whether or not the model predicted it. ``contradicted repeats``: the
+adaptation's acceptance test, pushes at the contact region of an earlier push of the episode whose
 outcome contradicted its prediction (:func:`push_core.episode.contradiction`, rule 8, on the
 state source's poses: what the loop could know).
 
@@ -53,7 +53,7 @@ from push_core.geometry import world_to_object  # noqa: E402
 from push_core.objects import load_object  # noqa: E402
 from push_core.planner import AVOID_RADIUS, motion_score  # noqa: E402
 from pushbot.experiments.inprocess import EpisodeRunner  # noqa: E402
-from pushbot.experiments.protocol import Trial, make_trials  # noqa: E402
+from pushbot.runner.protocol import Trial, make_trials  # noqa: E402
 from sim_bridge.world import PushWorld, WorldConfig, quiet_stdout  # noqa: E402
 
 WORLDS = ("friction_jump", "sticky_patch", "com_edge")

@@ -1,4 +1,4 @@
-"""Pushing with the arm (issue 20): the graph with push_executor_node and the simulated Panda
+"""Pushing with the arm: the graph with push_executor_node and the simulated Panda
 against the free pusher, on the same trials; writes docs/results/arm.md.
 
 Both engines run ``pushbot eval push --graph`` trials (full system: rendered RGB-D -> CNN ->
@@ -32,9 +32,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import format_section, update_section  # noqa: E402
 
 from pushbot.experiments.evaluate import EvalOptions, build_trials  # noqa: E402
-from pushbot.experiments.protocol import Trial  # noqa: E402, F401 - the trials' type
 from pushbot.experiments.pusht_adapter import wilson_interval  # noqa: E402
 from pushbot.runner.episode import run_graph_trials  # noqa: E402
+from pushbot.runner.protocol import Trial  # noqa: E402, F401 - the trials' type
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "out" / "bench_arm"
@@ -63,7 +63,7 @@ def paired(a: list[float], b: list[float]) -> str:
 
 def trials_for(objects: list[str], n: int) -> list[Trial]:
     """The trials of ``pushbot eval push --graph --robot arm --objects OBJECTS --tasks mixed
-    --state filter --com random --trials N`` (the acceptance command of issue 20), built by the
+    --state filter --com random --trials N`` (the arm's acceptance command), built by the
     same function the command uses."""
     return build_trials(EvalOptions(objects=list(objects), tasks=["mixed"], state=["filter"],
                                     com=["random"], trials=n))

@@ -1,6 +1,6 @@
 """The operator CLI, measured: how long daemon-less discovery takes on the ``pushbot up`` graph,
 how often each waiting rule would have printed an incomplete graph, and the wall time of the
-everyday commands (issue 14).
+everyday commands.
 
 1. **Discovery timelines.** ``pushbot up --object rect1`` (four node processes) on a private
    ROS domain; ``--runs`` times, a fresh process with the CLI's hidden node

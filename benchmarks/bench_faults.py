@@ -1,4 +1,4 @@
-"""Fault scenarios in graph mode, repeated (issue 15, item 5).
+"""Fault scenarios in graph mode, repeated (docs/design/faults.md).
 
 Every scenario of :data:`pushbot.runner.faults.SCENARIOS` runs protocol trials (each object of
 ``--objects``, default butter; mixed task, random COM, ana, k = 3, state ``filter``, trial
@@ -82,8 +82,8 @@ def run_scenario(graph, name: str, n: int, obj: str, make_fault) -> list[dict]:
     """``n`` trials of scenario ``name`` (``make_fault(name)``) with object ``obj`` on
     ``graph``; one record each."""
     from push_core.episode import new_record
-    from pushbot.experiments.protocol import Trial
     from pushbot.runner.episode import GraphError
+    from pushbot.runner.protocol import Trial
 
     records = []
     before = dict(getattr(graph, "_bench_counts", {}))

@@ -1,5 +1,5 @@
 """The ROS graph, measured: camera frames across processes, the demo, per-step latency, and
-graph vs in-process agreement (issue 7).
+graph vs in-process agreement.
 
 1. **Camera frames across processes.** ``sim_bridge_node`` (640 x 480, re-publishing its frame
    at 5 Hz while idle) in one process, a subscriber counting ``camera/color/image_raw`` (rgb8,
@@ -134,8 +134,8 @@ def two_proportion_p(s1: int, s2: int, n: int) -> float:
 
 def agreement(n: int, out_dir: Path) -> tuple[list[dict], list[dict]]:
     from pushbot.experiments.inprocess import run_trial
-    from pushbot.experiments.protocol import Trial
     from pushbot.runner.episode import run_graph_trials
+    from pushbot.runner.protocol import Trial
 
     trials = [Trial(object="butter", task="mixed", method="ana", k=3, state="filter",
                     com="random", index=i, seed=0) for i in range(n)]

@@ -1,10 +1,10 @@
-"""Lookahead and adaptation (issue 22): planning time and closed-loop pushes against greedy.
+"""Lookahead and adaptation: planning time and closed-loop pushes against greedy.
 
 1. **Planning time** per step (``Planner.plan``) with ``horizon`` 1 (greedy), 2 and 3 on
    butter's and tri1's outlines (1.5 mm spacing), random poses and goals as
    ``bench_planner`` (its timing harness); target: median <= 100 ms per step.
 2. **Closed loop** in-process (``pushbot.experiments.inprocess.EpisodeRunner``: the
-   protocol's trials of ``pushbot.experiments.protocol``, the same scenes and goals for every
+   protocol's trials of ``pushbot.runner.protocol``, the same scenes and goals for every
    variant), tri1, butter and hex x translation, mixed and rotation, COM at the centre; variants:
 
    - ``greedy``: the current planner (``horizon = 1``), the estimator as it is;
@@ -42,7 +42,7 @@ from bench_planner import planning_cases, time_ms  # noqa: E402
 from push_core.objects import load_object  # noqa: E402
 from push_core.planner import Planner, PlannerConfig, prepare_outline  # noqa: E402
 from pushbot.experiments.inprocess import EpisodeRunner  # noqa: E402
-from pushbot.experiments.protocol import make_trials  # noqa: E402
+from pushbot.runner.protocol import make_trials  # noqa: E402
 
 TARGET_MS = 100.0
 OBJECTS = ("tri1", "butter", "hex")
@@ -77,7 +77,7 @@ def speed_rows(repeats: int, horizons: tuple[int, ...]) -> list[str]:
 
 
 def variant_fields(variant: str, horizon: int) -> dict[str, object]:
-    """The :class:`pushbot.experiments.protocol.Trial` fields of a variant (module docstring)."""
+    """The :class:`pushbot.runner.protocol.Trial` fields of a variant (module docstring)."""
     if variant not in VARIANTS:
         raise ValueError(f"variant: expected one of {VARIANTS}, got {variant!r}")
     if variant == "greedy":

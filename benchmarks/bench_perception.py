@@ -6,7 +6,7 @@ for each frame, stage by stage, on one torch thread and one OpenCV thread:
 
 - decode: ``sensor_msgs/Image`` (rgb8, 32FC1) -> arrays, with validation;
 - segment: the two-stage CNN (:class:`push_perception.model.Segmenter`) incl. preprocessing;
-- geometry: :meth:`push_perception.core.EpisodeTracker.update` (deprojection, top-down view,
+- geometry: :meth:`push_perception.tracker.EpisodeTracker.update` (deprojection, top-down view,
   outline, rotation search against the episode's first frame, covariance);
 - encode: the pose (PoseWithCovarianceStamped) and mask (mono8) messages.
 
@@ -34,8 +34,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import format_section, update_section  # noqa: E402
 
 from push_core.objects import TEST_OBJECTS  # noqa: E402
-from push_perception.core import EpisodeTracker  # noqa: E402
 from push_perception.model import Segmenter  # noqa: E402
+from push_perception.tracker import EpisodeTracker  # noqa: E402
 from push_ros.images import (  # noqa: E402
     depth_image_msg,
     depth_to_metres,

@@ -120,7 +120,7 @@ def demo_bag(tmp: Path, monitor_rate: float = 10.0) -> dict[str, float]:
     """Run the demo once; measure its bag, the renderer and the MP4."""
     import imageio_ffmpeg
 
-    from pushbot.ros2cli.bag import open_reader
+    from pushbot.ros2cli.bag_store import open_reader
     from pushbot.viz.render import render_bag
 
     out = tmp / f"demo_{monitor_rate:g}"

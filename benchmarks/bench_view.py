@@ -70,7 +70,7 @@ def run(path: str, rate: float, seconds: float) -> dict[str, float]:
     server = foxglove.start_server(name="bench", host="127.0.0.1", port=0, context=context)
     relay = SubprotocolRelay("127.0.0.1", 0, server.port)
     relay.start()
-    from pushbot.ros2cli.bag import message_definition
+    from pushbot.ros2cli.bag_store import message_definition
 
     msgdef, _ = message_definition("sensor_msgs/msg/Image")  # the channel pushbot view makes
     schema = foxglove.Schema(name="sensor_msgs/msg/Image", encoding="ros2msg",

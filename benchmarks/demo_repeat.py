@@ -1,4 +1,4 @@
-"""The demo, repeated: does ``pushbot demo`` succeed by ground truth every time (issue 12)?
+"""The demo, repeated: does ``pushbot demo`` succeed by ground truth every time?
 
 Runs ``pushbot demo --object OBJECT --com COM`` ``--runs`` times in a row (default 20, rect1 with
 the COM at the centre: the command that ended "goal reached by the estimate, 7.6 mm by ground

@@ -1,4 +1,4 @@
-"""The closed-loop measurements of issue 7 (``pushbot eval push``), written to docs/results/.
+"""The closed-loop measurements (``pushbot eval push``), written to docs/results/.
 
 Experiments (each writes its page ``docs/results/eval_push_<name>.md`` and ``out/eval/<name>/``; the
 figures are copied to ``docs/figures/``):
@@ -18,13 +18,14 @@ figures are copied to ``docs/figures/``):
 - ``ksweep``: k in {1, 3, 10} for ana, lrn, geo, rdn, ana-direct, lrn-direct, ground-truth state
   (Figs. 5.5, 5.6).
 - ``lookahead``: the ``full`` protocol with the lookahead planner (``--horizon``, default 2),
-  contradicted pushes avoided and the filter re-learning, against issue 22's targets, next to
-  ``full``'s greedy pushes on the same trials (section ``eval_push_lookahead``).
+  contradicted pushes avoided and the filter re-learning, against the lookahead targets
+  (:data:`LOOKAHEAD_TARGETS`), next to ``full``'s greedy pushes on the same trials (section
+  ``eval_push_lookahead``).
 - ``support``: the ``full`` protocol (greedy) in a world whose object is supported across its
   footprint (``--support-cell``, default 15 mm: ``WorldConfig.support_cell``) next to ``full``
   on the same trials, with each object's resting contacts in both worlds (section
   ``eval_push_support``).
-- ``limits``: what keeps the loop above issue 22's targets: the ``full`` protocol with the true
+- ``limits``: what keeps the loop above the lookahead targets: the ``full`` protocol with the true
   COM given to the filter (``com_known``) and with k = 10 (``k10``), next to the saved results
   of ``full``, ``lookahead`` and ``gt`` on the same trials (section ``eval_push_limits``; run
   those first).
@@ -55,15 +56,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _pushes import pushes_over_minimum, trial_minimum  # noqa: E402
 from _results import format_section, update_section  # noqa: E402
 
-from pushbot.experiments.evaluate import (  # noqa: E402
+from pushbot.experiments.eval_report import (  # noqa: E402
     SOURCE_TABLE_5_2,
-    EvalOptions,
-    evaluate,
     stats,
     table_5_1,
     table_5_2,
     write_outputs,
 )
+from pushbot.experiments.evaluate import EvalOptions, evaluate  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "out" / "eval"
@@ -279,7 +279,7 @@ def exp_full(trials: int, workers: int, seed: int) -> tuple[str, str]:
     verdict = ("met" if wall <= 30 else "NOT met") if len(doc["trials"]) == n_full else \
         f"not applicable ({len(doc['trials'])} of {n_full} trials)"
     body = "\n".join([
-        "Full protocol (`pushbot.experiments.protocol`): "
+        "Full protocol (`pushbot.runner.protocol`): "
         f"{', '.join(OBJECTS)} x {', '.join(TASKS)} x {trials} trials, "
         "full system (`filter`: rendered 640 x 480 RGB-D -> segmentation CNN -> perception core "
         "-> EKF -> planner), ana, k = 3, COM at the geometric centre, randomised mass and "
@@ -292,7 +292,7 @@ def exp_full(trials: int, workers: int, seed: int) -> tuple[str, str]:
         "",
         *_failures_and_predictions(doc["trials"]),
         "",
-        "Stop rule (issue 12): `goal reached` needs the estimate inside the goal region shrunk "
+        "Stop rule: `goal reached` needs the estimate inside the goal region shrunk "
         "by z = 2.33 standard deviations of the EKF's pose covariance (confidence 0.99, "
         "[Stopping](../design/stopping.md)). The same 540 trials with the point rule (stop "
         "when the estimate is inside the region; commit 3475b3e, measured 2026-12-01): success "
@@ -519,7 +519,7 @@ def exp_ksweep(trials: int, workers: int, seed: int) -> tuple[str, str]:
     return body, "Contact points k: Figs. 5.5 and 5.6 (`eval_push_ksweep`)"
 
 
-#: Issue 22's acceptance: mean pushes per task on every object, and success over all trials.
+#: The lookahead's targets: mean pushes per task on every object, and success over all trials.
 LOOKAHEAD_TARGETS = {"translation": 5.0, "mixed": 3.0, "rotation": 2.0}
 LOOKAHEAD_SUCCESS = 0.995
 #: Set by --horizon: the planner's lookahead of the ``lookahead`` experiment.
@@ -544,7 +544,7 @@ def _full_trials(trials: int, seed: int) -> list[dict]:
 
 def _against_full(recs: list[dict], full: list[dict], this: str, other: str) -> list[str]:
     """Markdown rows per task and object: a variant's success and pushes (``this``) next to
-    ``full``'s on the same trials (``other``), the minimum and issue 22's target."""
+    ``full``'s on the same trials (``other``), the minimum and the lookahead target."""
     lines = [f"| task | object | trials | success ({this} / {other}) | pushes ({this}) | "
              f"pushes ({other}, same trials) | min | pushes / min ({this}) | target (mean "
              "pushes) | planning ms median |", "| --- " * 10 + "|"]
@@ -569,7 +569,7 @@ def _against_full(recs: list[dict], full: list[dict], this: str, other: str) -> 
 
 
 def exp_lookahead(trials: int, workers: int, seed: int) -> tuple[str, str]:
-    """The full protocol with the lookahead planner and the adapting loop (issue 22), next to
+    """The full protocol with the lookahead planner and the adapting loop, next to
     the greedy ``full`` run of the same trials when its results exist."""
     opts = EvalOptions(objects=OBJECTS, tasks=TASKS, methods=["ana"], k=[3], state=["filter"],
                        trials=trials, seed=seed, horizon=HORIZON, avoid_contradicted=True,
@@ -587,7 +587,7 @@ def exp_lookahead(trials: int, workers: int, seed: int) -> tuple[str, str]:
         f"planner looking ahead H = {HORIZON} pushes (`push_core.lookahead`, beam 8, push cost "
         "20 mm), contradicted pushes avoided and the filter re-learning "
         "(`pushbot eval push --horizon "
-        f"{HORIZON} --avoid-contradicted --relearn`). Issue 22's targets: mean pushes "
+        f"{HORIZON} --avoid-contradicted --relearn`). The lookahead's targets: mean pushes "
         "translation <= 5.0, mixed <= 3.0, rotation <= 2.0 on every object, success "
         f">= {LOOKAHEAD_SUCCESS}. Pushes are means over all trials (a failure counts its "
         "pushes); `min` and `pushes / min` as in `eval_push_full`.",
@@ -658,7 +658,7 @@ def exp_support(trials: int, workers: int, seed: int) -> tuple[str, str]:
         f"**Success {s['success_rate']:.3f}** ({s['successes']}/{s['n']}); mean pushes "
         f"{_f(s['steps_mean'], '.2f')}" + (f" against {_f(g['steps_mean'], '.2f')} with whole "
                                            "pieces on the same trials" if g else "") + ". "
-        + _timing(doc) + " The targets are issue 22's (for the default world).",
+        + _timing(doc) + " The targets are the lookahead's (for the default world).",
         "",
         *lines,
         "",
@@ -668,7 +668,7 @@ def exp_support(trials: int, workers: int, seed: int) -> tuple[str, str]:
 
 
 def exp_limits(trials: int, workers: int, seed: int) -> tuple[str, str]:
-    """What keeps the loop above issue 22's targets: the full protocol's pushes with the true
+    """What keeps the loop above the lookahead targets: the full protocol's pushes with the true
     COM given to the filter and with k = 10 contact points, next to ``full``, ``lookahead``
     and ``gt`` of the same trials (their saved results; run those first)."""
     base = {"objects": OBJECTS, "tasks": TASKS, "methods": ["ana"], "state": ["filter"],

@@ -1,4 +1,4 @@
-"""Push-T (gym-pusht) success of the push_core planner next to Diffusion Policy (issues 16, 24).
+"""Push-T (gym-pusht) success of the push_core planner next to Diffusion Policy.
 
 Runs ``pushbot eval pusht`` for both observations (the env state; the env's 96 x 96 image +
 agent position) and both object models (``env``: the T read from the env's body; ``estimated``:
@@ -29,7 +29,7 @@ from _results import format_section, update_section  # noqa: E402
 
 from pushbot.experiments.pusht_adapter import evaluate  # noqa: E402
 
-#: LeRobot's Diffusion Policy on gym-pusht (its model card / the issue): 500 episodes.
+#: LeRobot's Diffusion Policy on gym-pusht (its model card): 500 episodes.
 DIFFUSION_POLICY = {"success_rate": 0.638, "avg_max_reward": 0.959}
 
 GIVEN = {
@@ -83,7 +83,8 @@ def fidelity_errors(trials: int, seed: int, two_faces: bool) -> dict[bool, list]
 
     from push_core.rollout import rollout_push
     from push_core.transit import point_polygon_distance
-    from pushbot.experiments.pusht_adapter import PushTRunner, tee_body
+    from pushbot.experiments.pusht_adapter import PushTRunner
+    from pushbot.experiments.pusht_world import tee_body
 
     r = PushTRunner("state")
     ring = tee_body(r.env)[0]
@@ -229,10 +230,11 @@ def main() -> int:
         "(coverage > 0.95). Success with its 95 % Wilson interval; avg max reward = mean over "
         "episodes of max clip(coverage / 0.95, 0, 1) (LeRobot's metric); steps = control steps "
         "until success or 300; planning = one `Planner.plan` + transit path. Adapter, frames "
-        "and units: `pushbot.experiments.pusht_adapter`; per-episode records in "
+        "and units: `pushbot.experiments.pusht_adapter`, `pushbot.experiments.pusht_world`; "
+        "per-episode records in "
         f"`{args.out}/<obs>[-estimated]/results.json`.",
         "",
-        "Object model `env` (issue 16): the T read from the env's body. `estimated` (issue 24, "
+        "Object model `env`: the T read from the env's body. `estimated` ("
         "`pushbot eval pusht --object-model estimated`, `pushbot.experiments.pusht_estimated`): "
         "the T unknown; its outline from the episode's first 96 x 96 image (the perception "
         "core's mask -> footprint step on the block-colour mask, then every polygon vertex "
@@ -267,7 +269,7 @@ def main() -> int:
         "Failures:" if failed else "Failures: none.",
         *failed,
     ])
-    body += ("\n\nModel fidelity on the T (contact-model check of issue 16): push_core's rollout "
+    body += ("\n\nModel fidelity on the T (a check of the contact model): push_core's rollout "
              "(frictionless, l = sqrt(I/M), the adapter's frames) against the env for straight "
              "60-unit pushes of a T at a random orientation, 300 tries, pushes that moved it "
              "by 5 mm or more; 'nearest face' is the default rollout (one contact per substep), "

@@ -1,4 +1,4 @@
-"""The shape-class benchmark of issue 12 ("Every flat object"), written to docs/results/.
+"""The shape-class benchmark (every flat object the library can make), written to docs/results/.
 
 The full system (``state filter``: rendered 640 x 480 RGB-D -> segmentation CNN -> perception
 core -> EKF with COM estimation -> planner), method ana, k = 3, the translation and mixed tasks,
@@ -20,8 +20,9 @@ trials whose *estimate* reached the goal but whose true pose did not, failure re
 table and the comparison with the source's 10.6-13.9 pushes (Table 5.2).
 
 With ``--horizon H`` (H > 1), ``--avoid-contradicted`` or ``--relearn`` the planner and filter
-variants of issue 22 run (``pushbot eval push`` has the same options); their results go to the
-section ``eval_shapes_variant`` and ``--out``'s ``variant/`` folder, so the greedy section stays.
+variants run (lookahead, contradicted pushes avoided, re-learning; ``pushbot eval push`` has
+the same options); their results go to the section ``eval_shapes_variant`` and ``--out``'s
+``variant/`` folder, so the greedy section stays.
 
 Usage::
 
@@ -47,13 +48,8 @@ from _results import format_section, update_section  # noqa: E402
 from bench_graph import wilson  # noqa: E402
 
 from push_core.procedural import SHAPE_CLASSES  # noqa: E402
-from pushbot.experiments.evaluate import (  # noqa: E402
-    EvalOptions,
-    evaluate,
-    stats,
-    usable_cores,
-    write_outputs,
-)
+from pushbot.experiments.eval_report import stats, write_outputs  # noqa: E402
+from pushbot.experiments.evaluate import EvalOptions, evaluate, usable_cores  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 OBJECTS_DIR = Path("benchmarks") / "objects"  # relative to ROOT

@@ -1,4 +1,4 @@
-"""Write the shape-class benchmark's object specification files (issue 12, "Every flat object").
+"""Write the shape-class benchmark's object specification files.
 
 ``benchmarks/objects/<class>/<name>.yaml`` for every object of
 :func:`push_core.procedural.benchmark_objects` (seed 0): discs, ellipses, regular polygons,

@@ -1,14 +1,14 @@
 """Same trials before and after a change: a sample of the protocol's trials, in-process.
 
-Behaviour-unchanged check of a refactor (issue 21): run ``record`` at two commits (a checkout
-each, same machine), then ``compare`` the two files; ``compare`` writes
-``docs/results/same_trials.md``. The sample: the first ``--per-cell`` trials of every cell of
-the full protocol (tri1, butter, hex x translation, rotation, mixed, full system ``filter``, COM at
-the centre), every Table 5.2 cell's first trial (ana and lrn, with and without COM estimation,
-random COM), and the first trial of every fourth shape-benchmark object on translation and mixed. A
-trial is the same when its pushes (approach, contact and end points, bit for bit) and its true end
-error are. Works with the old flat ``pushbot`` layout too (``pushbot.episode`` /
-``pushbot.protocol``).
+Behaviour-unchanged check of a refactor: run ``record`` at two commits (a checkout each, same
+machine), then ``compare`` the two files; ``compare`` writes ``docs/results/same_trials.md``.
+The sample: the first ``--per-cell`` trials of every cell of the full protocol (tri1, butter,
+hex x translation, rotation, mixed, full system ``filter``, COM at the centre), every Table 5.2
+cell's first trial (ana and lrn, with and without COM estimation, random COM), and the first
+trial of every fourth shape-benchmark object on translation and mixed. A trial is the same when
+its pushes (approach, contact and end points, bit for bit) and its true end error are. Works
+with the older ``pushbot`` layouts too (the trial definition in ``pushbot.experiments.protocol``,
+or the flat ``pushbot.episode`` / ``pushbot.protocol``).
 
 Usage::
 
@@ -45,10 +45,15 @@ def sample(per_cell: int) -> list[dict]:
 def record(out: Path, per_cell: int) -> int:
     try:
         from pushbot.experiments.inprocess import run_trial
-        from pushbot.experiments.protocol import Trial
-    except ImportError:  # the layout before issue 21's split
+    except ImportError:  # the flat layout, before pushbot's subpackages
         from pushbot.episode import run_trial
-        from pushbot.protocol import Trial
+    try:
+        from pushbot.runner.protocol import Trial
+    except ImportError:  # older layouts: the trial definition in experiments, or flat
+        try:
+            from pushbot.experiments.protocol import Trial
+        except ImportError:
+            from pushbot.protocol import Trial
     rows = []
     for kw in sample(per_cell):
         rec = run_trial(Trial(**{**kw, "object": str(ROOT / kw["object"])

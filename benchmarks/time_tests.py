@@ -1,15 +1,16 @@
 """The test tiers, timed: wall time and outcome of ``make test-fast`` and ``make test``.
 
-Runs each tier once, as the Makefile does (``python -m pytest -m "not graph and not slow"`` and
-``python -m pytest``) in the repository, and writes
-``docs/results/test_tiers.md``: wall time, the pytest summary counts and the 1-minute load
-average before and after (the machine may be shared: a loaded machine stretches every figure). Not
-run by ``run_all.py`` (it would run the whole suite inside ``make bench``).
+Runs each tier once through its make target (``make test-fast``, ``make test``: the Makefile
+holds their workers and markers) in the repository, and writes ``docs/results/test_tiers.md``:
+wall time, the pytest summary counts, the 1-minute load average before and after (the machine
+may be shared: a loaded machine stretches every figure) and the slowest 30 test phases of the
+last full run (``make test`` prints them). Not run by ``run_all.py`` (it would run the whole
+suite inside ``make bench``).
 
 With ``--ci-log FILE`` (repeatable) it also reads clean-clone CI runs: the output of
 ``(time bash .ci/run) > FILE 2>&1`` in a fresh clone (venv build, then ``make test``); each adds
 a row with pytest's own wall time, its summary counts and the whole run's time (``real``, the
-venv build included).
+venv build included), and its slowest tests when it is the last full run.
 
 The figures are saved beside the page (``docs/results/test_tiers.json``); ``--render`` writes
 the page again from them without running anything.
@@ -35,12 +36,16 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _results  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
-#: tier -> (make target, pytest arguments)
-TIERS = {"fast": ("make test-fast", ["-m", "not graph and not slow"]),
-         "full": ("make test", [])}
+#: tier -> its make target (the Makefile holds the pytest options of each: workers, markers)
+TIERS = {"fast": "test-fast", "full": "test"}
+#: What this script adds to the targets' pytest options.
+PYTEST_ARGS = "-q -p no:cacheprovider"
 _COUNT = re.compile(r"(\d+) (passed|failed|skipped|deselected|errors?|xfailed|xpassed)")
 _PYTEST_SECONDS = re.compile(r" in ([0-9.]+)s")
 _REAL = re.compile(r"^real\s+(\d+)m([0-9.]+)s", re.M)
+_DURATION = re.compile(r"^([0-9.]+)s (call|setup|teardown)\s+(\S+)$")
+#: Slowest tests listed on the page.
+SLOWEST = 30
 
 
 def summary_counts(output: str) -> dict[str, int]:
@@ -56,17 +61,30 @@ def summary_counts(output: str) -> dict[str, int]:
             for n, kind in _COUNT.findall(lines[-1])}
 
 
+def slowest(output: str) -> list[list[object]]:
+    """``[[seconds, phase, test id], ...]`` of pytest's ``--durations`` block, slowest first.
+
+    >>> slowest("== slowest 30 durations ==\\n12.50s call     tests/a.py::test_x\\n"
+    ...         "3.00s setup    tests/b.py::test_y\\n== 9 passed in 20.0s ==")
+    [[12.5, 'call', 'tests/a.py::test_x'], [3.0, 'setup', 'tests/b.py::test_y']]
+    """
+    found = [[float(m.group(1)), m.group(2), m.group(3)] for m in
+             (_DURATION.match(line.strip()) for line in output.splitlines()) if m]
+    return sorted(found, key=lambda row: -float(row[0]))
+
+
 def run_tier(name: str) -> dict[str, object]:
-    """Run one tier; wall time (s), counts, exit status and load averages."""
-    _target, extra = TIERS[name]
+    """Run one tier through its make target; wall time (s), counts, exit status, load averages
+    and the slowest tests the target prints."""
     load_before = os.getloadavg()[0]
     start = time.monotonic()
-    proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
-                           *extra], cwd=REPO, capture_output=True, text=True, check=False)
+    proc = subprocess.run(["make", "-s", TIERS[name], f"PYTEST_ARGS={PYTEST_ARGS}"], cwd=REPO,
+                          capture_output=True, text=True, check=False)
     seconds = time.monotonic() - start
     return {"tier": name, "seconds": seconds, "status": proc.returncode,
             "counts": summary_counts(proc.stdout), "load": (load_before, os.getloadavg()[0]),
-            "tail": proc.stdout.strip().splitlines()[-1:] or [""]}
+            "tail": proc.stdout.strip().splitlines()[-1:] or [""],
+            "slowest": slowest(proc.stdout)}
 
 
 def read_ci_log(path: Path) -> dict[str, object]:
@@ -90,7 +108,8 @@ def read_ci_log(path: Path) -> dict[str, object]:
             "seconds": float(_PYTEST_SECONDS.search(summary[-1]).group(1)),  # type: ignore[union-attr]
             "counts": summary_counts(summary[-1]),
             "total": 60 * int(real.group(1)) + float(real.group(2)) if real else None,
-            "status": 0 if "failed" not in summary_counts(summary[-1]) else 1}
+            "status": 0 if "failed" not in summary_counts(summary[-1]) else 1,
+            "slowest": slowest(text)}
 
 
 SECTION = "test_tiers"
@@ -106,7 +125,7 @@ def section(results: list[dict[str, object]]) -> str:
         counts = ", ".join(f"{n} {k}" for k, n in r["counts"].items())  # type: ignore[union-attr]
         if "load" in r:
             before, after = r["load"]  # type: ignore[misc]
-            load, where = f"{before:.1f} / {after:.1f}", f"`{TIERS[str(r['tier'])][0]}`"
+            load, where = f"{before:.1f} / {after:.1f}", f"`make {TIERS[str(r['tier'])]}`"
         else:
             total = r["total"]
             load = "-"
@@ -114,10 +133,21 @@ def section(results: list[dict[str, object]]) -> str:
                      + (f"; {float(total) / 60:.1f} min with the venv build)" if total else ")"))
         rows.append(f"| {r['tier']} | {where} | {float(r['seconds']) / 60:.1f} min | "
                     f"{r['status']} | {counts} | {load} |")
-    body = ("Each tier run once on this worktree (`-p no:cacheprovider`; the fast tier leaves "
-            "out the `graph` and `slow` markers), and clean-clone CI runs read from their logs. "
-            "Wall time from start to exit of pytest; the load average shows how busy the "
-            "machine was.\n\n" + "\n".join(rows))
+    body = ("Each tier run once on this worktree through its make target (the Makefile's "
+            f"workers and markers, plus `{PYTEST_ARGS}`; the fast tier leaves out the `graph` "
+            "and `slow` markers), and clean-clone CI runs read from their logs. Wall time from "
+            "start to exit of pytest (the venv build not counted); the load average shows how "
+            "busy the machine was.\n\n" + "\n".join(rows))
+    timed = [r for r in results if r.get("slowest") and r["tier"] == "full"]
+    if timed:
+        last = timed[-1]
+        name = last.get("source") or f"make {TIERS['full']}"
+        lines = ["| # | seconds | phase | test |", "| --- | --- | --- | --- |"]
+        lines += [f"| {i} | {float(sec):.1f} | {phase} | `{test}` |"
+                  for i, (sec, phase, test) in enumerate(last["slowest"][:SLOWEST], 1)]  # type: ignore[index]
+        body += (f"\n\nThe {SLOWEST} slowest test phases of the last full run ({name}; wall "
+                 "seconds of each phase on its worker, as pytest's `--durations` prints them):"
+                 "\n\n" + "\n".join(lines))
     return body
 
 

@@ -3,7 +3,8 @@
 At import time, before any test module can import rclpy, this sets for the whole session (and
 so for every child process, which inherits ``os.environ``):
 
-- ``ROS_DOMAIN_ID``: ``PUSHBOT_TEST_DOMAIN_ID`` when that is set, otherwise the first domain in
+- ``ROS_DOMAIN_ID``: ``PUSHBOT_TEST_DOMAIN_ID`` when that is set (plus the worker's number
+  under pytest-xdist, whose every worker is a session of its own), otherwise the first domain in
   1-100, starting at 1 + (pid % 100), whose lock file (``<tmp>/pushbot-test-domain-<id>.lock``,
   ``flock`` held for the whole session, released by the kernel when the session ends) no
   other session holds, so concurrent pytest sessions on one machine never share a domain (the
@@ -77,7 +78,10 @@ def _free_domain() -> int:
 
 def _isolate_ros_session() -> int:
     override = os.environ.get("PUSHBOT_TEST_DOMAIN_ID")
-    domain = int(override) if override else _free_domain()
+    # pytest-xdist workers (gw0, gw1, ...) each take their own domain: the override plus the
+    # worker's number, or a free one like any session.
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0")
+    domain = int(override) + int(worker[2:] or 0) if override else _free_domain()
     os.environ["ROS_DOMAIN_ID"] = str(domain)
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     os.environ["FASTDDS_BUILTIN_TRANSPORTS"] = "UDPv4"  # ignored under the bundled profile

@@ -1,4 +1,4 @@
-"""``pushbot bag record|info|play`` on real DDS messages (issue 14, item 4).
+"""``pushbot bag record|info|play`` on real DDS messages.
 
 A publisher in this process, ``pushbot bag record`` / ``bag play`` as child processes (the
 way a user runs them): record until Ctrl-C, read the bag back with ``rosbags`` (counts, a
@@ -119,7 +119,7 @@ def test_record_reads_back_with_rosbags(recorded_bag: tuple[Path, str, dict[str,
 
 def test_metadata_is_what_rosbag2_jazzy_writes(
         recorded_bag: tuple[Path, str, dict[str, int]]) -> None:
-    from pushbot.ros2cli.bag import message_definition
+    from pushbot.ros2cli.bag_store import message_definition
 
     bag, _, _ = recorded_bag
     info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
@@ -260,7 +260,7 @@ def test_a_failing_write_is_counted_not_silent(tmp_path: Path, ros_context, wait
     from rosbags.rosbag2 import Reader
     from std_msgs.msg import String
 
-    from pushbot.ros2cli.bag import BagRecorder, TopicSelection
+    from pushbot.ros2cli.bag_record import BagRecorder, TopicSelection
 
     node = rclpy.create_node("bag_test_failing", context=ros_context)
     executor = SingleThreadedExecutor(context=ros_context)
@@ -293,15 +293,15 @@ def test_a_failing_write_is_counted_not_silent(tmp_path: Path, ros_context, wait
         assert reader.message_count == 2
 
 
-# --- bag play leaves command topics out (issue 23, item 7) ---------------------------------
+# --- bag play leaves command topics out ----------------------------------------------------
 
 def _write_bag(path: Path, topics: dict[str, tuple[str, Any]]) -> None:
     """A bag of one message per topic (``{topic: (msgtype, message)}``), written as ``bag
     record`` writes it."""
     from rosbags.typesys import Stores, get_typestore
 
-    from pushbot.ros2cli.bag import message_definition
     from pushbot.ros2cli.bag_mcap import Rosbag2McapWriter
+    from pushbot.ros2cli.bag_store import message_definition
 
     store = get_typestore(Stores.ROS2_JAZZY)
     with Rosbag2McapWriter(path) as writer:
@@ -361,7 +361,7 @@ def test_play_leaves_command_topics_out_unless_asked(tmp_path: Path, capsys) -> 
     assert "published 1 messages: /goal_pose 1" in captured.out and "leaving" not in captured.err
 
 
-# --- record: short-lived publishers and the default folder (issue 23, item 10) -------------
+# --- record: short-lived publishers and the default folder ---------------------------------
 
 def test_record_all_catches_a_short_lived_publisher(tmp_path: Path, processes) -> None:
     # What `pushbot goal` does: a new process, a new topic, one message once a subscriber
@@ -370,7 +370,7 @@ def test_record_all_catches_a_short_lived_publisher(tmp_path: Path, processes) -
     # (a recorder that looks for new topics too rarely misses the message).
     from rosbags.rosbag2 import Reader
 
-    from pushbot.ros2cli.bag import BagRecorder, TopicSelection
+    from pushbot.ros2cli.bag_record import BagRecorder, TopicSelection
 
     topic = f"/short_lived_{time.monotonic_ns()}"
     with BagRecorder(tmp_path / "bag", TopicSelection(all_topics=True)) as recorder:
@@ -379,7 +379,9 @@ def test_record_all_catches_a_short_lived_publisher(tmp_path: Path, processes) -
                                 "--keep-alive", "2"],
                                name="pub")
         assert proc.wait(timeout=60) == 0, processes.output(proc)
-        time.sleep(0.5)  # the last sample's way to the recorder
+        deadline = time.monotonic() + 30.0  # the sample's way to the recorder
+        while recorder.counts().get(topic, 0) < 1 and time.monotonic() < deadline:
+            time.sleep(0.05)
         counts = recorder.counts()
     assert counts.get(topic) == 1, (counts, processes.output(proc))
     with Reader(tmp_path / "bag") as reader:
@@ -391,7 +393,7 @@ def test_record_all_catches_the_goal_of_pushbot_goal(tmp_path: Path, processes) 
     # recorder discovering the new process meanwhile still gets it. The linger here is long
     # (20 s, the default 2 s) so that discovery on a loaded machine stays far inside it; the goal
     # is interrupted once the recorder holds the message.
-    from pushbot.ros2cli.bag import BagRecorder, TopicSelection
+    from pushbot.ros2cli.bag_record import BagRecorder, TopicSelection
 
     planner = processes.node("planner_node")
     with BagRecorder(tmp_path / "bag", TopicSelection(all_topics=True)) as recorder:

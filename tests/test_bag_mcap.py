@@ -1,4 +1,4 @@
-"""Bags written by ``pushbot.ros2cli.bag_mcap`` as rosbag2 Jazzy writes them (issue 23, item 13).
+"""Bags written by ``pushbot.ros2cli.bag_mcap`` as rosbag2 Jazzy writes them.
 
 ROS-free: messages serialized with the ``rosbags`` Jazzy type store are written with
 :class:`~pushbot.ros2cli.bag_mcap.Rosbag2McapWriter` at chosen times, then read back with the
@@ -44,8 +44,8 @@ def _write(path: Path, compress: bool = True) -> None:
     unknown); /pose: one latched PoseStamped."""
     from rosbags.typesys import Stores, get_typestore
 
-    from pushbot.ros2cli.bag import message_definition
     from pushbot.ros2cli.bag_mcap import Rosbag2McapWriter
+    from pushbot.ros2cli.bag_store import message_definition
 
     store = get_typestore(Stores.ROS2_JAZZY)
     string = store.types["std_msgs/msg/String"]
@@ -135,7 +135,7 @@ def test_a_changed_byte_fails_the_chunk_crc(tmp_path: Path) -> None:
 def test_channels_carry_qos_and_type_hash(bag: Path) -> None:
     from mcap.reader import make_reader
 
-    from pushbot.ros2cli.bag import message_definition
+    from pushbot.ros2cli.bag_store import message_definition
 
     with (bag / "bag_0.mcap").open("rb") as f:
         summary = make_reader(f).get_summary()
@@ -191,7 +191,7 @@ def test_ros_distro_follows_the_environment(tmp_path: Path, monkeypatch) -> None
 
 def test_rosbags_reads_it_as_bag_info_and_play_do(bag: Path, capsys) -> None:
     from pushbot import cli
-    from pushbot.ros2cli.bag import open_reader, read_messages
+    from pushbot.ros2cli.bag_store import open_reader, read_messages
 
     with open_reader(bag) as reader:
         assert reader.ros_distro == "jazzy"
@@ -204,7 +204,7 @@ def test_rosbags_reads_it_as_bag_info_and_play_do(bag: Path, capsys) -> None:
 
 
 def test_message_times_follow_rosbag2() -> None:
-    from pushbot.ros2cli.bag import message_times
+    from pushbot.ros2cli.bag_store import message_times
 
     info = {"source_timestamp": 11, "received_timestamp": 22,
             "publication_sequence_number": 1, "reception_sequence_number": 1}
@@ -233,8 +233,8 @@ def test_bag_info_and_play_read_a_bag_as_rosbag2_writes_it_by_default(tmp_path: 
     from rosbags.typesys import Stores, get_typestore
 
     from pushbot import cli
-    from pushbot.ros2cli.bag import message_definition, open_reader, read_messages
     from pushbot.ros2cli.bag_mcap import dump_qos
+    from pushbot.ros2cli.bag_store import message_definition, open_reader, read_messages
 
     store = get_typestore(Stores.ROS2_JAZZY)
     bag = tmp_path / "rosbag2_2026_12_03-10_00_00"

@@ -1,4 +1,4 @@
-"""``pushbot replay`` (issue 14, item 5) on a small synthesised episode bag.
+"""``pushbot replay`` on a small synthesised episode bag.
 
 The bag holds real CDR (``rclpy.serialization`` of messages built with the ``push_ros``
 codecs the nodes use), written with ``rosbags`` as ``pushbot bag record`` writes it: small
@@ -76,7 +76,7 @@ def write_episode_bag(path: Path, *, with_extrinsics: bool = True,
     from push_ros.paths import push_path
     from push_ros.poses import pose_stamped_msg, pose_with_covariance_msg, transform_msg
     from push_ros.stamps import stamp_from_seconds
-    from pushbot.ros2cli.bag import message_definition
+    from pushbot.ros2cli.bag_store import message_definition
     from sim_bridge.camera import CameraConfig, intrinsics, look_at_pose, project
 
     cfg = CameraConfig(width=160, height=120)

@@ -84,6 +84,7 @@ def test_robot_arm_in_simulation_adds_the_executor_enabled_and_the_bridge_s_arm(
     assert _overrides(nodes[0]) == {"use_sim_time": False, "robot": "arm",
                                     "arm.real_time_factor": 1.0}
     assert _overrides(nodes[-1]) == {"use_sim_time": True, "start_enabled": True}
+    assert _overrides(nodes[1]) == {"use_sim_time": True, "robot_filter.enabled": True}
 
 
 @pytest.mark.parametrize("sim, robot, match", [
@@ -104,7 +105,8 @@ def test_sim_false_starts_no_simulator_uses_wall_time_and_realsense_topics() -> 
     nodes = graph_nodes(False)
     assert [n.package for n in nodes] == ["push_perception", "push_estimator", "push_planner",
                                           "push_executor"]
-    for node in nodes[:3]:
+    assert _overrides(nodes[0]) == {"use_sim_time": False, "robot_filter.enabled": True}
+    for node in nodes[1:3]:
         assert _overrides(node) == {"use_sim_time": False}, node.package
     # the arm executor: wall time, and a dry run until ~/enable
     assert _overrides(nodes[3]) == {"use_sim_time": False, "start_enabled": False}

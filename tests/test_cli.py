@@ -374,8 +374,8 @@ def test_topic_echo_on_a_missing_topic_exits_1_clearly() -> None:
 
 
 def test_readme_lists_every_command_and_option() -> None:
-    """docs/CLI.md's command reference is exactly what the parsers say (issue 14, item 7: every
-    option documented), and it names every option string of every command."""
+    """docs/CLI.md's command reference is exactly what the parsers say (every option
+    documented), and it names every option string of every command."""
     import argparse
 
     from pushbot.cli import build_parser

@@ -1,4 +1,4 @@
-"""By default the nodes' participants bind and announce loopback locators only (issue 15, 6).
+"""By default the nodes' participants bind and announce loopback locators only.
 
 ``pushbot run planner_node`` is started with the user's default environment (no
 ``ROS_AUTOMATIC_DISCOVERY_RANGE``, no profile: pushbot's closed default applies, see

@@ -84,6 +84,12 @@ def test_demo_runs_doctor_then_the_closed_loop_through_the_graph(demo_run) -> No
                      r"error [\d.]+ mm$", out, re.M), out
     # figures: docs/results/graph.md
     assert re.search(r"^wall time: ([\d.]+) s in all", out, re.M), out
+    # Robot (simulated) time: goal to the final stop, and one cycle per push after the first.
+    robot = re.search(r"^robot time: ([\d.]+) s from the goal to the final stop", out, re.M)
+    assert robot and float(robot.group(1)) == pytest.approx(record["robot_time_s"], abs=0.06)
+    assert record["robot_time_s"] > 0 and len(record["cycle_s"]) == record["steps"] - 1, out
+    assert all(c > 0 for c in record["cycle_s"]) and sum(record["cycle_s"]) < \
+        record["robot_time_s"]
     from PIL import Image
 
     from pushbot.viz.render import GIF_MAX_FRAMES

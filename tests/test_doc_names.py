@@ -1,4 +1,4 @@
-"""Every first-party dotted name the documentation quotes resolves (issue 21, item 4).
+"""Every first-party dotted name the documentation quotes resolves.
 
 Scanned: ``README.md``, ``docs/**/*.md`` (the map, design and result pages) and the docstrings
 of every module, class and function under ``src/`` (launch files included). A name counts when

@@ -167,6 +167,8 @@ def _node_endpoints(context: Any) -> Iterator[tuple[str, Any]]:
         parameter_overrides=[Parameter("robot", value="arm"), Parameter("image_width", value=64),
                              Parameter("image_height", value=48)])
     yield "perception", SegmentationNode(context=context)
+    yield "perception", SegmentationNode(
+        context=context, parameter_overrides=[Parameter("robot_filter.enabled", value=True)])
     sim_time = [Parameter("use_sim_time", value=True)]
     yield "estimator", EkfNode(context=context, parameter_overrides=sim_time)
     yield "planner", PlannerNode(context=context, parameter_overrides=sim_time)

@@ -123,6 +123,8 @@ ROSDEP_KEYS = {
     "filterpy": {"python3-filterpy-pip"},
     # pip `pin`; rosdep: the ROS package `pinocchio` (released into Jazzy) ships the bindings.
     "pinocchio": {"pinocchio"},
+    # pip `ruckig`; no rosdep Python key: the Jazzy ROS package `ruckig` (the same library).
+    "ruckig": {"ruckig"},
 }
 
 

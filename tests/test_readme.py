@@ -1,4 +1,4 @@
-"""The README's Python examples run as written, in a fresh interpreter (issue 23, item 11)."""
+"""The README's Python examples run as written, in a fresh interpreter."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""``pushbot view`` (issue 14, item 6): a real Foxglove WebSocket client receives the graph.
+"""``pushbot view``: a real Foxglove WebSocket client receives the graph.
 
 A node here publishes a camera image (best effort, like ``sim_bridge``) and a latched
 estimate (like ``ekf_node``) on the session's DDS domain; ``pushbot view --port 0`` runs as a

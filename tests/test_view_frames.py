@@ -1,4 +1,4 @@
-"""Times and frames of ``pushbot view`` without a graph (issue 23, item 12).
+"""Times and frames of ``pushbot view`` without a graph.
 
 ``pushbot.viz.view_frames`` (ROS-free): the header stamp read from CDR bytes (serialized by the
 ``rosbags`` Jazzy type store, and a big-endian buffer built by hand), the log-time rule

@@ -16,7 +16,7 @@ setup(
     # `pushbot eval push --ray ADDRESS` runs the trials as Ray tasks, for users who outgrow one
     # machine (pip install 'pushbot[ray]'; the repository's .venv has it from requirements.txt);
     # the default engine is local worker processes.
-    # `pushbot eval pusht` (issue 16): gym-pusht and what it needs at run time. gym-pusht
+    # `pushbot eval pusht`: gym-pusht and what it needs at run time. gym-pusht
     # 0.1.8 also requires opencv-python<5; where opencv-python-headless 5 is installed (this
     # repository's .venv) install gym-pusht with --no-deps instead, as `make venv` does.
     extras_require={"ray": ["ray>=2.9"],

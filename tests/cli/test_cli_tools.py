@@ -55,7 +55,7 @@ def test_no_help_text_shows_restructuredtext_markup() -> None:
 
 def test_plain_help_unmarks_roles_and_literals() -> None:
     doc = ("Uses :mod:`push_ros.dds` and :func:`~push_core.planner.plan`, "
-           ":class:`Trial <pushbot.experiments.protocol.Trial>`; run ``pushbot demo``."
+           ":class:`Trial <pushbot.runner.protocol.Trial>`; run ``pushbot demo``."
            "\n\n- a list\n")
     assert cli.plain_help(doc) == ("Uses push_ros.dds and plan, Trial; run pushbot demo.\n\n"
                                    "- a list")
@@ -400,7 +400,7 @@ def test_a_closed_stdout_ends_quietly_with_141() -> None:
     assert result.stderr == ""
 
 
-# --- what ros2 prints (issue 23, item 4) ----------------------------------------------------
+# --- what ros2 prints -----------------------------------------------------------------------
 
 def test_byte_fields_print_as_ros2_prints_them() -> None:
     from diagnostic_msgs.msg import DiagnosticStatus

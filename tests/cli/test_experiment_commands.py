@@ -1,6 +1,6 @@
 """``pushbot data|train|eval`` as a user runs them: bad input is one line and exit 2 before any
 work, small data sets train, training writes under ``out/train/`` unless ``--install`` is
-given, and every option's default is shown in ``--help`` (issue 23, items 8 and 9).
+given, and every option's default is shown in ``--help``.
 
 The commands run in-process through :func:`pushbot.cli.main` in a temporary working directory;
 data sets are generated for real (pybullet), with the fewest frames and contact points that

@@ -91,11 +91,16 @@ def stop_up(manager: Any, proc: subprocess.Popen, output: Callable[[], str]) -> 
 
 def wait_for_nodes(proc: subprocess.Popen, output: Callable[[], str], names: Sequence[str]
                    ) -> None:
-    deadline = time.monotonic() + 90
+    deadline = time.monotonic() + 180  # a bound for a loaded machine, not a wait
+    listed: list[str] = []
     while time.monotonic() < deadline and proc.poll() is None:
-        if sorted(pushbot("node", "list").stdout.split()) == sorted(names):
+        result = pushbot("node", "list")
+        listed = sorted(result.stdout.split())
+        if listed == sorted(names):
             return
-    pytest.fail(f"pushbot up did not bring up {names}:\n{output()[-3000:]}")
+    pytest.fail(f"pushbot up did not bring up {names} (last `node list`: {listed}; up "
+                f"{'exited ' + str(proc.returncode) if proc.poll() is not None else 'running'}):"
+                f"\n{output()[-3000:]}")
 
 
 @pytest.fixture(scope="module")

@@ -1,5 +1,5 @@
 """Rule 8 of push_core.episode: a push whose outcome contradicted its prediction is not
-planned again (issue 22), and the status says so; off by default."""
+planned again, and the status says so; off by default."""
 
 from __future__ import annotations
 
@@ -41,8 +41,8 @@ def push_and_observe(e: EpisodeEngine, stamp: float, observed: np.ndarray):
 
 
 def test_a_push_that_barely_moved_the_object_is_not_repeated() -> None:
-    # Planned to move the object ~5 cm towards the goal 15 cm away; it moved 3.6 mm (the
-    # issue's depth-noise stall). The next plan avoids that contact region and the status
+    # Planned to move the object ~5 cm towards the goal 15 cm away; it moved 3.6 mm (a
+    # depth-noise stall seen in evaluation). The next plan avoids that contact region and the status
     # says why.
     e = engine()
     e.estimate(1.0, state_at(0.0))

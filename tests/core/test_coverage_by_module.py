@@ -1,4 +1,4 @@
-"""Every push_core module has a test module of its own (issue 21).
+"""Every push_core module has a test module of its own.
 
 A module ``push_core/<name>.py`` is tested in ``tests/core/test_<name>.py``; a module of a
 subpackage, ``push_core/<package>/<name>.py``, in ``test_<name>.py`` or

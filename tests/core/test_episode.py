@@ -205,3 +205,15 @@ def test_precedes_episode_window() -> None:
     assert not precedes_episode(10.5, 10.0)  # the camera's next frame
     assert not precedes_episode(0.1, 10.0)  # a restarted clock (simulator restarted)
     assert not precedes_episode(1.0, -float("inf"))  # no boundary before the first reset
+
+
+def test_robot_times() -> None:
+    from push_core.episode import robot_times
+
+    times = robot_times(10.0, [10.5, 14.0, 18.5], 23.0)
+    assert times == {"robot_time_s": 13.0, "cycle_s": [3.5, 4.5]}
+    assert robot_times(4.0, [], 4.0) == {"robot_time_s": 0.0, "cycle_s": []}
+    for args in ((10.0, [9.0], 20.0), (10.0, [12.0, 11.0], 20.0), (10.0, [12.0], 11.0),
+                 (math.nan, [], 1.0)):
+        with pytest.raises(ValueError, match="in order"):
+            robot_times(*args)

@@ -190,7 +190,8 @@ def test_twist_jacobian_equals_autodiff_of_the_model() -> None:
 def test_one_push_against_a_face_is_hand_derived() -> None:
     # Square of half-width 3 cm, COM at the centre, l = 3 cm, m = 1 (sticks). The pusher
     # (radius 4.8 mm) touches the face x = -0.03 at r = (-0.03, 0.01) and pushes 1 cm along +x.
-    # SPEC section 3 with r' = (-0.03, 0.01), l^2 = 9e-4, D = l^2 + r'^2 = 1.9e-3:
+    # The pushing model (docs/design/pushing-model.md) with r' = (-0.03, 0.01),
+    # l^2 = 9e-4, D = l^2 + r'^2 = 1.9e-3:
     #   v_ox = (l^2 + r'_x^2) u / D = 0.01 * 18/19,  v_oy = r'_x r'_y u / D = -0.01 * 3/19,
     #   omega = (r'_x v_oy - r'_y v_ox) / l^2 = -1/19 rad.
     outline = ContactOutline.from_points(square(0.03))

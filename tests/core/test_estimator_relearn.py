@@ -1,7 +1,7 @@
-"""The estimator re-learns c, l, m when a push contradicts its prediction (issue 22).
+"""The estimator re-learns c, l, m when a push contradicts its prediction.
 
 The documented test of "a push's observed motion contradicts its prediction": an EKF that has
-converged on a wrong COM (confident, small covariance: what the issue saw after a push that
+converged on a wrong COM (confident, small covariance: what evaluation showed after a push that
 turned the object far more than predicted) is fed pushes whose outcome comes from the true
 COM (the filter's own process model as the world, exact observations): the object lands
 5-18 mm and 6-18 degrees from every prediction, NIS 5-12 each time, inside the gate (21.1), so

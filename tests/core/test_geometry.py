@@ -11,6 +11,7 @@ from push_core.geometry import (
     check_points,
     check_polyline,
     check_poses,
+    check_vector,
     closest_point_on_polyline,
     object_to_world,
     rot2,
@@ -238,3 +239,15 @@ def test_the_one_quaternion_rule():
         yaw_from_quaternion([0.0, 0.0, np.nan, 1.0])
     with pytest.raises(ValueError, match="zero norm"):
         check_quaternion(np.zeros(4))
+
+
+def test_check_vector_copies_a_finite_vector_and_names_a_bad_one() -> None:
+    given = [1.0, 2.0, 3.0]
+    out = check_vector(given, 3, "goal")
+    assert out.dtype == np.float64 and out.tolist() == given
+    with pytest.raises(ValueError, match=r"^goal: expected 3 numbers"):
+        check_vector(["a", 1, 2], 3, "goal")
+    with pytest.raises(ValueError, match=r"^goal: expected shape \(3,\), got shape \(2,\)"):
+        check_vector([1.0, 2.0], 3, "goal")
+    with pytest.raises(ValueError, match=r"^pose: must be finite"):
+        check_vector([0.0, np.inf, 0.0], 3, "pose")

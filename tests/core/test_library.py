@@ -1,4 +1,4 @@
-"""push_core as a library (issue 16): PushObject/Pusher, the transit planner, the planner's
+"""push_core as a library: PushObject/Pusher, the transit planner, the planner's
 obstacles, travel cost and "no push improves", the EKF with known COM/l and friction 0."""
 
 import math

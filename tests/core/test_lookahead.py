@@ -1,4 +1,4 @@
-"""Unit tests of push_core.lookahead and the planner's horizon option (issue 22)."""
+"""Unit tests of push_core.lookahead and the planner's horizon option."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Unit tests of push_core.model: the analytical pushing model of SPEC section 3."""
+"""Unit tests of push_core.model: the analytical pushing model (Lynch et al. 1992)."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,5 @@
-"""Unit tests of push_core.planner: eq. (5.1) scores, sampling, baselines, push optimisation."""
+"""Unit tests of push_core.planner: planning with the scores, sampling, baselines and push
+optimisation of its parts (each part's own rules: test_scores, test_stopping, ...)."""
 
 import math
 
@@ -20,72 +21,19 @@ from push_core.planner import (
     motion_score,
     point_scores,
     prepare_outline,
-    sample_contacts,
-    softmax_probabilities,
 )
 from push_core.rollout import rollout_push
 
-A = 0.05  # half side of a 10 cm square, metres
+A = 0.05  # half side of the square outline (tests/core/conftest.py), metres
 R_P = 0.0048
 L, M = 0.04, 0.3  # noqa: E741
-
-
-def square_outline(step: float = 0.005):
-    """Points every ``step`` along each face of the square, including the face centres (so a
-    push through the COM exists), counter-clockwise from the bottom face; outward normals."""
-    t = np.arange(-A + step, A - step / 2, step)
-    t = t[np.abs(t) < A - 1e-12]
-    faces = [  # (points, normal), counter-clockwise: bottom, right, top, left
-        (np.stack([t, np.full_like(t, -A)], 1), (0.0, -1.0)),
-        (np.stack([np.full_like(t, A), t], 1), (1.0, 0.0)),
-        (np.stack([-t, np.full_like(t, A)], 1), (0.0, 1.0)),
-        (np.stack([np.full_like(t, -A), -t], 1), (-1.0, 0.0)),
-    ]
-    points = np.concatenate([p for p, _ in faces])
-    normals = np.concatenate([np.tile(n, (len(p), 1)) for p, n in faces])
-    return points, normals
 
 
 def state_at(pose, com=(0.0, 0.0), l=L, m=M):  # noqa: E741
     return np.array([*pose, *com, l, m], dtype=float)
 
 
-@pytest.fixture(scope="module")
-def square():
-    return prepare_outline(*square_outline())
-
-
 # ------------------------------------------------------------------------------ scores
-def test_motion_score_units_mm_and_lambda_per_degree():
-    # 3-4-5 mm translation and 10 degrees with lambda = 2 mm/deg: 5 + 20.
-    residual = [0.003, 0.004, math.radians(10.0)]
-    assert motion_score(residual, 2.0) == pytest.approx(25.0, abs=1e-12)
-    # The rotation is wrapped: 350 degrees is -10 degrees.
-    assert motion_score([0.0, 0.0, math.radians(350.0)], 1.0) == pytest.approx(10.0, abs=1e-9)
-
-
-def test_point_scores_equal_eq_5_1_by_hand():
-    desired = np.array([0.01, 0.0, 0.1])
-    aff = np.array([
-        [[0.01, 0.0, 0.0], [0.0, 0.0, 0.1]],  # residual (0, 0, 0.1) / (0.01, 0, 0)
-        [[0.0, 0.0, 0.0], [0.02, 0.0, 0.1]],  # residual (0.01, 0, 0.1) / (-0.01, 0, 0)
-    ])
-    lam = 2.0
-    rot = lam * math.degrees(0.1)  # 11.459 mm
-    expected = [min(rot, 10.0), min(10.0 + rot, 10.0)]
-    np.testing.assert_allclose(point_scores(aff, desired, lam), expected, atol=1e-12)
-    np.testing.assert_allclose(point_scores(aff, desired, 0.5),
-                               [0.5 * math.degrees(0.1), 10.0], atol=1e-12)
-
-
-def test_desired_motion_in_object_frame_and_wrapped():
-    pose = [0.1, 0.2, math.pi / 2]
-    goal = [0.1, 0.3, -math.pi + 0.1]  # 10 cm along world +y = object +x
-    d = desired_motion(pose, goal)
-    # R(-pi/2) (0, 0.1) = (0.1, 0); (-pi + 0.1) - pi/2 = -3 pi/2 + 0.1 wraps to pi/2 + 0.1.
-    np.testing.assert_allclose(d, [0.1, 0.0, math.pi / 2 + 0.1], atol=1e-12)
-
-
 def test_plan_scores_are_eq_5_1_of_the_analytical_affordances(square):
     state = state_at([0.01, -0.02, 0.4], com=(0.005, 0.0))
     goal = np.array([0.08, 0.03, 0.1])
@@ -97,38 +45,6 @@ def test_plan_scores_are_eq_5_1_of_the_analytical_affordances(square):
 
 
 # ------------------------------------------------------------------------------ sampling
-def test_softmax_probabilities_by_hand():
-    p = softmax_probabilities([1.0, 2.0, np.inf], 0.5)
-    w = np.array([1.0, math.exp(-2.0), 0.0])
-    np.testing.assert_allclose(p, w / w.sum(), atol=1e-15)
-
-
-def test_sampling_is_reproducible_with_a_seed():
-    scores = np.linspace(0.0, 10.0, 50)
-    a = sample_contacts(scores, 3, 2.0, np.random.default_rng(7))
-    b = sample_contacts(scores, 3, 2.0, np.random.default_rng(7))
-    np.testing.assert_array_equal(a, b)
-    assert len(set(a.tolist())) == 3
-
-
-def test_sampling_follows_the_softmax():
-    scores = np.array([0.0, 1.0, 2.0, 5.0, np.inf])
-    p = softmax_probabilities(scores, 1.0)
-    rng = np.random.default_rng(0)
-    n = 20000
-    draws = np.array([sample_contacts(scores, 1, 1.0, rng)[0] for _ in range(n)])
-    freq = np.bincount(draws, minlength=5) / n
-    sigma = np.sqrt(p * (1 - p) / n)
-    assert np.all(np.abs(freq - p) <= 4.5 * sigma + 1e-12), (freq, p)
-    assert freq[4] == 0.0
-    # Without replacement: P(second = j | first = i) = p_j / (1 - p_i); check P(0 then 1).
-    pairs = [tuple(sample_contacts(scores, 2, 1.0, rng)) for _ in range(n)]
-    p01 = p[0] * p[1] / (1 - p[0])
-    freq01 = sum(1 for pr in pairs if pr == (0, 1)) / n
-    assert abs(freq01 - p01) <= 4.5 * math.sqrt(p01 * (1 - p01) / n)
-    assert all(a != b for a, b in pairs)
-
-
 def test_planner_is_reproducible_with_a_seed(square):
     state, goal = state_at([0.0, 0.0, 0.2]), np.array([0.06, 0.02, 0.5])
     cfg = PlannerConfig(k=3, temperature=20.0, seed=11)
@@ -338,52 +254,12 @@ def test_goal_tolerance_check():
 
 
 # ------------------------------------------------------------------------------ bad input
-@pytest.mark.parametrize(("changes", "field"), [
-    ({"method": "best"}, "method"),
-    ({"direct": "yes"}, "direct"),
-    ({"k": 0}, "k"),
-    ({"k": 1.5}, "k"),
-    ({"seed": -1}, "seed"),
-    ({"lam": -1.0}, "lam"),
-    ({"lam": float("nan")}, "lam"),
-    ({"temperature": 0.0}, "temperature"),
-    ({"tolerance_xy": 0.0}, "tolerance_xy"),
-    ({"tolerance_theta": -1.0}, "tolerance_theta"),
-    ({"approach_clearance": 0.0}, "approach_clearance"),
-    ({"min_push_length": 0.06}, "max_push_length"),
-    ({"substep": 0.0}, "substep"),
-    ({"workspace": ((0.1, -0.1), (-0.3, 0.3))}, "workspace"),
-    ({"workspace": (0.0, 1.0)}, "workspace"),
-])
-def test_bad_config_names_the_field(changes, field):
-    with pytest.raises(ValueError, match=f"^{field}"):
-        PlannerConfig(**changes)
-
-
 def test_lrn_needs_a_model():
     with pytest.raises(ValueError, match="affordance_model"):
         Planner(PlannerConfig(method="lrn"))
 
 
-def test_bad_outline_names_the_argument():
-    points, normals = square_outline()
-    with pytest.raises(ValueError, match="points"):
-        prepare_outline(points[:2], normals[:2])
-    with pytest.raises(ValueError, match="points"):
-        prepare_outline(points[::-1], normals[::-1])  # clockwise
-    bad = points.copy()
-    bad[3, 0] = np.nan
-    with pytest.raises(ValueError, match="points"):
-        prepare_outline(bad, normals)
-    zero = normals.copy()
-    zero[5] = 0.0
-    with pytest.raises(ValueError, match="normals_out"):
-        prepare_outline(points, zero)
-    with pytest.raises(ValueError, match="normals_out"):
-        prepare_outline(points, normals[:-1])
-
-
-def test_bad_state_and_goal_name_the_argument(square):
+def test_bad_state_and_goal_name_the_argument(square, square_outline):
     planner = Planner(PlannerConfig())
     good = state_at([0.0, 0.0, 0.0])
     with pytest.raises(ValueError, match="state"):
@@ -400,53 +276,7 @@ def test_bad_state_and_goal_name_the_argument(square):
         planner.plan(square_outline(), good, [0.05, 0.0, 0.0])
 
 
-def test_bad_sampling_arguments_name_the_argument():
-    rng = np.random.default_rng(0)
-    with pytest.raises(ValueError, match="^k"):
-        sample_contacts([0.0, 1.0], 0, 1.0, rng)
-    with pytest.raises(ValueError, match="temperature"):
-        softmax_probabilities([0.0, 1.0], 0.0)
-    with pytest.raises(ValueError, match="scores"):
-        softmax_probabilities([np.inf, np.inf], 1.0)
-
-
 # ------------------------------------------------------------------ stop rule and symmetry
-def test_stop_rule_shrinks_the_region_by_z_standard_deviations() -> None:
-    tol_xy, tol_th = 0.0075, math.radians(5.0)
-    z = 2.3263478740408408  # Phi^-1(0.99)
-    goal = [0.005, 0.0, 0.0]  # 5 mm away
-    # sigma 1 mm: 5 + 2.33 = 7.33 mm <= 7.5; sigma 1.1 mm: 5 + 2.56 > 7.5
-    for sigma, expected in ((1e-3, True), (1.1e-3, False)):
-        cov = np.diag([sigma**2, sigma**2, 0.0])
-        assert goal_reached([0, 0, 0], goal, tol_xy, tol_th, cov) is expected
-        assert (5e-3 + z * sigma <= tol_xy) is expected
-    # the worst direction counts: the larger eigenvalue of the position block
-    aniso = np.array([[0.25e-6, 0.0, 0.0], [0.0, 1.21e-6, 0.0], [0.0, 0.0, 0.0]])
-    assert not goal_reached([0, 0, 0], goal, tol_xy, tol_th, aniso)
-    # orientation: 4 deg off with sigma 0.5 deg -> 5.16 deg > 5
-    cov = np.diag([0.0, 0.0, math.radians(0.5) ** 2])
-    assert not goal_reached([0, 0, 0], [0, 0, math.radians(4.0)], tol_xy, tol_th, cov)
-    assert goal_reached([0, 0, 0], [0, 0, math.radians(4.0)], tol_xy, tol_th, cov,
-                        orientation=False)
-    # confidence 0.5 (z = 0) and no covariance are the point rule; the 7 x 7 state
-    # covariance is accepted (its pose block)
-    big = np.diag([1e-4, 1e-4, 1.0, 1, 1, 1, 1])
-    assert goal_reached([0, 0, 0], goal, tol_xy, tol_th, big, confidence=0.5)
-    assert goal_reached([0, 0, 0], goal, tol_xy, tol_th, None)
-    assert not goal_reached([0, 0, 0], goal, tol_xy, tol_th, big)
-
-
-def test_stop_rule_bad_arguments_name_themselves() -> None:
-    with pytest.raises(ValueError, match="covariance"):
-        goal_reached([0, 0, 0], [0, 0, 0], 0.0075, 0.08, np.eye(2))
-    with pytest.raises(ValueError, match="covariance"):
-        goal_reached([0, 0, 0], [0, 0, 0], 0.0075, 0.08, np.full((3, 3), np.nan))
-    with pytest.raises(ValueError, match="confidence"):
-        goal_reached([0, 0, 0], [0, 0, 0], 0.0075, 0.08, np.eye(3), confidence=1.0)
-    with pytest.raises(ValueError, match="stop_confidence"):
-        PlannerConfig(stop_confidence=0.2)
-
-
 def test_disc_outline_plans_and_stops_on_position_alone() -> None:
     disc = prepare_outline(*load_object("ellip1").outline(0.002))
     hexagon = prepare_outline(*load_object("hex").outline(0.002))
@@ -464,21 +294,6 @@ def test_disc_outline_plans_and_stops_on_position_alone() -> None:
 
 
 # ------------------------------------------------------------------------------ bounded work
-def test_outlines_above_the_cap_are_decimated_and_normal_ones_kept(square):
-    from push_core.planner import MAX_OUTLINE_POINTS
-
-    points, normals = square_outline(1e-4)  # 3996 points
-    big = prepare_outline(points, normals)
-    assert len(big.points) == MAX_OUTLINE_POINTS and big.source_points == len(points)
-    keep = np.linspace(0, len(points), MAX_OUTLINE_POINTS, endpoint=False).astype(np.intp)
-    np.testing.assert_array_equal(big.points, points[keep])
-    assert square.source_points == len(square.points)  # below the cap: as given
-    small = prepare_outline(points, normals, max_points=50)
-    assert len(small.points) == 50
-    with pytest.raises(ValueError, match="max_points"):
-        prepare_outline(points, normals, max_points=2)
-
-
 def test_chunked_closest_point_queries_give_the_same_bits(monkeypatch):
     import push_core.geometry as geometry
 
@@ -495,13 +310,13 @@ def test_the_fallback_tries_at_most_the_cap(square, monkeypatch):
     import push_core.planner as planner_module
 
     evaluated: list[int] = []
-    original = Planner._evaluate
+    original = planner_module.evaluate
 
-    def counting(self, *args):
+    def counting(*args):
         evaluated.append(len(args[-1]))
-        return original(self, *args)
+        return original(*args)
 
-    monkeypatch.setattr(Planner, "_evaluate", counting)
+    monkeypatch.setattr(planner_module, "evaluate", counting)
     monkeypatch.setattr(planner_module, "MAX_FALLBACK_POINTS", 7)
     far = state_at([1.0, 0.0, 0.0])  # the object off the table: nothing is feasible
     with pytest.raises(NoFeasiblePush):
@@ -509,7 +324,8 @@ def test_the_fallback_tries_at_most_the_cap(square, monkeypatch):
     assert evaluated == [2, 7]
 
 
-def test_implausible_states_and_objects_larger_than_the_workspace_are_refused(square):
+def test_implausible_states_and_objects_larger_than_the_workspace_are_refused(
+        square, square_outline):
     from push_core.planner import check_state
 
     planner = Planner(PlannerConfig(k=1))

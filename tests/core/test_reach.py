@@ -1,4 +1,4 @@
-"""push_core.reach: what one push of the model can do, and the physical minimum (issue 22)."""
+"""push_core.reach: what one push of the model can do, and the physical minimum."""
 
 from __future__ import annotations
 

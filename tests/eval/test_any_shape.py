@@ -1,4 +1,4 @@
-"""The closed loop's cores on any flat object (issue 12): no crash on 320 random shapes.
+"""The closed loop's cores on any flat object: no crash on 320 random shapes.
 
 Each shape (``push_core.procedural.random_simple_polygon``: 40 each of convex polygons,
 ellipses and discs, stars, blobs, L/T shapes, random radial polygons, U shapes and crosses) goes
@@ -29,7 +29,7 @@ from push_core.estimator import EKFConfig, PushEKF
 from push_core.objects import load_object
 from push_core.planner import Planner, PlannerConfig, prepare_outline
 from push_core.procedural import RANDOM_KINDS, random_simple_polygon
-from pushbot.experiments.protocol import Trial
+from pushbot.runner.protocol import Trial
 
 N_SHAPES = 320
 #: Shapes per test (the 320 run as 8 tests, spread over the suite's workers).
@@ -50,7 +50,7 @@ def _visible(frame) -> bool:
 def _measure(tracker, segmenter, frame, what: str):
     """(measurement or None, failure text or None) of one frame: a visible object must yield
     a finite pose within :data:`POSITION_TOLERANCE` of the truth."""
-    from push_perception.core import PerceptionError
+    from push_perception.perception_config import PerceptionError
 
     try:
         meas = tracker.measure_frame(segmenter, frame)
@@ -67,7 +67,7 @@ def _measure(tracker, segmenter, frame, what: str):
 
 def _one_shape(world, segmenter, index: int, tmp_path) -> tuple[str | None, bool]:
     """One step of the loop on shape ``index``; returns (failure text or None, refused)."""
-    from push_perception.core import EpisodeTracker
+    from push_perception.tracker import EpisodeTracker
     from sim_bridge.world import WorldConfig, quiet_stdout
 
     rng = np.random.default_rng([SEED, index])

@@ -9,7 +9,6 @@ import time
 
 import pytest
 
-from pushbot.experiments.protocol import Trial
 from pushbot.runner.arm_faults import (
     ARM_SCENARIOS,
     DryRun,
@@ -17,7 +16,7 @@ from pushbot.runner.arm_faults import (
     make_arm_fault,
     unavailable_seconds,
 )
-from pushbot.runner.episode import GraphRunner
+from pushbot.runner.protocol import Trial
 
 
 def test_every_scenario_is_made_fresh_and_unknown_ones_are_named() -> None:
@@ -44,7 +43,6 @@ class _Recorded:
 
 class _Runner:
     rec = _Recorded()
-    bridge_scene_params = staticmethod(GraphRunner.bridge_scene_params)
 
 
 def test_the_restarted_simulator_gets_the_scene_and_the_true_pose() -> None:

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from pushbot.experiments.inprocess import run_trial, true_errors
-from pushbot.experiments.protocol import Trial
+from pushbot.runner.protocol import Trial
 
 RECORD_KEYS = {"trial", "success", "steps", "end_error_xy", "end_error_theta", "com_error",
                "planning_ms", "poses_true", "poses_est", "pushes", "wall_s", "reason"}
@@ -54,6 +54,12 @@ def test_gt_ana_trial_on_rect1_succeeds(index):
     assert rec["end_error_xy"] <= 0.0075
     # the object started at the protocol's initial orientation
     assert rec["poses_true"][0][2] == pytest.approx(trial.initial_yaw, abs=1e-3)
+    # robot time: the simulated pusher's seconds; each cycle holds one push (20 mm/s) at least
+    assert len(rec["cycle_s"]) == rec["steps"] - 1
+    lengths = [math.dist(p[0], p[2]) for p in rec["pushes"]]
+    assert all(c >= length / 0.02 for c, length in zip(rec["cycle_s"], lengths, strict=False))
+    assert rec["robot_time_s"] >= sum(lengths) / 0.02 and rec["robot_time_s"] >= \
+        sum(rec["cycle_s"])
 
 
 def test_gt_trial_is_deterministic():

@@ -11,17 +11,15 @@ import sys
 import pytest
 
 from pushbot import cli
-from pushbot.experiments.evaluate import (
-    EvalOptions,
-    build_trials,
+from pushbot.experiments.eval_report import (
     deterministic_view,
-    evaluate,
     stats,
     summarise,
     table_5_1,
     table_5_2,
     write_outputs,
 )
+from pushbot.experiments.evaluate import EvalOptions, build_trials, evaluate
 
 SMALL = dict(objects=["rect1"], tasks=["mixed", "rotation"], methods=["ana", "pushnet"],
              k=[1], trials=2, seed=5)
@@ -80,12 +78,12 @@ def test_build_trials_cross_product_and_deduplication():
 
 
 def test_planner_and_filter_variants_reach_every_layer_and_keep_the_scenes():
-    """--horizon / --avoid-contradicted / --relearn (issue 22): carried by every trial into
+    """--horizon / --avoid-contradicted / --relearn: carried by every trial into
     the in-process planner and filter and the graph's node parameters; the variant is part of
     the cell, not of the trial's seed (the same scenes, goals and planner seeds)."""
     from push_planner.config import PARAMETERS as PLANNER_PARAMETERS
     from pushbot.experiments.inprocess import EpisodeRunner
-    from pushbot.experiments.protocol import Trial, planner_episode_params
+    from pushbot.runner.protocol import Trial, planner_episode_params
 
     base = build_trials(EvalOptions(objects=["rect1"], tasks=["mixed"], trials=2))
     opts = EvalOptions(objects=["rect1"], tasks=["mixed"], trials=2, horizon=3,
@@ -116,8 +114,8 @@ def test_planner_and_filter_variants_reach_every_layer_and_keep_the_scenes():
 
 
 def test_the_support_cell_is_a_world_variant_of_the_same_scenes():
-    from pushbot.experiments.evaluate import variant_label
-    from pushbot.experiments.protocol import Trial
+    from pushbot.experiments.eval_report import variant_label
+    from pushbot.runner.protocol import Trial
 
     base = build_trials(EvalOptions(objects=["rect1"], tasks=["mixed"], trials=2))
     cut = build_trials(EvalOptions(objects=["rect1"], tasks=["mixed"], trials=2,

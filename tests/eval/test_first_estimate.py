@@ -1,8 +1,8 @@
-"""Which estimate starts a graph episode (pushbot.runner.episode.first_estimate)."""
+"""Which estimate starts a graph episode (pushbot.runner.graph_record.first_estimate)."""
 
 from __future__ import annotations
 
-from pushbot.runner.episode import first_estimate
+from pushbot.runner.graph_record import first_estimate
 
 
 def test_an_old_filters_estimate_of_the_new_scene_is_not_the_first() -> None:

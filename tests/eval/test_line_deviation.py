@@ -1,11 +1,11 @@
-"""The arm's contact-line error of the graph records (pushbot.runner.episode.line_deviation)."""
+"""The arm's contact-line error of graph records (pushbot.runner.graph_record.line_deviation)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from pushbot.runner.episode import line_deviation
+from pushbot.runner.graph_record import line_deviation
 
 
 def test_distance_from_the_segment_by_hand() -> None:

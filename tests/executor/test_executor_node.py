@@ -32,7 +32,7 @@ from std_msgs.msg import String  # noqa: E402
 from std_srvs.srv import SetBool, Trigger  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory  # noqa: E402
 
-from push_executor.motion import PANDA_PARK  # noqa: E402
+from push_executor.motion_types import PANDA_PARK  # noqa: E402
 from push_executor.push_executor_node import JOINT_STATE_QOS, PushExecutorNode  # noqa: E402
 from push_ros.paths import executed_push_from_path, push_path  # noqa: E402
 from push_ros.qos import CLOCK_QOS, LATCHED_QOS, RELIABLE_QOS  # noqa: E402
@@ -58,6 +58,7 @@ class StandInController(Node):
         self.q = np.array(PANDA_PARK, dtype=float)
         self.t = 100.0  # sim time, s
         self.received: list[JointTrajectory] = []
+        self.received_at: list[float] = []  # wall time of each
         #: Every arm posture published on /joint_states (chain order).
         self.published: list[np.ndarray] = []
         self.traj: tuple[float, np.ndarray, np.ndarray, np.ndarray] | None = None
@@ -72,6 +73,7 @@ class StandInController(Node):
 
     def _on_traj(self, msg: JointTrajectory) -> None:
         self.received.append(msg)
+        self.received_at.append(time.monotonic())
         order = [msg.joint_names.index(j) for j in ARM]
         times = np.array([p.time_from_start.sec + 1e-9 * p.time_from_start.nanosec
                           for p in msg.points])
@@ -135,21 +137,36 @@ class Graph:
             self.executor.spin_once(timeout_sec=0.01)
         return bool(predicate())
 
-    def state(self) -> str:
+    def value(self, key: str) -> str:
+        """``key`` of the newest executor/status ("" before any)."""
         if not self.status:
             return ""
-        return {kv.key: kv.value for kv in self.status[-1].values}.get("state", "")
+        return {kv.key: kv.value for kv in self.status[-1].values}.get(key, "")
+
+    def state(self) -> str:
+        return self.value("state")
+
+    def states(self) -> list[str]:
+        """Every executor/status state received, in order."""
+        return [{kv.key: kv.value for kv in s.values}.get("state", "") for s in self.status]
 
     def ready(self) -> bool:
         node = self.executor_node
-        return (node._arm is not None and node._q is not None
+        return (node._arm is not None and node.measured.q is not None
                 and self.push_pub.get_subscription_count() > 0
                 and node._pub_traj.get_subscription_count() > 0)
 
     def send_push(self, stamp: float = 7.25, points: tuple = PUSH) -> Time:
         msg = push_path(*points, stamp_seconds=stamp, speed=0.02)
         self.push_pub.publish(msg)
+        self.sent = time.monotonic()
         return msg.header.stamp
+
+    @property
+    def sent_to_received(self) -> float | None:
+        """Wall seconds from the last push sent to the first trajectory the stand-in got."""
+        got = self.arm.received_at
+        return None if not got else got[0] - self.sent
 
     def call(self, client: Any, request: Any) -> Any:
         assert client.wait_for_service(timeout_sec=10.0)
@@ -178,11 +195,13 @@ def test_a_push_is_executed(graph: Graph) -> None:
     assert graph.spin_until(lambda: graph.executed or graph.refused, 60.0)
     assert not graph.refused, read_refusal(graph.refused[0])
     traj = graph.arm.received[0]
-    # Stamped with the node's clock (the controller's time) + start_delay (0.5 s): it starts
-    # then, whatever the delivery latency.
+    # Stamped with the controller's time (the newest joint state's stamp carried forward by
+    # the wall time the node took to plan: the stand-in's idle clock stands still, so at most
+    # that much later) + start_delay: it starts then, whatever the delivery latency.
     assert len(graph.arm.received) == 1
     start = seconds_from_stamp(traj.header.stamp)
-    assert 100.0 + 0.5 <= start <= graph.arm.t + 0.5
+    delay = graph.executor_node.params.values["start_delay"]
+    assert 100.0 + delay <= start <= 100.0 + delay + (graph.sent_to_received or 0.0)
     assert traj.joint_names == ARM
     times = [p.time_from_start.sec + 1e-9 * p.time_from_start.nanosec for p in traj.points]
     assert times[0] > 0 and np.all(np.diff(times) > 0)
@@ -234,8 +253,9 @@ def test_busy_and_cancel(graph: Graph) -> None:
     graph.send_push(2.0)
     assert graph.spin_until(lambda: graph.refused)
     assert read_refusal(graph.refused[0]).kind == "busy"
-    graph.spin_until(lambda: False, 0.3)
-    q_before = graph.executor_node._q.copy()
+    # cancelled on the way (the trajectory starts start_delay after it was sent)
+    assert graph.spin_until(lambda: np.max(np.abs(graph.arm.q - PANDA_PARK)) > 0.05)
+    q_before = graph.executor_node.measured.q.copy()
     response = graph.call(graph.cancel, Trigger.Request())
     assert response.success, response.message
     assert graph.spin_until(lambda: len(graph.arm.received) == 2)
@@ -253,7 +273,17 @@ def test_busy_and_cancel(graph: Graph) -> None:
     assert graph.spin_until(lambda: len(graph.refused) == 2)
     cancelled = read_refusal(graph.refused[1])
     assert cancelled.kind == "cancelled" and cancelled.push_stamp == stamp_key(first)
-    assert graph.spin_until(lambda: graph.state() == "stopped")
+    assert graph.spin_until(lambda: "stopped" in graph.states())
+    # Once the arm is held it parks (the planner's next frame must not show it over the
+    # object): a third trajectory from the held posture to the park posture.
+    assert graph.spin_until(lambda: len(graph.arm.received) == 3, 30.0)
+    park = graph.arm.received[2]
+    np.testing.assert_allclose(park.points[0].positions, hold.points[0].positions, atol=1e-9)
+    order = [park.joint_names.index(j) for j in ARM]
+    np.testing.assert_allclose(np.asarray(park.points[-1].positions)[order], PANDA_PARK,
+                               atol=1e-9)
+    assert graph.spin_until(lambda: graph.state() == "idle" and graph.value("at_park") == "true",
+                            60.0)
     assert not graph.executed
 
 

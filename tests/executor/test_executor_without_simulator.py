@@ -1,4 +1,4 @@
-"""push_executor_node starts on a machine without the simulator (issue 20).
+"""push_executor_node starts on a machine without the simulator.
 
 The pattern of tests/ros/test_without_simulator.py (its ``no_simulator`` fixture, reused: a
 ``sitecustomize.py`` on ``PYTHONPATH`` makes ``import pybullet`` and ``import sim_bridge`` raise

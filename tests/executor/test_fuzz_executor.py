@@ -1,4 +1,4 @@
-"""Fuzz tests of push_executor_node: hostile messages on every subscribed topic (issue 20).
+"""Fuzz tests of push_executor_node: hostile messages on every subscribed topic.
 
 The project's fuzz pattern (tests/ros/test_fuzz_planner.py): in-process against the real node
 class, the test calls the guarded callbacks the node subscribed (found by topic) with real
@@ -40,9 +40,10 @@ from rosgraph_msgs.msg import Clock  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
-from push_executor.kinematics import MAX_URDF_CHARS, ArmKinematics, ToolSpec  # noqa: E402
-from push_executor.motion import PANDA_PARK  # noqa: E402
-from push_executor.push_executor_node import PushExecutorNode  # noqa: E402
+from push_core.robot_view import MAX_URDF_CHARS  # noqa: E402
+from push_executor.kinematics import ArmKinematics, ToolSpec  # noqa: E402
+from push_executor.motion_types import PANDA_PARK  # noqa: E402
+from push_executor.push_executor_node import HELD_STATES, PushExecutorNode  # noqa: E402
 from push_executor.state_check import StateCheckConfig  # noqa: E402
 from push_executor.tracking import MAX_SAMPLES  # noqa: E402
 from push_ros.paths import push_path  # noqa: E402
@@ -217,7 +218,7 @@ def test_fuzz_joint_states(probe: Probe) -> None:
 
     run()
     probe.send("joint_states", valid_state())
-    np.testing.assert_allclose(probe.node._q, PANDA_PARK)
+    np.testing.assert_allclose(probe.node.measured.q, PANDA_PARK)
 
 
 def test_fuzz_joint_states_while_moving(probe: Probe) -> None:
@@ -239,7 +240,8 @@ def test_fuzz_joint_states_while_moving(probe: Probe) -> None:
         nonlocal stops
         if node._run is None:
             stops += 1
-            probe.send("joint_states", valid_state(MOVING_CLOCK))
+            for _ in range(HELD_STATES):  # the arm held: the push is planned at once
+                probe.send("joint_states", valid_state(MOVING_CLOCK))
             probe.send("planner/push", push_path((-0.055, 0.02), (-0.05, 0.02), (0.0, 0.02),
                                                  5.0, 0.02))
         probe.send("joint_states", msg)
@@ -292,7 +294,8 @@ def test_fuzz_impossible_postures_then_a_push(probe: Probe) -> None:
     def run(q: list[float]) -> None:
         nonlocal planned
         node._run = None  # the previous push's motion is not watched here
-        probe.send("joint_states", valid_state(CLOCK, q))
+        for _ in range(HELD_STATES):  # the arm held at q: the push is planned at once
+            probe.send("joint_states", valid_state(CLOCK, q))
         sent, refused = len(probe.trajectories), len(probe.refused)
         probe.send("planner/push", push_path((-0.055, 0.02), (-0.05, 0.02), (0.0, 0.02), 5.0,
                                              0.02))

@@ -12,8 +12,9 @@ import os
 import numpy as np
 import pytest
 
-from push_executor.kinematics import MAX_URDF_CHARS, ArmKinematics, ToolSpec, base_transform
-from push_executor.motion import PANDA_READY
+from push_core.robot_view import MAX_URDF_CHARS, base_transform
+from push_executor.kinematics import DEFAULT_ACCELERATION, DEFAULT_JERK, ArmKinematics, ToolSpec
+from push_executor.motion_types import PANDA_READY
 
 PLANAR = """<robot name="planar">
   <link name="base"/><link name="l1"/><link name="l2"/><link name="flange"/>
@@ -51,7 +52,8 @@ def test_planar_chain_and_limits() -> None:
     assert arm.joint_names == ("j1", "j2")  # "side" is not between base and flange
     np.testing.assert_array_equal(arm.lower, [-3, -3])
     np.testing.assert_array_equal(arm.velocity_limits, [2, 2])
-    np.testing.assert_array_equal(arm.acceleration_limits, [5, 5])
+    np.testing.assert_array_equal(arm.acceleration_limits, [DEFAULT_ACCELERATION] * 2)
+    np.testing.assert_array_equal(arm.jerk_limits, [DEFAULT_JERK] * 2)
 
 
 @pytest.mark.parametrize("q", [(0.0, 0.0), (0.5, -1.0), (-2.0, 2.5), (math.pi / 2, 0.3)])
@@ -178,6 +180,8 @@ def test_bad_parameters_are_refused() -> None:
         ArmKinematics(PLANAR, "base", ToolSpec("flange"), acceleration_limits=[1.0, 2.0, 3.0])
     with pytest.raises(ValueError, match="acceleration limits"):
         ArmKinematics(PLANAR, "base", ToolSpec("flange"), acceleration_limits=0.0)
+    with pytest.raises(ValueError, match="jerk limits"):
+        ArmKinematics(PLANAR, "base", ToolSpec("flange"), jerk_limits=[math.inf])
     with pytest.raises(ValueError, match="tool.length"):
         ToolSpec("flange", length=0.0)
     no_limits = PLANAR.replace('velocity="2"', 'velocity="0"', 1)

@@ -18,17 +18,20 @@ import numpy as np
 import pytest
 
 from push_executor.kinematics import ArmKinematics, ToolSpec
-from push_executor.motion import PANDA_PARK, PANDA_SIM_BASE_POSE, MotionConfig, PushRefused
+from push_executor.motion_types import PANDA_PARK, PANDA_SIM_BASE_POSE, MotionConfig, PushRefused
+from push_executor.push_executor_node import HELD_STATES
 from push_executor.state_check import (
-    MeasuredPosture,
     StateCheckConfig,
     StuckPosture,
     check_before_planning,
     check_posture,
+    joint_move_bound,
     joint_stage_bound,
     nonfinite_joints,
     unavailable,
 )
+from push_executor.timing import joint_move
+from push_executor.tracking import MeasuredArm
 from pushbot.runner.arm_faults import FOREIGN_POSTURE
 
 from .test_kinematics import panda_urdf
@@ -53,8 +56,13 @@ def plan(arm: ArmKinematics) -> Any:
 
 
 def posture(q: Any = PANDA_PARK, stamp: float = 10.0, steady: float = 100.0,
-            problem: str = "") -> MeasuredPosture:
-    return MeasuredPosture(np.array(q, dtype=float), stamp, steady, problem)
+            problem: str = "", states: int = HELD_STATES) -> MeasuredArm:
+    """The measured arm after ``states`` joint states at ``q`` (held), the newest's problem."""
+    measured = MeasuredArm(HELD_STATES)
+    for _ in range(states):
+        measured.update(stamp, np.array(q, dtype=float), steady)
+    measured.problem = problem
+    return measured
 
 
 def with_joint7(value: float) -> list[float]:
@@ -80,7 +88,7 @@ def test_a_posture_just_inside_the_margin_is_planned_from(arm: ArmKinematics) ->
 
 def test_no_state_stale_and_old_stamps(arm: ArmKinematics) -> None:
     with pytest.raises(PushRefused, match="no joint state yet") as info:
-        check_before_planning(arm, MeasuredPosture(), CHECKS, MOTION, 100.0, 10.0)
+        check_before_planning(arm, MeasuredArm(), CHECKS, MOTION, 100.0, 10.0)
     assert info.value.kind == "no_state"
     with pytest.raises(PushRefused, match="state_timeout") as info:
         check_before_planning(arm, posture(steady=100.0), CHECKS, MOTION,
@@ -112,11 +120,40 @@ def test_nonfinite_joints_names_them_and_ignores_malformed_messages() -> None:
 
 def test_joint_stage_bound_covers_the_planned_stages(arm: ArmKinematics, plan: Any) -> None:
     """The bound of a posture within the limits is at least every joint-space stage planned
-    from it (transit and park of a real plan), and grows with the distance to the limits."""
-    joint_stages = [s.t_end - s.t_start for s in plan.stages if s.name in ("transit", "park")]
+    from it (transit and withdraw or park of a real plan), and grows with the distance to the
+    limits."""
+    joint_stages = [s.t_end - s.t_start for s in plan.stages
+                    if s.name in ("transit", "withdraw", "park")]
     bound = joint_stage_bound(arm, PANDA_PARK, MOTION)
     assert max(joint_stages) <= bound < CHECKS.max_duration
     assert joint_stage_bound(arm, with_joint7(arm.upper[6] + 0.04), MOTION) >= bound
+
+
+def test_joint_move_bound_holds_for_ruckig_profiles(arm: ArmKinematics) -> None:
+    """Ruckig's time-optimal profiles (push_executor.timing.joint_move, the executor's joint
+    stages) never last longer than the bound: rest to rest across each joint's whole range
+    (where the bound is tight: cruise at the velocity limit), and between seeded random
+    moving states within the limits."""
+    m = MOTION.speed_margin
+    v, a, j = arm.velocity_limits * m, arm.acceleration_limits * m, arm.jerk_limits * m
+    lower, upper, rest = arm.lower, arm.upper, np.zeros(arm.n_joints)
+    period = 0.05
+    times = joint_move((lower, rest, rest), (upper, rest, rest), v, a, j, lower, upper,
+                       period)[0]
+    bound = joint_move_bound(upper - lower, v, a, j, moving=False)
+    assert times[-1] <= bound * (1 + 1e-9)
+    assert times[-1] >= 0.99 * bound  # tight: not a bound that says nothing
+    rng = np.random.default_rng(33)
+    for _ in range(40):
+        q0, q1 = rng.uniform(lower, upper), rng.uniform(lower, upper)
+        v0, v1 = rng.uniform(-0.9, 0.9, (2, arm.n_joints)) * v
+        a0 = rng.uniform(-0.9, 0.9, arm.n_joints) * a
+        try:
+            times = joint_move((q0, v0, a0), (q1, v1, rest), v, a, j, lower - 1.0, upper + 1.0,
+                               period)[0]
+        except ValueError:
+            continue  # no profile from this state within the limits
+        assert times[-1] <= joint_move_bound(np.abs(q1 - q0), v, a, j)
 
 
 def test_a_long_plan_is_refused(plan: Any) -> None:
@@ -147,22 +184,24 @@ def test_a_posture_that_cannot_be_left_until_the_arm_moves(arm: ArmKinematics) -
                              MOTION)
     assert refusal.kind == "state" and "cannot leave its posture" in refusal.reason
     kwargs = dict(model=True, enabled=True, arm=arm, stuck=stuck, config=CHECKS, motion=MOTION,
-                  controller=True, steady=100.0, clock=10.0)
-    assert unavailable(posture=posture(q), **kwargs)[0] == "state"
-    assert unavailable(posture=posture(q + 0.005), **kwargs)[0] == "state"  # within STUCK_MOVE
-    assert unavailable(posture=posture(q + 0.02), **kwargs) is None  # moved: ready
-    assert unavailable(posture=posture(q), **kwargs) is None  # and forgotten
+                  controller=True, moving=False, steady=100.0, clock=10.0)
+    assert unavailable(measured=posture(q), **kwargs)[0] == "state"
+    assert unavailable(measured=posture(q + 0.005), **kwargs)[0] == "state"  # within STUCK_MOVE
+    assert unavailable(measured=posture(q + 0.02), **kwargs) is None  # moved: ready
+    assert unavailable(measured=posture(q), **kwargs) is None  # and forgotten
 
 
 def test_unavailable_in_order(arm: ArmKinematics) -> None:
-    kwargs = dict(model=True, enabled=True, arm=arm, posture=posture(), stuck=StuckPosture(),
-                  config=CHECKS, motion=MOTION, controller=True, steady=100.0, clock=10.0)
+    kwargs = dict(model=True, enabled=True, arm=arm, measured=posture(), stuck=StuckPosture(),
+                  config=CHECKS, motion=MOTION, controller=True, moving=False, steady=100.0,
+                  clock=10.0)
     assert unavailable(**kwargs) is None
     assert unavailable(**{**kwargs, "model": False, "arm": None})[0] == "no_model"
     assert unavailable(**{**kwargs, "enabled": False})[0] == "disabled"
-    assert unavailable(**{**kwargs, "posture": MeasuredPosture()})[0] == "no_state"
+    assert unavailable(**{**kwargs, "measured": MeasuredArm()})[0] == "no_state"
     assert unavailable(**{**kwargs, "clock": None})[0] == "no_state"
-    assert unavailable(**{**kwargs, "posture": posture(with_joint7(100.0))})[0] == "state"
+    problem = "measured panda_joint7 = 100 is outside its URDF limits"
+    assert unavailable(**{**kwargs, "measured": posture(problem=problem)})[0] == "state"
     assert unavailable(**{**kwargs, "controller": False})[0] == "no_controller"
 
 
@@ -213,6 +252,12 @@ def joint_state(q: Any, stamp: float = CLOCK) -> Any:
     return msg
 
 
+def hold(node: Any, q: Any) -> None:
+    """Joint states of an arm held at ``q`` (a push is planned at once, not deferred)."""
+    for _ in range(HELD_STATES):
+        node.callbacks["joint_states"](joint_state(q))
+
+
 def push(node: Any, stamp: float) -> Any:
     from push_ros.paths import push_path
     from push_ros.refusal import read_refusal
@@ -227,7 +272,7 @@ def push(node: Any, stamp: float) -> Any:
 def test_the_node_refuses_an_impossible_state_and_sends_nothing(node: Any, value: float) -> None:
     from push_ros.refusal import read_readiness, robot_unavailable
 
-    node.callbacks["joint_states"](joint_state(PANDA_PARK))
+    hold(node, PANDA_PARK)
     node.callbacks["joint_states"](joint_state(with_joint7(value)))
     t0 = time.monotonic()
     refusal = push(node, 5.0)
@@ -239,7 +284,7 @@ def test_the_node_refuses_an_impossible_state_and_sends_nothing(node: Any, value
     readiness = read_readiness(node.statuses[-1])
     assert readiness.ready is False and readiness.unavailable.startswith("state: ")
     # A plausible state again: ready, and the next push is executed.
-    node.callbacks["joint_states"](joint_state(PANDA_PARK))
+    hold(node, PANDA_PARK)
     node._on_watchdog()
     assert read_readiness(node.statuses[-1]).ready is True
     assert push(node, 6.0) is None and len(node.sent) == 1
@@ -251,36 +296,33 @@ def test_an_impossible_state_while_moving_is_not_tracked_and_the_hold_is_plausib
     """Joint states with an impossible posture during a push are not taken as the measured
     posture: the motion stops as on stale states, and the hold trajectory holds the last
     plausible posture, never the impossible one."""
-    node.callbacks["joint_states"](joint_state(PANDA_PARK))
+    hold(node, PANDA_PARK)
     assert push(node, 5.0) is None and len(node.sent) == 1 and node._run is not None
     deadline = time.monotonic() + 30.0
     while node._run is not None and time.monotonic() < deadline:
         node.callbacks["joint_states"](joint_state(with_joint7(100.0)))
         node._on_watchdog()  # the stale-state watchdog (state_timeout of the steady clock)
     assert node._run is None, "the motion was not stopped"
-    hold = node.sent[-1]
-    assert len(node.sent) == 2 and len(hold.points) == 1
-    order = [hold.joint_names.index(j) for j in ARM]
-    np.testing.assert_allclose(np.array(hold.points[0].positions)[order], PANDA_PARK)
+    stop = node.sent[-1]
+    assert len(node.sent) == 2 and len(stop.points) == 1
+    order = [stop.joint_names.index(j) for j in ARM]
+    np.testing.assert_allclose(np.array(stop.points[0].positions)[order], PANDA_PARK)
     from push_ros.refusal import read_refusal
 
     refusal = read_refusal(node.refusals[-1])
     assert refusal.kind == "fault" and "stale" in refusal.reason and refusal.available is False
 
 
-def test_a_push_waits_for_the_arm_to_come_to_rest(arm: ArmKinematics) -> None:
-    from push_executor.state_check import REST_SPEED, chain_speed
-
-    names = ["finger", *ARM]
-    assert chain_speed(ARM, names, [9.0, *[0.0] * 6, -0.3]) == pytest.approx(0.3)
-    assert math.isnan(chain_speed(ARM, names, []))  # velocities not given
-    assert math.isnan(chain_speed(ARM, names, [0.0] * 7))  # not one per name
-    moving = MeasuredPosture(np.array(PANDA_PARK), 10.0, 100.0, "", 2 * REST_SPEED)
-    with pytest.raises(PushRefused, match="still moving") as info:
-        check_before_planning(arm, moving, CHECKS, MOTION, 100.0, 10.0)
-    assert info.value.kind == "settling"
+def test_a_moving_arm_is_settling_not_refused(arm: ArmKinematics) -> None:
+    """An arm still moving is not refused before planning (the node defers the push until
+    the arm is held, or chains it to its own motion); readiness says ``settling`` while no
+    motion of the executor's own runs, and nothing while one does."""
+    moving = posture(states=1)  # one state: not yet held
+    check_before_planning(arm, moving, CHECKS, MOTION, 100.0, 10.0)
     kwargs = dict(model=True, enabled=True, arm=arm, stuck=StuckPosture(), config=CHECKS,
                   motion=MOTION, controller=True, steady=100.0, clock=10.0)
-    assert unavailable(posture=moving, **kwargs)[0] == "settling"
-    still = MeasuredPosture(np.array(PANDA_PARK), 10.0, 100.0, "", 0.5 * REST_SPEED)
-    assert unavailable(posture=still, **kwargs) is None
+    assert unavailable(measured=moving, moving=False, **kwargs)[0] == "settling"
+    assert unavailable(measured=moving, moving=True, **kwargs) is None
+    assert unavailable(measured=posture(), moving=False, **kwargs) is None
+    # No joint state for MeasuredArm's quiet time counts as held (a resting simulator).
+    assert unavailable(measured=moving, moving=False, **{**kwargs, "steady": 100.6}) is None

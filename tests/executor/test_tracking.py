@@ -16,7 +16,8 @@ from push_executor.motion import MotionPlan, StageSpan
 from push_executor.tracking import (
     START_MOTION,
     Execution,
-    chain_positions,
+    MeasuredArm,
+    StampClock,
     expected_positions,
     segment_distance,
     tracking_error,
@@ -31,20 +32,10 @@ def straight_plan() -> MotionPlan:
     q = np.array([[0.0, 0.5], [0.5, 0.5], [1.0, 0.5]])
     qd = np.array([[1.0, 0.0], [1.0, 0.0], [1.0, 0.0]])
     return MotionPlan(joint_names=("j1", "j2"), times=times, positions=q, velocities=qd,
-                      tip=np.zeros((3, 3)), stages=(StageSpan("push", 1.0, 2.0),),
+                      accelerations=np.zeros_like(q), tip=np.zeros((3, 3)),
+                      stages=(StageSpan("push", 1.0, 2.0),),
                       contact_start=1.2, contact_end=1.8,
                       line=np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]))
-
-
-def test_chain_positions_maps_by_name() -> None:
-    q = chain_positions(("a", "b"), ["x", "b", "a"], [9.0, 2.0, 1.0])
-    np.testing.assert_array_equal(q, [1.0, 2.0])
-    for names, positions, match in [(["a"], [1.0, 2.0], "1 names but 2"),
-                                    (["a", "a"], [1.0, 2.0], "twice"),
-                                    (["a", "x"], [1.0, 2.0], "missing"),
-                                    (["a", "b"], [1.0, math.nan], "non-finite")]:
-        with pytest.raises(ValueError, match=match):
-            chain_positions(("a", "b"), names, positions)
 
 
 def test_expected_positions_hermite() -> None:
@@ -87,6 +78,37 @@ def test_execution_done_and_deviation() -> None:
     assert run.on_state(102.0, np.array([0.99, 0.5]), 0.5).kind == "done"
     # Past the end but not there yet: a deviation, not done.
     assert execution().on_state(102.5, np.array([0.9, 0.5]), 0.5).kind == "deviation"
+
+
+def test_the_contact_segment_is_reported_once_it_has_ended() -> None:
+    """``executed`` at the first state at or after the contact end (1.8 s), once; the motion
+    goes on to ``done``."""
+    run = execution()
+    assert run.on_state(101.7, np.array([0.7, 0.5]), 0.1) is None and not run.reported
+    event = run.on_state(101.85, np.array([0.85, 0.5]), 0.2)
+    assert event is not None and event.kind == "executed"
+    with pytest.raises(ValueError):  # no sample near the contact start was kept
+        run.report(ArmKinematics(PLANAR, "base", ToolSpec("flange", 0.0, 0.1)))
+    assert run.reported and run.chainable
+    assert run.on_state(101.9, np.array([0.9, 0.5]), 0.3) is None
+    assert run.on_state(102.0, np.array([1.0, 0.5]), 0.4).kind == "done"
+
+
+def test_a_chained_execution_follows_the_replaced_plan_until_its_first_point() -> None:
+    """A plan sent at 100.5 s whose first point (at 101.5 s) lies on the running plan: joint
+    states in between are checked against the running plan, later ones against the new."""
+    old = execution()
+    plan = straight_plan()
+    hold = MotionPlan(**{**plan.__dict__, "positions": np.array([[0.5, 0.5]] * 3),
+                         "velocities": np.zeros((3, 2)), "times": np.array([1.0, 1.5, 2.0])})
+    new = Execution(hold, 100.5, 0.0, 100.5, 0.05, 1.0, 3.0, previous=old, moving=True)
+    assert new.started  # the arm moves already
+    # At 101.2 s the running plan is at 0.2 rad: fine for the chained one too.
+    assert new.on_state(101.2, np.array([0.2, 0.5]), 0.1) is None
+    # ... while the new plan alone (held at 0.5 rad from its first point) would object.
+    assert Execution(hold, 100.5, 0.0, 100.5, 0.05, 1.0, 3.0).on_state(
+        101.2, np.array([0.2, 0.5]), 0.1).kind == "deviation"
+    assert new.on_state(101.7, np.array([0.2, 0.5]), 0.2).kind == "deviation"
 
 
 def test_watchdogs() -> None:
@@ -135,9 +157,60 @@ def test_contact_segment() -> None:
     empty = Execution(plan, 100.0, 0.0, 100.0, 0.05, 1.0, 3.0)
     with pytest.raises(ValueError, match="contact segment's start"):
         empty.contact_segment(arm)
+    # Joint states lost from 0.95 s to 1.5 s (a loaded machine): the start is interpolated
+    # between the samples either side, at the planned time; a longer gap is refused.
+    gappy = Execution(plan, 100.0, 0.0, 100.0, 0.05, 1.0, 3.0)
+    for t in (0.95, 1.5, 1.8):
+        gappy.on_state(100.0 + t, expected_positions(plan, t), t)
+    seg = gappy.contact_segment(arm)
+    assert seg.stamp_start == pytest.approx(101.2) and seg.stamp_end == pytest.approx(101.8)
+    w = (1.2 - 0.95) / (1.5 - 0.95)
+    between = (1 - w) * expected_positions(plan, 0.95) + w * expected_positions(plan, 1.5)
+    np.testing.assert_allclose(seg.start, arm.tip_pose(between)[0], atol=1e-12)
+    far = Execution(plan, 100.0, 0.0, 100.0, 0.05, 1.0, 3.0)
+    for t in (0.75, 1.8):
+        far.on_state(100.0 + t, expected_positions(plan, t), t)
+    with pytest.raises(ValueError, match="contact segment's start"):
+        far.contact_segment(arm)
 
 
 def test_segment_distance() -> None:
     d = segment_distance([[0.5, 1.0, 0.0], [-1.0, 0.0, 0.0], [3.0, 0.0, 4.0]], [0, 0, 0],
                          [1, 0, 0])
     np.testing.assert_allclose(d, [1.0, 1.0, math.hypot(2.0, 4.0)])
+
+
+def test_the_stamp_clock_carries_the_newest_stamp_forward_at_the_observed_rate() -> None:
+    clock = StampClock(window=0.1)
+    assert clock.now(0.0) == -math.inf
+    for k in range(11):  # stamps advance 5x faster than the steady clock (a fast simulation)
+        clock.update(100.0 + 0.05 * k, 0.01 * k)
+    assert clock.rate == pytest.approx(5.0)
+    assert clock.now(0.12) == pytest.approx(100.5 + 5.0 * 0.02)
+    clock.update(99.0, 0.13)  # an older stamp changes nothing
+    assert clock.now(0.12) == pytest.approx(100.6)
+    # The run ends; the resting world's states advance at the wall clock's rate, 10 a second:
+    # the rate is the new one as soon as the window has passed.
+    for k in range(1, 4):
+        clock.update(100.5 + 0.1 * k, 0.1 + 0.1 * k)
+    assert clock.rate == pytest.approx(1.0)
+    slow = StampClock(window=0.1)
+    for k in range(11):  # stamps standing still (a paused clock): never slower than 1x
+        slow.update(7.0, 0.01 * k)
+    assert slow.rate == 1.0 and slow.now(0.3) == pytest.approx(7.2)
+
+
+def test_the_measured_arm_is_held_when_its_last_postures_agree() -> None:
+    arm = MeasuredArm(held_states=3, held=1e-4, quiet=0.5)
+    assert not arm.held(0.0) and not arm.at([0.0, 0.0], 1.0)
+    for k in range(3):
+        arm.update(1.0 + k, np.array([0.1 * k, 0.0]), 0.01 * k)
+    assert not arm.held(0.03) and arm.at([0.2, 0.0], 1e-9)
+    assert arm.held(0.6)  # no state for half a second: nothing streams, the arm rests
+    for k in range(3, 6):
+        arm.update(1.0 + k, np.array([0.5, 5e-5 * (k % 2)]), 0.01 * k)
+    assert arm.held(0.06)
+    arm.moved()
+    assert not arm.held(0.06)
+    arm.update(0.5, np.array([9.0, 9.0]), 7.0)  # older than the newest: kept out
+    assert arm.at([0.5, 5e-5], 1e-9)

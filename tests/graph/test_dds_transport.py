@@ -7,7 +7,7 @@ UDP buffers (docs/design/dds.md). These tests run sim_bridge_node as its own
 process and count what arrives here, and check that shared-memory segments left behind by a
 killed process do not break discovery or delivery for the next one, and that a node started by
 its own console script (as ``ros2 run`` starts it, without ``pushbot`` setting the profile) gets
-the same profile from its ``main()`` (issue 23, item 2).
+the same profile from its ``main()``.
 """
 
 from __future__ import annotations

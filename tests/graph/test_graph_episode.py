@@ -1,4 +1,4 @@
-"""The closed loop through the real ROS graph (pushbot.runner.episode, pushbot demo; issue 7).
+"""The closed loop through the real ROS graph (pushbot.runner.episode, pushbot demo).
 
 Real processes (sim_bridge_node, segmentation_node, ekf_node, planner_node) over DDS with
 simulated time; no mocks. One graph serves the module (started once, as ``run_graph_trials``
@@ -7,7 +7,7 @@ does); every episode is set up through the nodes' parameters and ``~/reset`` ser
 - one easy episode reaches the goal by ground truth, and its record is consistent;
 - a second, different trial on the same graph (episode set-up and resets between trials);
 - Ctrl-C (SIGINT) to ``pushbot demo`` stops every node process it started;
-- faults (issue 15; the repeated runs are ``benchmarks/bench_faults.py``): planner_node killed
+- faults (the repeated runs are ``benchmarks/bench_faults.py``): planner_node killed
   (SIGKILL) after the first push and started again resumes the episode from the latched goal
   and estimate and reaches the goal by ground truth; the object knocked on ``sim/knock`` after
   ``goal reached`` is seen leaving the region and pushed back to the goal;
@@ -31,9 +31,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pushbot.experiments.protocol import Trial
-from pushbot.runner.episode import GraphRunner, _same_goal, check_trial, run_graph_trials
+from pushbot.runner.episode import GraphRunner, check_trial, run_graph_trials
 from pushbot.runner.faults import KillRestart, Knock
+from pushbot.runner.graph_record import same_goal
+from pushbot.runner.protocol import Trial
 
 pytestmark = [pytest.mark.ros, pytest.mark.graph, pytest.mark.slow]
 
@@ -111,7 +112,7 @@ def test_a_disc_is_pushed_to_its_goal_position_with_its_orientation_ignored(
     goal = rec["goal"]
     goal_text = " ".join(f"{v:.4f}" for v in (goal[0], goal[1], math.remainder(goal[2],
                                                                              2 * math.pi)))
-    mine = [s for s in graph.rec.status[n_status:] if _same_goal(s.get("goal", ""), goal_text)]
+    mine = [s for s in graph.rec.status[n_status:] if same_goal(s.get("goal", ""), goal_text)]
     messages = [s["_message"] for s in mine]
     assert all(s.get("orientation") == "ignored" for s in mine
                if s.get("state") in ("pushing", "reached")), messages
@@ -143,7 +144,7 @@ def _param(node: str, name: str) -> str:
 
 
 def test_the_trials_planner_and_filter_variant_reach_the_nodes(graph: GraphRunner) -> None:
-    # issue 22: Trial.horizon / avoid_contradicted go to planner_node, relearn to ekf_node
+    # Trial.horizon / avoid_contradicted go to planner_node, relearn to ekf_node
     # before the episode (the nodes apply them at their resets), support_cell to the
     # simulator (the scene's), and the episode still runs.
     trial = Trial(object="rect1", task="rotation", method="ana", k=3, state="filter",
@@ -169,8 +170,8 @@ def _assert_reached_by_ground_truth(rec: dict) -> None:
 
 
 def test_a_killed_planner_is_restarted_and_reaches_the_goal(graph: GraphRunner) -> None:
-    # Before issue 15 a restarted planner stalled for good in "waiting for goal, estimate": the
-    # goal and the estimate were volatile. Now both are latched on the sending side and read
+    # A restarted planner once stalled for good in "waiting for goal, estimate": the goal and
+    # the estimate were volatile. Now both are latched on the sending side and read
     # transient local, so the new process resumes the episode.
     rec = graph.run(FAULT_TRIAL, KillRestart("planner_node"))
     assert rec["fault_injected"] and rec["killed_after_pushes"] >= 1, rec

@@ -10,19 +10,11 @@ import pytest
 
 from push_core.geometry import closest_point_on_polyline, object_to_world
 from push_core.objects import load_object
-from push_perception.core import (
-    MAX_OUTLINE_POINTS,
-    MAX_RASTER_SIDE,
-    EpisodeTracker,
-    PerceptionConfig,
-    PerceptionError,
-    check_frame_arrays,
-    object_points,
-    pose_covariance,
-    rotation_search,
-    smooth_outline,
-    top_down_view,
-)
+from push_perception.footprint import MAX_RASTER_SIDE, object_points, top_down_view
+from push_perception.orientation import rotation_search
+from push_perception.outline import MAX_OUTLINE_POINTS, smooth_outline
+from push_perception.perception_config import PerceptionConfig, PerceptionError, check_frame_arrays
+from push_perception.tracker import EpisodeTracker, pose_covariance
 
 CFG = PerceptionConfig()
 #: An asymmetric polygon (object frame, m): a lopsided pentagon about 10 x 7 cm.
@@ -86,7 +78,7 @@ def test_config_validation_names_the_field() -> None:
 
 
 @pytest.mark.parametrize(("values", "field"), [
-    ({"resolution": 2e-4}, "resolution"),        # the view falls apart: no pose (issue 15)
+    ({"resolution": 2e-4}, "resolution"),        # the view falls apart: no pose
     ({"resolution": 5e-3}, "resolution"),        # 2 deg of yaw error
     ({"closing_radius": 0}, "closing_radius"),   # fragmented
     ({"closing_radius": 1}, "closing_radius"),
@@ -243,8 +235,8 @@ def test_sample_sdf_reads_more_points_than_one_remap_takes(make_frame) -> None:
 # The tracker
 # --------------------------------------------------------------------------------------------
 def test_a_long_outline_is_capped_and_the_rotation_search_still_works(make_frame) -> None:
-    # A 40 x 30 cm object at 0.5 mm spacing would have ~2400 outline points (the issue: > 820
-    # crashed cv2.remap in the coarse search); it gets MAX_OUTLINE_POINTS, evenly spread.
+    # A 40 x 30 cm object at 0.5 mm spacing would have ~2400 outline points (more than 820
+    # once crashed cv2.remap in the coarse search); it gets MAX_OUTLINE_POINTS, evenly spread.
     big = 4.0 * LOPSIDED
     cfg = PerceptionConfig(outline_spacing=5e-4)
     tracker = EpisodeTracker(cfg)
@@ -335,7 +327,7 @@ def test_covariance_grows_with_worse_evidence() -> None:
 @pytest.mark.parametrize("name, stale_deg", [("tri1", 12.0), ("hex", -20.0), ("butter", 25.0)])
 def test_an_anchored_tracker_continues_the_episode_frame(make_frame, name: str,
                                                          stale_deg: float) -> None:
-    # A restarted perception (issue 15): a new tracker anchored to the episode's outline and a
+    # A restarted perception: a new tracker anchored to the episode's outline and a
     # stale yaw estimate (a push has turned the object since) reports the yaws the first
     # tracker reports, in the episode frame, and keeps the episode's outline.
     poly = load_object(name).polyline()

@@ -8,7 +8,6 @@ import math
 import numpy as np
 import pytest
 
-from push_perception.core import PerceptionError
 from push_perception.inputs import (
     MIN_VALID_DEPTH,
     REFUSAL_KINDS,
@@ -21,6 +20,7 @@ from push_perception.inputs import (
     check_stamp,
     rgb_from_color,
 )
+from push_perception.perception_config import PerceptionError
 
 
 def test_input_error_is_a_perception_error_of_a_known_kind() -> None:

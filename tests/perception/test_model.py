@@ -15,7 +15,6 @@ import torch.nn.functional as F
 
 from push_core.geometry import closest_point_on_polyline, object_to_world
 from push_core.objects import TEST_OBJECTS
-from push_perception.core import EpisodeTracker
 from push_perception.model import (
     HEIGHT_SCALE,
     HeightMap,
@@ -24,6 +23,7 @@ from push_perception.model import (
     crop_grid,
     normalise_inputs,
 )
+from push_perception.tracker import EpisodeTracker
 from sim_bridge.camera import deproject
 
 

@@ -23,7 +23,7 @@ pytestmark = [pytest.mark.ros]
 
 rclpy = pytest.importorskip("rclpy")
 
-from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
 from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
@@ -33,7 +33,8 @@ from rclpy.qos import (  # noqa: E402
     ReliabilityPolicy,
     qos_profile_sensor_data,
 )
-from sensor_msgs.msg import CameraInfo, Image, PointCloud2  # noqa: E402
+from sensor_msgs.msg import CameraInfo, Image, JointState, PointCloud2  # noqa: E402
+from std_msgs.msg import String  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
 from push_perception.segmentation_node import PARAMETERS, SegmentationNode  # noqa: E402
@@ -44,8 +45,10 @@ from push_ros.images import (  # noqa: E402
     image_to_array,
     rgb_image_msg,
 )
+from push_ros.occlusion import read_occlusion  # noqa: E402
 from push_ros.outline import outline_from_cloud  # noqa: E402
 from push_ros.poses import transform_msg, xytheta_from_pose  # noqa: E402
+from push_ros.refusal import stamp_key  # noqa: E402
 from push_ros.stamps import stamp_from_seconds  # noqa: E402
 from pushbot.ros2cli.discovery import spin_until  # noqa: E402
 
@@ -83,10 +86,11 @@ def frames(world_factory: Callable[..., Any]) -> dict[str, Rendered]:
 class Harness:
     """The node under test plus a test node that feeds it and records what it publishes."""
 
-    def __init__(self, context: Any, anchor_timeout: float = 0.0) -> None:
+    def __init__(self, context: Any, anchor_timeout: float = 0.0,
+                 overrides: tuple[Parameter, ...] = ()) -> None:
         # No re-anchoring wait after start-up unless a test asks for it (the restart test).
         self.node = SegmentationNode(context=context, parameter_overrides=[
-            Parameter("anchor_timeout", value=float(anchor_timeout))])
+            Parameter("anchor_timeout", value=float(anchor_timeout)), *overrides])
         self.client = rclpy.create_node("perception_test_client", context=context)
         self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.node)
@@ -184,9 +188,14 @@ def test_parameter_yaml_documents_every_parameter_with_its_default() -> None:
     import yaml
 
     path = Path(__file__).resolve().parents[2] / "src/pushbot_bringup/config/push_perception.yaml"
-    params = yaml.safe_load(path.read_text())[NODE]["ros__parameters"]
+    nested = yaml.safe_load(path.read_text())[NODE]["ros__parameters"]
+    params = {f"{k}.{kk}": vv for k, v in nested.items() if isinstance(v, dict)
+              for kk, vv in v.items()}
+    params.update({k: v for k, v in nested.items() if not isinstance(v, dict)})
     assert params["use_sim_time"] is True
     for spec in PARAMETERS:
+        if spec.default is None:  # an optional parameter without a value (a string array)
+            continue
         assert spec.name in params, f"{spec.name} is not in {path.name}"
         value = params[spec.name]
         assert value == spec.default and type(value) is type(spec.default), spec.name
@@ -195,7 +204,7 @@ def test_parameter_yaml_documents_every_parameter_with_its_default() -> None:
 def test_rendered_frames_give_pose_outline_and_mask(harness: Harness,
                                                     frames: dict[str, Rendered]) -> None:
     h, a, b = harness, frames["a"], frames["b"]
-    # Real-robot default (issue 13): wall time unless use_sim_time is set (YAML, graph runner).
+    # Real-robot default: wall time unless use_sim_time is set (YAML, graph runner).
     assert h.node.get_parameter("use_sim_time").value is False
     h.send_extrinsics(a.t)
     first = h.pose_for(a)
@@ -234,7 +243,7 @@ def test_rendered_frames_give_pose_outline_and_mask(harness: Harness,
 def test_frames_of_the_previous_episode_are_skipped_after_reset(
         harness: Harness, frames: dict[str, Rendered]) -> None:
     # The simulator re-publishes its last frame (same stamp) while idle; after ~/reset such a
-    # frame must not become the new episode's reference (found running the graph, issue 7).
+    # frame must not become the new episode's reference (found running the graph).
     h, a, b = harness, frames["a"], frames["b"]
     h.send_extrinsics(a.t)
     old = h.frame_messages(a)
@@ -371,7 +380,7 @@ def test_object_out_of_view_gives_no_pose(name: str, kind: str, harness: Harness
 
 def test_a_restarted_node_re_anchors_to_the_estimators_episode(
         ros_context: Any, frames: dict[str, Rendered]) -> None:
-    # Issue 15: a perception restarted mid-episode keeps the episode's orientation reference:
+    # A perception restarted mid-episode keeps the episode's orientation reference:
     # it matches its first frame against the estimator's latched outline (near the latched
     # estimate's yaw) instead of starting a new yaw 0, and re-publishes that outline unchanged.
     a, b = frames["a"], frames["b"]
@@ -412,3 +421,122 @@ def test_a_restarted_node_re_anchors_to_the_estimators_episode(
         restarted.wait(lambda: restarted.counter("anchored") == 1, "the anchored counter")
     finally:
         restarted.close()
+
+
+# --------------------------------------------------------------------------------------------
+# The robot in view (robot_filter.enabled)
+# --------------------------------------------------------------------------------------------
+#: tri1 at its reference pose, then at a later pose with the arm parked and posed over it
+#: (tool tips; the shares the arm hides are checked in tests/perception/test_occlusion.py).
+ARM_SHOTS = {"reference": ((0.0, 0.05, 0.3), None),
+             "little": ((0.01, 0.06, 0.45), (0.12, 0.094, 0.072)),
+             "much": ((0.01, 0.06, 0.45), (0.191, -0.002, 0.048))}
+
+
+@pytest.fixture(scope="module")
+def arm_frames(world_factory: Callable[..., Any]) -> dict[str, Any]:
+    """Rendered shots of the arm scene with the joint state of each, and the URDF."""
+    world = world_factory(robot="arm", object="tri1", object_pose=ARM_SHOTS["reference"][0])
+    arm = world.arm
+    out: dict[str, Any] = {"urdf": world.robot_description}
+    for name, (pose, tip) in ARM_SHOTS.items():
+        world.set_object_pose(pose)
+        arm.set_positions(world.config.arm_park if tip is None else arm.inverse_kinematics(tip))
+        f = world.render()
+        out[name] = (Rendered(f.rgb, f.depth, f.mask, f.camera_matrix, f.T_world_camera,
+                              f.object_pose), arm.state())
+    return out
+
+
+class ArmHarness(Harness):
+    """The node with robot_filter.enabled; the test node also sends the robot's messages."""
+
+    def __init__(self, context: Any) -> None:
+        super().__init__(context, overrides=(Parameter("robot_filter.enabled", value=True),))
+        c = self.client
+        self.pub_description = c.create_publisher(String, "/robot_description", LATCHED)
+        self.pub_joints = c.create_publisher(JointState, "/joint_states", RELIABLE)
+        self.occlusion: list[Any] = []
+        c.create_subscription(DiagnosticStatus, "perception/occlusion",
+                              lambda m: self.occlusion.append(read_occlusion(m)), RELIABLE)
+        self.wait(lambda: self.pub_joints.get_subscription_count() > 0
+                  and self.pub_description.get_subscription_count() > 0, "discovery")
+
+    def send_extrinsics(self, t: np.ndarray) -> None:
+        super().send_extrinsics(t)  # latched: waited for, so no frame is refused for it
+        self.wait(lambda: self.node._extrinsics.lookup(CAMERA_FRAME)[0] is not None,
+                  "the extrinsics")
+
+    def send_model(self, urdf: str) -> None:
+        self.pub_description.publish(String(data=urdf))
+        self.wait(lambda: self.node._robot.filter.robot is not None, "the robot model")
+
+    def send_joints(self, stamp: Any, state: Any) -> None:
+        """A joint state at ``stamp``, waited for (the frame must not overtake it)."""
+        n = len(self.node._robot.filter.joints)
+        msg = JointState(name=list(state.names), position=state.positions.tolist())
+        msg.header.stamp = stamp
+        self.pub_joints.publish(msg)
+        self.wait(lambda: len(self.node._robot.filter.joints) > n, "the joint state")
+
+    def occlusion_for(self, msgs: tuple[Any, ...]) -> Any:
+        """Send a frame (re-sent while lost) and return its perception/occlusion report."""
+        key = stamp_key(msgs[0].header.stamp)
+        return self.wait(lambda: next((o for o in self.occlusion if o.stamp == key), None),
+                         "the frame's perception/occlusion", resend=lambda: self.publish(msgs))
+
+
+@pytest.fixture
+def arm_harness(ros_context: Any) -> Iterator[ArmHarness]:
+    h = ArmHarness(ros_context)
+    try:
+        yield h
+    finally:
+        h.close()
+
+
+def test_the_node_reports_the_occluded_share_and_measures_the_visible_part(
+        arm_harness: ArmHarness, arm_frames: dict[str, Any]) -> None:
+    h = arm_harness
+    h.send_extrinsics(arm_frames["reference"][0].t)
+    h.send_model(arm_frames["urdf"])
+    reports, poses = {}, {}
+    for name in ("reference", "little", "much"):
+        frame, state = arm_frames[name]
+        msgs = h.frame_messages(frame)
+        h.send_joints(msgs[0].header.stamp, state)
+        reports[name] = h.occlusion_for(msgs)
+        poses[name] = next((p for p in h.poses if p.header.stamp == msgs[0].header.stamp),
+                           None)
+    assert reports["reference"].outcome == "pose" and reports["reference"].occluded_share == 0
+    assert reports["little"].outcome == "pose" and 0.05 < reports["little"].occluded_share < 0.3
+    assert reports["little"].robot_pixels > 1000 and poses["little"] is not None
+    moved = xytheta_from_pose(poses["little"].pose.pose)[:2] - xytheta_from_pose(
+        poses["reference"].pose.pose)[:2]
+    truth = np.subtract(ARM_SHOTS["little"][0], ARM_SHOTS["reference"][0])[:2]
+    assert np.linalg.norm(moved - truth) < 1e-3
+    much = reports["much"]
+    assert much.outcome == "occluded" and much.occluded_share > 0.3 and poses["much"] is None
+    assert "the robot hides" in much.reason
+    h.wait(lambda: h.counter("occluded") >= 1, "the occluded count on /diagnostics")
+
+
+def test_a_frame_whose_robot_pixels_cannot_be_computed_is_refused_with_the_reason(
+        arm_harness: ArmHarness, arm_frames: dict[str, Any]) -> None:
+    h = arm_harness
+    frame, state = arm_frames["reference"]
+    h.send_extrinsics(frame.t)
+    assert h.occlusion_for(h.frame_messages(frame)).outcome == "no_robot_model"
+    h.send_model(arm_frames["urdf"])
+    assert h.occlusion_for(h.frame_messages(frame)).outcome == "no_joint_state"
+    msgs = h.frame_messages(frame)
+    h.send_joints(stamp_from_seconds(h.time - 1.0), state)  # a second before the frame
+    stale = h.occlusion_for(msgs)
+    assert stale.outcome == "stale_joint_state" and "1.000 s from the frame" in stale.reason
+    assert not h.poses
+    h.wait(lambda: h.counter("refused_stale_joint_state") >= 1
+           and h.counter("refused_no_joint_state") >= 1
+           and h.counter("refused_no_robot_model") >= 1, "the refusals on /diagnostics")
+    msgs = h.frame_messages(frame)
+    h.send_joints(msgs[0].header.stamp, state)
+    assert h.occlusion_for(msgs).outcome == "pose"  # with a fresh joint state it measures

@@ -1,4 +1,4 @@
-"""Acceptance test of the planner in closed loop with pybullet physics (issue 6).
+"""Acceptance test of the planner in closed loop with pybullet physics.
 
 In-process, no ROS: ground-truth state (``pushbot.experiments.planner_loop``), the ``ana``
 planner with one sampled contact point (k = 1), the translation task with 10 cm: the goal must

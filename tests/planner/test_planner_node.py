@@ -303,7 +303,7 @@ def test_a_lost_push_is_not_planned_again(ros_context: Any,
 
 def test_a_refused_push_is_lost_at_once_and_the_planner_plans_again(
         ros_context: Any, wait_for: Callable[..., bool]) -> None:
-    """Issue 20: a pusher/refused naming the push in flight counts as a lost push at once (no
+    """A pusher/refused naming the push in flight counts as a lost push at once (no
     wait for push_timeout, here 1000 s) and the next push avoids its contact region; a refusal
     of another push, and a malformed one, change nothing."""
     from push_ros.refusal import refusal_msg
@@ -712,7 +712,7 @@ def test_an_exception_in_a_callback_is_counted_and_the_node_keeps_working(
 
 def test_a_restarted_planner_resumes_from_the_latched_goal_and_estimate(
         ros_context: Any, wait_for: Callable[..., bool], harness: Harness) -> None:
-    # Issue 15: goal senders publish latched (push_ros.qos.GOAL_QOS) and the planner reads
+    # Goal senders publish latched (push_ros.qos.GOAL_QOS) and the planner reads
     # goal_pose volatile *and* transient local, so a planner started after the goal still gets
     # it; a sample of a latched sender arrives on both readers and is taken once.
     from push_ros.qos import GOAL_QOS

@@ -16,12 +16,14 @@ import pytest
 pytest.importorskip("gym_pusht")
 
 from pushbot.experiments import pusht_adapter as P  # noqa: E402
+from pushbot.experiments import pusht_world as W  # noqa: E402
 
 ADAPTER_FILES = [Path(P.__file__),
                  Path(P.__file__).with_name("pusht_vision.py"),
                  Path(P.__file__).with_name("pusht_estimated.py"),
                  Path(P.__file__).with_name("pusht_guard.py"),
-                 Path(P.__file__).with_name("pusht.py")]
+                 Path(P.__file__).with_name("pusht.py"),
+                 Path(W.__file__)]
 
 
 @pytest.fixture(scope="module")
@@ -97,7 +99,7 @@ def test_a_planned_push_moves_the_block_as_the_env_does(runner: P.PushTRunner,
 
 def test_agent_model_replicates_the_pd_control(runner: P.PushTRunner) -> None:
     obs, info = runner.env.reset(seed=3)
-    model = P.AgentModel.of_env(runner.env)
+    model = W.AgentModel.of_env(runner.env)
     model.reset(obs[:2])
     rng = np.random.default_rng(1)
     for action in rng.uniform(30, 480, size=(8, 2)):
@@ -109,7 +111,7 @@ def test_agent_model_replicates_the_pd_control(runner: P.PushTRunner) -> None:
 
 def test_timed_path_hits_every_waypoint() -> None:
     way = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 25.0]])
-    t = P.timed_path(way, np.array([4.0, 10.0]))
+    t = W.timed_path(way, np.array([4.0, 10.0]))
     for w in way:
         assert np.min(np.linalg.norm(t - w, axis=1)) < 1e-12
     steps = np.linalg.norm(np.diff(t, axis=0), axis=1)

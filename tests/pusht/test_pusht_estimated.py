@@ -1,4 +1,4 @@
-"""Push-T with the object unknown (``--object-model estimated``, issue 24), on the real env.
+"""Push-T with the object unknown (``--object-model estimated``), on the real env.
 
 The outline perceived in the 96 x 96 image against the true T (stated tolerance), the goal
 fitted in the image, the perceived frame's pose algebra, the seal on the env's bodies and
@@ -17,6 +17,7 @@ import gymnasium as gym  # noqa: E402
 
 from pushbot.experiments import pusht_adapter as P  # noqa: E402
 from pushbot.experiments import pusht_estimated as E  # noqa: E402
+from pushbot.experiments import pusht_world as W  # noqa: E402
 from pushbot.experiments.pusht_guard import EnvInternalsAccess, Sealed, SealedEnv  # noqa: E402
 from pushbot.experiments.pusht_vision import fit_outline  # noqa: E402
 
@@ -32,9 +33,9 @@ OUTLINE_MAX_TOL = 6.0
 @pytest.fixture(scope="module")
 def truth():
     """The env (not sealed: the test's ground truth) and the true T (body frame, units)."""
-    env = gym.make(P.ENV_ID, obs_type="pixels_agent_pos")
+    env = gym.make(W.ENV_ID, obs_type="pixels_agent_pos")
     env.reset(seed=0)
-    ring, cog = P.tee_body(env)[:2]
+    ring, cog = W.tee_body(env)[:2]
     yield env, ring, cog
     env.close()
 
@@ -95,11 +96,11 @@ def test_goal_is_fitted_in_the_image(truth) -> None:
 
 def test_the_pusher_radius_is_the_envs_agent(truth) -> None:
     env, _, _ = truth
-    assert P.PUSHER_RADIUS_UNITS == P.tee_body(env)[5]
+    assert P.PUSHER_RADIUS_UNITS == W.tee_body(env)[5]
 
 
 def test_the_seal_trips_on_a_read_from_outside_the_env() -> None:
-    env = SealedEnv(gym.make(P.ENV_ID, obs_type="pixels_agent_pos"))
+    env = SealedEnv(gym.make(W.ENV_ID, obs_type="pixels_agent_pos"))
     try:
         obs, info = env.reset(seed=1)
         u = env.unwrapped
@@ -108,7 +109,7 @@ def test_the_seal_trips_on_a_read_from_outside_the_env() -> None:
         with pytest.raises(EnvInternalsAccess, match="block.center_of_gravity is sealed"):
             _ = u.block.center_of_gravity
         with pytest.raises(EnvInternalsAccess, match="block.shapes"):
-            P.tee_body(env)
+            W.tee_body(env)
         with pytest.raises(EnvInternalsAccess, match="agent.position"):
             u.agent.position = (100.0, 100.0)
         with pytest.raises(EnvInternalsAccess):

@@ -1,4 +1,4 @@
-"""Fuzz tests of sim_bridge_node: hostile pushes and parameters (issue 15).
+"""Fuzz tests of sim_bridge_node: hostile pushes and parameters.
 
 In-process against the real node class (a 160 x 120 camera for speed): the test calls the
 subscribed, guarded ``node.on_push`` directly with real ``nav_msgs/Path`` objects built by

@@ -1,4 +1,4 @@
-"""Fuzz tests of planner_node: hostile messages on every subscribed topic (issue 15).
+"""Fuzz tests of planner_node: hostile messages on every subscribed topic.
 
 In-process against the real node class: the test calls the callbacks the node subscribed (the
 guarded callables of its ``rclpy`` subscriptions, found by topic; ``goal_pose`` with a message
@@ -13,7 +13,7 @@ strategies, no DDS, at least 2,000 messages per topic:
   self-intersecting outlines, objects larger than the workspace, counts up to 200 (and,
   deterministically, 1,001 and 20,000: decimated to ``MAX_OUTLINE_POINTS``);
 - ``pusher/executed``: empty, other frames, NaN poses, extreme and reversed stamps;
-- ``pusher/refused`` (issue 20): malformed and foreign ``push_stamp`` values, missing and
+- ``pusher/refused``: malformed and foreign ``push_stamp`` values, missing and
   repeated keys, huge names and reasons, and refusals of the push in flight (each a lost push
   and a new plan, until the episode fails and is reset);
 - parameter sets (random values of every parameter, then ``~/reset``).
@@ -71,7 +71,7 @@ from push_ros.refusal import (  # noqa: E402
 from push_ros.stamps import stamp_from_seconds  # noqa: E402
 from push_ros.state import state_array_msg  # noqa: E402
 
-#: Messages per topic of the in-process run (issue 15: >= 2,000).
+#: Messages per topic of the in-process run (at least 2,000: rare malformations get hit).
 N_FUZZ = 2000
 FUZZ = settings(max_examples=N_FUZZ, deadline=None, derandomize=True, database=None,
                 suppress_health_check=list(HealthCheck))

@@ -1,4 +1,4 @@
-"""A planner started after the estimator has published still gets the estimate (issue 13).
+"""A planner started after the estimator has published still gets the estimate.
 
 Started by hand in the README's order (bridge, perception, estimator, planner), the planner
 used to wait forever: the estimator published its estimate once, on volatile topics, before

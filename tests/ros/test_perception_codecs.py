@@ -171,3 +171,26 @@ def test_depth_to_metres_rejects_bad_images(mutate, match) -> None:
     mutate(msg)
     with pytest.raises(ValueError, match=match):
         depth_to_metres(msg)
+
+
+def test_occlusion_report_round_trip_and_checks() -> None:
+    from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+
+    from push_ros.occlusion import occlusion_msg, read_occlusion
+
+    msg = occlusion_msg("/segmentation_node", STAMP, "pose", 0.123456, 2048)
+    assert msg.level == DiagnosticStatus.OK and msg.hardware_id == "robot_filter"
+    got = read_occlusion(msg)
+    assert (got.stamp, got.outcome, got.occluded_share, got.robot_pixels) == (
+        "12.000000345", "pose", 0.1235, 2048)
+    refused = read_occlusion(occlusion_msg("/n", STAMP, "no_joint_state", float("nan"), -1,
+                                           "no /joint_states received yet"))
+    assert np.isnan(refused.occluded_share) and refused.reason.startswith("no /joint_states")
+    assert occlusion_msg("/n", STAMP, "occluded", 0.5, 10).level == DiagnosticStatus.WARN
+    for key, value, match in [("stamp", "12.5", "stamp"), ("occluded_share", "1.5", "not in"),
+                              ("robot_pixels", "x", "numbers")]:
+        bad = occlusion_msg("/n", STAMP, "pose", 0.1, 5)
+        bad.values = [kv if kv.key != key else KeyValue(key=key, value=value)
+                      for kv in bad.values]
+        with pytest.raises(ValueError, match=match):
+            read_occlusion(bad)

@@ -1,4 +1,4 @@
-"""The runtime nodes start on a machine without the simulator (issue 13).
+"""The runtime nodes start on a machine without the simulator.
 
 ``segmentation_node``, ``ekf_node`` and ``planner_node`` run as real processes (``pushbot run
 <node>``) in an environment where ``import pybullet`` and ``import sim_bridge`` raise

@@ -63,6 +63,23 @@ def test_linear_interpolation_from_the_state_at_receipt() -> None:
     np.testing.assert_allclose(q, q0)
 
 
+def test_a_future_stamp_goes_on_from_the_state_at_receipt() -> None:
+    """Received at 1 s, stamped 3 s, first point at 3.5 s: the segment to the first point
+    starts at the receipt from the measured state (moving at 2 rad/s), not at the stamp from
+    a standstill (the Jazzy controller's interpolation before the first point)."""
+    t = check_trajectory(cmd(stamp=3.0, velocities=[[1.0, 1.0], [0.0, 0.0]],
+                             times=[0.5, 1.0]), JOINTS, now=1.0)
+    q0, v0 = np.array([0.0, 0.0]), np.array([2.0, 2.0])
+    q, v = t.sample(1.0, 3.0, q0, v0, received=1.0)
+    np.testing.assert_allclose(q, q0)
+    np.testing.assert_allclose(v, v0)  # no stop at the receipt
+    q, _ = t.sample(2.0, 3.0, q0, v0, received=1.0)  # 1 s into the 2.5 s to the first point
+    expect, _ = hermite(1.0, 2.5, q0, v0, [1.0, 2.0], [1.0, 1.0])
+    np.testing.assert_allclose(q, expect)
+    q, _ = t.sample(0.5, 3.0, q0, v0, received=1.0)  # before the receipt: its state
+    np.testing.assert_allclose(q, q0)
+
+
 def test_first_point_at_zero_jumps() -> None:
     t = check_trajectory(cmd(times=[0.0, 1.0]), JOINTS, now=0.0)
     q, _ = t.sample(0.0, 0.0, [0.0, 0.0], [0.0, 0.0])

@@ -1,7 +1,7 @@
-"""Every parameter of ``sim_bridge_node`` has a value and survives a dump and reload (issue 23,
-item 1): an in-process node and a client calling its parameter services over DDS, as
-``ros2 param dump`` / ``ros2 param load`` do. A parameter declared without a value made rclpy
-answer an empty list to any ``get_parameters`` naming it."""
+"""Every parameter of ``sim_bridge_node`` has a value and survives a dump and reload: an
+in-process node and a client calling its parameter services over DDS, as ``ros2 param dump`` /
+``ros2 param load`` do. A parameter declared without a value made rclpy answer an empty list to
+any ``get_parameters`` naming it."""
 
 from __future__ import annotations
 

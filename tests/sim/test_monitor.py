@@ -1,4 +1,4 @@
-"""The world's monitor stream (issue 14, item 5): frames rendered *during* a push at a
+"""The world's monitor stream: frames rendered *during* a push at a
 sim-time rate, reading only: the push and every later camera frame are bit-identical to a
 push without it. Real pybullet, seeded."""
 

@@ -566,7 +566,7 @@ def test_malformed_push_is_rejected_and_the_node_keeps_running(
 
 
 # --------------------------------------------------------------------------------------------
-# Knock and fault injection (issue 15)
+# Knock and fault injection
 # --------------------------------------------------------------------------------------------
 def _knock(bridge: BridgeClient, delta: tuple[float, float, float],
            frame_id: str = "world") -> None:

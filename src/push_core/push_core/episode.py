@@ -1,4 +1,4 @@
-"""The episode engine: one goal, pushed for until it is reached, ROS-free (issue 13).
+"""The episode engine: one goal, pushed for until it is reached, ROS-free.
 
 One set of rules for every closed loop: ``planner_node`` (events from DDS), the in-process
 evaluation (``pushbot.experiments.inprocess``) and the ground-truth planner loop all drive an
@@ -36,7 +36,7 @@ Rules (docs/design/episode-engine.md):
    newest estimate becomes usable again (nothing moved, so it is not stale).
 6. A new goal starts a new episode (step 0) and re-opens the newest estimate once (the same
    pose, a new question). A new outline clears the avoid list.
-7. **Watching after the goal** (issue 15). Once ``reached``, every further usable estimate
+7. **Watching after the goal**. Once ``reached``, every further usable estimate
    (rule 1) is checked against the goal region by the *point* estimate (the stop rule without
    the covariance, :meth:`Planner.reached` with ``covariance=None``): entering needs the
    confident rule, leaving needs the point estimate outside the full region, so uncertainty
@@ -49,12 +49,13 @@ Rules (docs/design/episode-engine.md):
      later estimate that satisfies the stop rule again gives ``reached``.
 
    The in-process loops end at the first ``reached``, so this changes nothing for them.
-8. **Contradicted pushes** (issue 22; only with ``PlannerConfig.avoid_contradicted``). The first
+8. **Contradicted pushes** (only with ``PlannerConfig.avoid_contradicted``). The first
    usable estimate after an executed push is compared with the push's predicted pose
    (``PushPlan.predicted_pose``): the push *contradicted its prediction* when the estimate is
    more than ``CONTRADICTION_MISS`` (eq. 5.1 units) from the prediction and the score to the
-   goal improved by less than ``CONTRADICTION_GAIN`` of the predicted improvement (the issue's
-   depth-noise stall: predicted 163 -> 108 mm, observed a 3.6 mm move, 27 times). Its outline
+   goal improved by less than ``CONTRADICTION_GAIN`` of the predicted improvement (a
+   depth-noise stall seen in evaluation: predicted 163 -> 108 mm, observed a 3.6 mm move, 27
+   times). Its outline
    point joins a second avoid list (the ``MAX_CONTRADICTED`` newest; kept until a new goal or
    outline, unlike refused pushes the object did move), counted as ``contradicted`` and said
    by :meth:`EpisodeEngine.status_text` until the next push is planned: the same push is not
@@ -76,9 +77,10 @@ Rules (docs/design/episode-engine.md):
     more; the end of the last push, the used and the fresh-frame stamps are forgotten and so is
     the newest estimate (the next one is of the new clock).
 
-Scoring (:func:`end_score`, :func:`true_errors`): success from the *true* end pose against the
-true goal, the orientation modulo the object's k-fold symmetry and not counted for a
-continuously symmetric outline (:mod:`push_core.symmetry`).
+Scoring (:func:`end_score`, :func:`true_errors`, re-exported from
+:mod:`push_core.episode_record` with the record's other helpers): success from the *true* end
+pose against the true goal, the orientation modulo the object's k-fold symmetry and not counted
+for a continuously symmetric outline (:mod:`push_core.symmetry`).
 """
 
 from __future__ import annotations
@@ -90,9 +92,16 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from push_core.episode_record import (
+    check_goal_offset,
+    end_score,
+    min_pushes,
+    new_record,
+    robot_times,
+    true_errors,
+)
 from push_core.geometry import wrap_angle
 from push_core.planner import NoFeasiblePush, Outline, Planner, PushPlan, motion_score
-from push_core.symmetry import has_continuous_symmetry, symmetry_order_of_polygon
 
 __all__ = [
     "AFTER_GOAL",
@@ -107,6 +116,7 @@ __all__ = [
     "min_pushes",
     "new_record",
     "precedes_episode",
+    "robot_times",
     "true_errors",
 ]
 
@@ -516,98 +526,3 @@ def contradiction(start: ArrayLike, predicted: ArrayLike, observed: ArrayLike, g
     if miss > CONTRADICTION_MISS and go[0] - go[2] < CONTRADICTION_GAIN * (go[0] - go[1]):
         return go[0], go[1], go[2]
     return None
-
-
-def true_errors(pose: ArrayLike, goal: ArrayLike, order: int) -> tuple[float, float]:
-    """Position (m) and absolute orientation error (rad) of ``pose`` against ``goal``, the
-    orientation modulo ``2 pi / order`` (closest equivalent)."""
-    p, g = np.asarray(pose, dtype=np.float64), np.asarray(goal, dtype=np.float64)
-    dxy = float(math.hypot(g[0] - p[0], g[1] - p[1]))
-    period = 2.0 * math.pi / max(int(order), 1)
-    d = float(wrap_angle(g[2] - p[2]))
-    d -= period * round(d / period)
-    return dxy, abs(d)
-
-
-def new_record(trial: dict[str, Any], **extra: Any) -> dict[str, Any]:
-    """An empty episode record (docs/design/evaluation.md#episode-record) for ``trial`` (the
-    trial as a dict), with ``extra`` keys of the engine that fills it."""
-    rec: dict[str, Any] = {"trial": trial, "success": False, "steps": 0, "end_error_xy": None,
-                           "end_error_theta": None, "com_error": None, "planning_ms": [],
-                           "poses_true": [], "poses_est": [], "pushes": [], "refused": 0,
-                           "wall_s": 0.0, "reason": ""}
-    rec.update(extra)
-    return rec
-
-
-def end_score(polyline: ArrayLike, end_true: ArrayLike, goal_true: ArrayLike,
-              tolerances: tuple[float, float]) -> dict[str, Any]:
-    """Success and true end errors of an episode (one rule for every episode record).
-
-    ``polyline``: the true object's outline (object frame). The orientation error is taken
-    modulo the outline's k-fold symmetry; for a continuously symmetric outline (a disc,
-    :func:`push_core.symmetry.has_continuous_symmetry`) it is reported but not counted
-    (``orientation_ignored``). Returns ``end_error_xy`` (m), ``end_error_theta`` (rad),
-    ``success`` and ``orientation_ignored``.
-    """
-    ignored = has_continuous_symmetry(polyline)
-    exy, eth = true_errors(end_true, goal_true, symmetry_order_of_polygon(polyline))
-    tol_xy, tol_theta = tolerances
-    return {"end_error_xy": exy, "end_error_theta": eth,
-            "success": bool(exy <= tol_xy and (ignored or eth <= tol_theta)),
-            "orientation_ignored": ignored}
-
-
-def check_goal_offset(offset: ArrayLike, tolerances: tuple[float, float],
-                      max_push_length: float) -> tuple[NDArray[np.float64], float, float]:
-    """The arguments of :func:`min_pushes` checked: ``(offset (3,), tol_xy, tol_theta)``;
-    ``ValueError`` naming ``offset``, ``tolerances`` or ``max_push_length``."""
-    o = np.asarray(offset, dtype=np.float64)
-    if o.shape != (3,) or not np.all(np.isfinite(o)):
-        raise ValueError(f"offset: expected 3 finite numbers, got {offset!r}")
-    tol_xy, tol_theta = (float(v) for v in tolerances)
-    if not (tol_xy > 0.0 and tol_theta > 0.0):
-        raise ValueError(f"tolerances: expected positive (m, rad), got {tolerances!r}")
-    if not (isinstance(max_push_length, int | float | np.floating)
-            and math.isfinite(max_push_length) and max_push_length > 0.0):
-        raise ValueError(f"max_push_length: expected > 0 m, got {max_push_length!r}")
-    return o, tol_xy, tol_theta
-
-
-def min_pushes(offset: ArrayLike, tolerances: tuple[float, float], max_push_length: float,
-               order: int = 1) -> int:
-    """The physical minimum of pushes for a goal ``offset`` (docs/design/physical-minimum.md)::
-
-        n_min = max(ceil((d - tol_xy) / L_max), 1 if |theta| > tol_theta else 0)
-
-    ``d = |(dx, dy)|``: a quasi-static object moves no farther than the pusher, which advances
-    at most ``L_max`` past the contact per push, and the goal region accepts ``tol_xy`` less;
-    a rotation beyond the tolerance needs at least one push (one push can turn an object by
-    any amount, pivoting near the contact). ``theta`` is taken modulo ``2 pi / order`` (the
-    object's symmetry).
-
-    Parameters
-    ----------
-    offset : array_like, shape (3,)
-        Goal minus initial pose: ``(dx, dy)`` in metres (any frame), ``theta`` in radians.
-    tolerances : (float, float)
-        Goal region: position (m) and orientation (rad), > 0.
-    max_push_length : float
-        Longest push past the contact, metres (> 0).
-    order : int
-        Rotational symmetry order of the object (1: none).
-
-    Returns
-    -------
-    int
-        >= 0 (0: the goal is already within the region).
-
-    Raises
-    ------
-    ValueError
-        Naming ``offset``, ``tolerances`` or ``max_push_length``.
-    """
-    o, tol_xy, tol_theta = check_goal_offset(offset, tolerances, max_push_length)
-    dxy, dtheta = true_errors(np.zeros(3), o, order)
-    translation = max(0, math.ceil((dxy - tol_xy) / max_push_length - 1e-9))
-    return max(translation, 1 if dtheta > tol_theta else 0)

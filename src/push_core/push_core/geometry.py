@@ -123,6 +123,39 @@ def check_poses(poses: ArrayLike, name: str = "pose") -> Array:
     return check_vectors(poses, 3, name)
 
 
+def check_vector(value: ArrayLike, size: int, name: str) -> NDArray[np.float64]:
+    """Check one finite vector of ``size`` numbers (a pose, a goal, a state).
+
+    Parameters
+    ----------
+    value : array_like, shape (size,)
+        The argument to check.
+    size : int
+        Required length.
+    name : str
+        Argument name the error message starts with.
+
+    Returns
+    -------
+    numpy.ndarray, shape (size,), float64
+        A new array.
+
+    Raises
+    ------
+    ValueError
+        If ``value`` is not numbers, not of shape ``(size,)``, or not finite.
+    """
+    try:
+        v = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected {size} numbers, got {value!r}") from None
+    if v.shape != (size,):
+        raise ValueError(f"{name}: expected shape ({size},), got shape {v.shape}")
+    if not np.all(np.isfinite(v)):
+        raise ValueError(f"{name}: must be finite, got {v.tolist()}")
+    return v
+
+
 def check_polyline(vertices: ArrayLike, name: str = "vertices") -> NDArray[np.float64]:
     """Check a closed counter-clockwise polyline (polygon outline).
 

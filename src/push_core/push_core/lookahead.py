@@ -1,4 +1,4 @@
-"""Lookahead over push sequences for the planner (issue 22): value of a first push, ROS-free.
+"""Lookahead over push sequences for the planner: value of a first push, ROS-free.
 
 The greedy planner (:mod:`push_core.planner`, ``PlannerConfig.horizon = 1``) executes the push
 whose predicted pose scores best by eq. (5.1). With ``horizon = H > 1`` each candidate first

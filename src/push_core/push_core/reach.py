@@ -1,4 +1,4 @@
-"""What one push can do: the model's reach, and the physical minimum it implies (issue 22).
+"""What one push can do: the model's reach, and the physical minimum it implies.
 
 :func:`push_core.episode.min_pushes` bounds the pushes of a goal by geometry alone: the distance
 over the longest push, and one push for a rotation. One push cannot turn an object by any amount

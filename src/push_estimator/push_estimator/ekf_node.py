@@ -74,6 +74,7 @@ _COUNTERS = ("observations", "pushes", "replayed", "gated", "relearned", "resets
                                         "duplicate", "out_of_order", "before_init",
                                         "before_outline", "filter_error")))
 
+
 class EkfNode(Node):
     """ROS wrapper of :class:`push_core.estimator.PushEKF`; see the module docstring.
 
@@ -226,7 +227,8 @@ class EkfNode(Node):
         self._applied_values = parameter_values(self, PARAMETERS)
         if changed:
             self.get_logger().info(f"parameters applied with the new outline: {changed}")
-        self._ekf, self._outline, self._normals = ekf, points, normals
+        self._ekf = ekf
+        self._outline, self._normals = points, normals
         self._new_episode()
         self._inputs.new_outline(reference)  # perception's new episode starts at its frame
         self._pub_outline.publish(msg)  # the episode's reference, latched (module docstring)
@@ -247,8 +249,9 @@ class EkfNode(Node):
             return
         try:
             inputs.check_position(obs.pose[:2])
-            if self._inputs.old(obs.stamp):
-                return self._duplicate()  # a repeat, or taken before ~/reset: no log
+            if self._inputs.old(obs.stamp):  # a repeat, or taken before ~/reset: no log
+                self._duplicate()
+                return
             self._check_time(obs.stamp)
             self._replay.check_order(obs.stamp)
             cov = obs.covariance if self.params.use_message_covariance else None
@@ -289,7 +292,8 @@ class EkfNode(Node):
             inputs.check_position((*push.start, *push.end))
             inputs.check_push_length(push.start, push.end, self.params.max_push_length)
             if self._replay.has_push(push.t_start, push.t_end):
-                return self._duplicate()
+                self._duplicate()
+                return
             self._check_time(push.t_end, "ending")
             self._check_time(push.t_start, "starting")
             done = self._replay.insert_push(push.t_start, push.t_end, push.start, push.end)
@@ -300,12 +304,15 @@ class EkfNode(Node):
         self.health.count("gated", done.gated_change)
         self._problem = ""
         pred = done.prediction
-        contact = (f"contact over {1e3 * pred.contact_length:.1f} mm" if pred.touched
-                   else "no contact")
-        self.get_logger().info(f"push {push.t_start:.3f} -> {push.t_end:.3f} s: {contact}, "
-                               f"{pred.n_substeps} substeps"
-                               + (f"; arrived after {done.replayed} later input(s), re-filtered"
-                                  if done.replayed else ""))
+        if pred.touched:
+            contact = f"contact over {1e3 * pred.contact_length:.1f} mm"
+        else:
+            contact = "no contact"
+        report = (f"push {push.t_start:.3f} -> {push.t_end:.3f} s: {contact}, "
+                  f"{pred.n_substeps} substeps")
+        if done.replayed:
+            report += f"; arrived after {done.replayed} later input(s), re-filtered"
+        self.get_logger().info(report)
         if done.replayed:
             self._last_nis = done.nis
             self.health.count("replayed")

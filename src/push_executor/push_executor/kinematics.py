@@ -34,10 +34,14 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["MAX_URDF_CHARS", "ArmKinematics", "IkResult", "ToolSpec", "base_transform"]
+from push_core.robot_view import MAX_URDF_CHARS, base_transform
 
-#: Longest URDF text accepted, characters (a 10 MB string is refused before parsing).
-MAX_URDF_CHARS = 4_000_000
+__all__ = ["DEFAULT_ACCELERATION", "DEFAULT_JERK", "ArmKinematics", "IkResult", "ToolSpec"]
+
+#: Default joint acceleration (rad/s^2) and jerk (rad/s^3) limits: the Franka Panda's lowest
+#: (its joint 2: 7.5 rad/s^2; 3750 rad/s^3 in its datasheet, here far less: the acceleration
+#: ramps up in 15 ms).
+DEFAULT_ACCELERATION, DEFAULT_JERK = 7.5, 500.0
 #: Unit vector of the tool axis' target direction in ``world``: straight down.
 DOWN = np.array([0.0, 0.0, -1.0])
 
@@ -80,22 +84,13 @@ class ToolSpec:
         return self.flange_offset + self.length
 
 
-def base_transform(base_pose: ArrayLike) -> NDArray[np.float64]:
-    """4 x 4 homogeneous transform ``world <- base`` of ``base_pose`` = (x, y, z, yaw).
-
-    Raises
-    ------
-    ValueError
-        Not 4 finite values.
-    """
-    pose = np.asarray(base_pose, dtype=float)
-    if pose.shape != (4,) or not np.all(np.isfinite(pose)):
-        raise ValueError(f"base_pose: expected 4 finite values (x, y, z, yaw), got {pose!r}")
-    c, s = math.cos(pose[3]), math.sin(pose[3])
-    t = np.eye(4)
-    t[:3, :3] = [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]
-    t[:3, 3] = pose[:3]
-    return t
+def _per_joint(values: float | ArrayLike, n: int, what: str) -> NDArray[np.float64]:
+    """One positive limit per joint from one value for all or one each; ``ValueError``."""
+    arr = np.asarray(values, dtype=float).ravel()
+    if arr.size not in (1, n) or not np.all(np.isfinite(arr)) or np.any(arr <= 0):
+        raise ValueError(f"{what}: expected 1 or {n} positive values, got "
+                         f"{arr.tolist()[:16]}")
+    return np.broadcast_to(arr, (n,)).copy()
 
 
 @dataclass(frozen=True)
@@ -133,25 +128,28 @@ class ArmKinematics:
         (x, y, z, yaw) of ``base_frame`` in ``world``, m and rad.
     acceleration_limits : float or (n,) array_like
         Joint acceleration limits, rad/s^2 (m/s^2 for prismatic joints); one value for all.
+    jerk_limits : float or (n,) array_like
+        Joint jerk limits, rad/s^3 (m/s^3); one value for all.
 
     Raises
     ------
     ValueError
         Unparsable or too long URDF, a link that is not there, a flange not below the base, a
         chain joint that is not 1-DOF, a joint without finite position and velocity limits, bad
-        acceleration limits.
+        acceleration or jerk limits.
 
     Attributes
     ----------
     joint_names : tuple of str
         The chain's joints, base to flange.
-    lower, upper, velocity_limits, acceleration_limits : (n,) ndarray
-        Limits from the URDF (position: rad or m; velocity: rad/s or m/s) and the parameter.
+    lower, upper, velocity_limits, acceleration_limits, jerk_limits : (n,) ndarray
+        Limits from the URDF (position: rad or m; velocity: rad/s or m/s) and the parameters.
     """
 
     def __init__(self, urdf: str, base_frame: str, tool: ToolSpec,
                  base_pose: ArrayLike = (0.0, 0.0, 0.0, 0.0),
-                 acceleration_limits: float | ArrayLike = 5.0) -> None:
+                 acceleration_limits: float | ArrayLike = DEFAULT_ACCELERATION,
+                 jerk_limits: float | ArrayLike = DEFAULT_JERK) -> None:
         if not isinstance(urdf, str) or not urdf.strip():
             raise ValueError("robot description: empty")
         if len(urdf) > MAX_URDF_CHARS:
@@ -182,12 +180,8 @@ class ArmKinematics:
         if bad:
             raise ValueError(f"robot description: joints {bad} have no finite position limits "
                              "or velocity limit in the URDF")
-        acc = np.broadcast_to(np.asarray(acceleration_limits, dtype=float), (n,)) \
-            if np.size(acceleration_limits) in (1, n) else None
-        if acc is None or not np.all(np.isfinite(acc)) or np.any(acc <= 0):
-            raise ValueError(f"acceleration limits: expected 1 or {n} positive values, got "
-                             f"{np.asarray(acceleration_limits).ravel().tolist()[:16]}")
-        self.acceleration_limits = acc.copy()
+        self.acceleration_limits = _per_joint(acceleration_limits, n, "acceleration limits")
+        self.jerk_limits = _per_joint(jerk_limits, n, "jerk limits")
         self._base_id = model.getFrameId(base_frame)
         flange_id = model.getFrameId(tool.flange_link)
         flange = model.frames[flange_id]

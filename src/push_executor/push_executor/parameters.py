@@ -15,14 +15,16 @@ from typing import Any
 from rcl_interfaces.msg import ParameterType
 
 from push_core.rollout import PUSHER_RADIUS
-from push_executor.kinematics import ToolSpec
-from push_executor.motion import PANDA_PARK, PANDA_READY, PANDA_SIM_BASE_POSE, MotionConfig
+from push_executor.kinematics import DEFAULT_ACCELERATION, DEFAULT_JERK, ToolSpec
+from push_executor.motion_types import PANDA_PARK, PANDA_READY, PANDA_SIM_BASE_POSE, MotionConfig
 from push_executor.state_check import StateCheckConfig
 from push_ros.node import ParamSpec
 
 __all__ = ["NODE_NAME", "PARAMETERS", "YAML_HEADER", "ExecutorParams"]
 
 _STRINGS = ParameterType.PARAMETER_STRING_ARRAY
+#: The motion's defaults (one place: MotionConfig's).
+_M = MotionConfig()
 
 PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec("world_frame", "world", "Frame of planner/push, pusher/executed and "
@@ -46,17 +48,21 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec("joints", None, "Joints commanded, in this order; unset: the chain's joints "
               "base_frame -> tool.flange_link (the set must equal the chain's).",
               read_only=True, type=_STRINGS),
-    ParamSpec("approach_height", 0.10, "Tip height of the transit and the lift, m above the "
-              "table.", (0.0, 2.0), read_only=True),
-    ParamSpec("push_height", 0.01, "Tip height while pushing, m above the table.", (0.0, 1.0),
+    ParamSpec("approach_height", _M.approach_height, "Tip height of the transit (the lift "
+              "ends 2.5 cm higher, the lowest of the clear poses), m above the table; above the "
+              "tallest object.", (0.0, 2.0), read_only=True),
+    ParamSpec("push_height", _M.push_height, "Tip height while pushing, m above the table.",
+              (0.0, 1.0), read_only=True),
+    ParamSpec("push_speed", _M.push_speed, "Tip speed along the push line, m/s.", (1e-4, 1.0),
               read_only=True),
-    ParamSpec("push_speed", 0.02, "Tip speed along the push line, m/s.", (1e-4, 1.0),
-              read_only=True),
-    ParamSpec("cartesian_speed", 0.05, "Tip speed of descend, retreat and lift, m/s.",
-              (1e-4, 1.0), read_only=True),
-    ParamSpec("cartesian_acceleration", 0.2, "Tip acceleration of the Cartesian speed ramps, "
-              "m/s^2.", (1e-3, 10.0), read_only=True),
-    ParamSpec("retreat", 0.02, "Distance moved back along the push line after the push, m.",
+    ParamSpec("cartesian_speed", _M.cartesian_speed, "Tip speed of descend, retreat and "
+              "lift (and of the blends from the transit into the descend and from the lift on), "
+              "m/s.", (1e-4, 1.0), read_only=True),
+    ParamSpec("cartesian_acceleration", _M.cartesian_acceleration, "Tip acceleration limit "
+              "of the Cartesian speed profiles, m/s^2.", (1e-3, 10.0), read_only=True),
+    ParamSpec("cartesian_jerk", _M.cartesian_jerk, "Tip jerk limit of the Cartesian speed "
+              "profiles, m/s^3.", (1e-2, 1000.0), read_only=True),
+    ParamSpec("retreat", _M.retreat, "Distance moved back along the push line after the push, m.",
               (0.0, 0.5), read_only=True),
     ParamSpec("park_positions", list(PANDA_PARK), "Park posture (chain order), rad; the "
               "default folds a Panda back over its base, out of the camera's view.",
@@ -68,25 +74,29 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec("workspace.x_max", 0.25, "See workspace.x_min, m.", (-10.0, 10.0), read_only=True),
     ParamSpec("workspace.y_min", -0.3, "See workspace.x_min, m.", (-10.0, 10.0), read_only=True),
     ParamSpec("workspace.y_max", 0.3, "See workspace.x_min, m.", (-10.0, 10.0), read_only=True),
-    ParamSpec("min_tool_height", 0.003, "Lowest tip height anywhere, m above the table.",
+    ParamSpec("min_tool_height", _M.min_tool_height, "Lowest tip height anywhere, m above "
+              "the table.", (0.0, 1.0), read_only=True),
+    ParamSpec("limit_margin", _M.limit_margin, "Margin inside the URDF joint position limits, rad.",
               (0.0, 1.0), read_only=True),
-    ParamSpec("limit_margin", 0.05, "Margin inside the URDF joint position limits, rad.",
-              (0.0, 1.0), read_only=True),
-    ParamSpec("speed_margin", 0.5, "Fraction of the joint velocity and acceleration limits a "
-              "trajectory may use.", (0.01, 1.0), read_only=True),
-    ParamSpec("acceleration_limits", [5.0], "Joint acceleration limits, rad/s^2: one value for "
-              "every joint or one per chain joint.", read_only=True),
-    ParamSpec("min_manipulability", 0.005, "Smallest manipulability of the tip task Jacobian "
-              "on the Cartesian stages (singularity distance).", (0.0, 10.0), read_only=True),
-    ParamSpec("ik_tolerance", 1e-5, "Largest inverse kinematics residual, m and rad.",
+    ParamSpec("speed_margin", _M.speed_margin, "Fraction of the joint velocity, acceleration "
+              "and jerk limits a trajectory may use.", (0.01, 1.0), read_only=True),
+    ParamSpec("acceleration_limits", [DEFAULT_ACCELERATION], "Joint acceleration limits, "
+              "rad/s^2: one value for every joint or one per chain joint (the default: the "
+              "Panda's lowest).", read_only=True),
+    ParamSpec("jerk_limits", [DEFAULT_JERK], "Joint jerk limits, rad/s^3: one value for every "
+              "joint or one per chain joint.", read_only=True),
+    ParamSpec("min_manipulability", _M.min_manipulability, "Smallest manipulability of the "
+              "tip task Jacobian on the Cartesian stages (singularity distance).", (0.0, 10.0),
+              read_only=True),
+    ParamSpec("ik_tolerance", _M.ik_tolerance, "Largest inverse kinematics residual, m and rad.",
               (1e-9, 0.01), read_only=True),
-    ParamSpec("waypoint_period", 0.01, "Time between two trajectory points, s.", (1e-3, 1.0),
-              read_only=True),
-    ParamSpec("max_push_length", 0.3, "Longest approach -> end distance, m.", (1e-3, 2.0),
-              read_only=True),
+    ParamSpec("waypoint_period", _M.waypoint_period, "Longest time between two trajectory "
+              "points, s.", (1e-3, 1.0), read_only=True),
+    ParamSpec("max_push_length", _M.max_push_length, "Longest approach -> end distance, m.",
+              (1e-3, 2.0), read_only=True),
     ParamSpec("tracking_tolerance", 0.05, "Largest joint deviation from the plan while moving "
               "before the arm is stopped, rad.", (1e-4, 3.0), read_only=True),
-    ParamSpec("start_delay", 0.5, "The trajectory's header stamp is the node's clock plus "
+    ParamSpec("start_delay", 0.05, "The trajectory's header stamp is the node's clock plus "
               "this: the controller holds the arm until then, so the motion starts when the "
               "tracking expects it whatever the delivery latency (below this), s.",
               (0.0, 5.0), read_only=True),
@@ -113,6 +123,22 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               "node's clock are refused, s.", (0.0, 3600.0), read_only=True),
     ParamSpec("start_enabled", False, "Start enabled (moving the arm); false: dry run until "
               "~/enable.", read_only=True),
+    ParamSpec("clear.enabled", True, "End each push at a clear pose near the work, out of the "
+              "object's silhouette in the camera image (false: park after every push).",
+              read_only=True),
+    ParamSpec("clear.margin", 0.02, "Growth of the object's region (where it may lie after "
+              "the push) before its silhouette is taken, m.", (0.0, 0.5), read_only=True),
+    ParamSpec("clear.turn", 0.35, "Largest rotation of the object during a push either way "
+              "the region allows for, rad.", (0.0, 3.2), read_only=True),
+    ParamSpec("clear.object_height", 0.03, "Height of the object's region above the table "
+              "(its silhouette is the image of that prism), m.", (0.0, 1.0), read_only=True),
+    ParamSpec("clear.distance", 0.05, "Distance of the outer ring of candidate clear poses "
+              "beyond the region's radius (the inner ring: half of it), m.", (0.0, 1.0),
+              read_only=True),
+    ParamSpec("clear.rise", 0.1, "Height of the upper ring of candidate clear poses above "
+              "approach_height, m.", (0.0, 1.0), read_only=True),
+    ParamSpec("clear.scale", 0.25, "Image resolution of the silhouette check, a fraction of "
+              "the camera's.", (0.05, 1.0), read_only=True),
 )
 
 
@@ -124,6 +150,8 @@ class ExecutorParams:
     tool: ToolSpec
     motion: MotionConfig
     checks: StateCheckConfig
+    #: The ``clear.*`` parameters without the prefix.
+    clear: dict[str, Any]
 
     @classmethod
     def from_values(cls, v: dict[str, Any]) -> ExecutorParams:
@@ -132,8 +160,8 @@ class ExecutorParams:
             tool = ToolSpec(str(v["tool.flange_link"]), float(v["tool.flange_offset"]),
                             float(v["tool.length"]), float(v["tool.radius"]))
             names = ("approach_height", "push_height", "push_speed", "cartesian_speed",
-                     "cartesian_acceleration", "retreat", "min_tool_height", "limit_margin",
-                     "speed_margin", "min_manipulability", "waypoint_period",
+                     "cartesian_acceleration", "cartesian_jerk", "retreat", "min_tool_height",
+                     "limit_margin", "speed_margin", "min_manipulability", "waypoint_period",
                      "max_push_length", "ik_tolerance")
             motion = MotionConfig(
                 **{n: float(v[n]) for n in names},
@@ -153,7 +181,8 @@ class ExecutorParams:
         for name in ("tracking_tolerance", "state_timeout", "start_timeout"):
             if not v[name] > 0:
                 raise ValueError(f"parameter {name}: must be > 0")
-        return cls(values=dict(v), tool=tool, motion=motion, checks=checks)
+        clear = {k.removeprefix("clear."): v[k] for k in v if k.startswith("clear.")}
+        return cls(values=dict(v), tool=tool, motion=motion, checks=checks, clear=clear)
 
 
 #: The node's name: the top-level key of its parameter file.
@@ -163,7 +192,8 @@ YAML_HEADER = """
 Parameters of push_executor_node (package push_executor): planner/push -> a joint trajectory of
 a ros2_control arm (docs/ROBOT.md, docs/design/arm.md; the table is also in
 docs/INTERFACES.md). The defaults describe the simulated Panda; on your arm set at least
-controller_topic, base_frame, base_pose, tool.*, park_positions and the workspace (docs/ROBOT.md).
+controller_topic, base_frame, base_pose, tool.*, park_positions, the limits and the workspace
+(docs/ROBOT.md).
 The launch file sets use_sim_time and start_enabled (true in simulation, false on a robot: a dry run
 until
 ~/enable)."""

@@ -1,19 +1,29 @@
 """``push_executor_node``: executes planned pushes on a ros2_control arm.
 
 Role: turns each ``planner/push`` into one checked joint trajectory for the arm's
-joint_trajectory_controller (transit, descend, push, retreat, lift, park), watches it on
-``/joint_states`` and reports the executed contact segment on ``pusher/executed`` from forward
-kinematics of the *measured* joints, or refuses the push on ``pusher/refused``. The maths is the
-ROS-free core: :mod:`push_executor.kinematics`, :mod:`push_executor.motion`,
-:mod:`push_executor.tracking`; parameters: :mod:`push_executor.parameters`.
+joint_trajectory_controller (transit, descend, push, retreat, lift, withdraw to a clear pose
+near the work), watches it on ``/joint_states``, reports the executed contact segment on
+``pusher/executed`` from forward kinematics of the *measured* joints as soon as it has ended
+(the arm is still withdrawing), or refuses the push on ``pusher/refused``. A push that arrives
+while the previous motion withdraws chains from its planned state. The arm parks at the end of
+an episode (``planner/status``), after ``~/cancel`` and on disable. The maths is the ROS-free
+core: :mod:`push_executor.kinematics`, :mod:`push_executor.motion`,
+:mod:`push_executor.clearance`, :mod:`push_executor.tracking`; the measured state before
+planning, the plan's bounds and the readiness on ``executor/status``:
+:mod:`push_executor.state_check`; camera, object and episode inputs:
+:mod:`push_executor.scene_inputs`; parameters: :mod:`push_executor.parameters`.
 
-Invariants: one motion at a time; a push ended by a stop (watchdog, ``~/cancel``, disable: a
-one-point hold trajectory) is answered on ``pusher/refused`` so the planner re-plans at once; the
-watchdogs run on the steady clock; no exception leaves a callback; it never imports pybullet or
-sim_bridge.
+Invariants: an impossible or non-finite joint state is never the measured posture (refused
+with kind ``state``, never tracked or held); nothing is published for a plan beyond
+``max_trajectory_duration`` / ``max_trajectory_points``; one motion at a time (a chained one
+replaces it from the chain point on); a push
+ended by a stop before its contact segment was reported (watchdog, ``~/cancel``, disable: a
+one-point hold trajectory) is answered on ``pusher/refused`` so the planner re-plans at once;
+the watchdogs run on the steady clock; no exception leaves a callback; it never imports
+pybullet or sim_bridge.
 
 Topics, services and parameters: docs/INTERFACES.md; states, refusal kinds and timing:
-docs/design/arm.md.
+docs/design/arm.md and docs/design/cycle.md.
 """
 
 from __future__ import annotations
@@ -24,23 +34,22 @@ import time
 from pathlib import Path as FilePath
 from typing import Any
 
-import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
-from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from std_srvs.srv import SetBool, Trigger
-from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+from trajectory_msgs.msg import JointTrajectory
 
+from push_executor import messages as m
+from push_executor.clearance import robot_mask_factory
 from push_executor.kinematics import ArmKinematics
-from push_executor.motion import MotionPlan, PushRefused, plan_push
+from push_executor.motion import PushRefused, plan_park, plan_push
 from push_executor.parameters import NODE_NAME, PARAMETERS, ExecutorParams
+from push_executor.scene_inputs import SceneInputs
 from push_executor.state_check import (
-    MeasuredPosture,
     StuckPosture,
     check_before_planning,
     check_plan,
@@ -48,29 +57,23 @@ from push_executor.state_check import (
     posture_problem,
     unavailable,
 )
-from push_executor.tracking import Event, Execution, chain_positions
+from push_executor.tracking import Event, Execution, MeasuredArm, PlanMaker, start_plan
 from push_ros.health import NodeHealth
 from push_ros.node import declare_config, run_node
-from push_ros.paths import path_from_points, push_points_from_path
-from push_ros.poses import pose_msg
-from push_ros.qos import LATCHED_QOS, RELIABLE_QOS
-from push_ros.refusal import readiness_values, refusal_msg
-from push_ros.stamps import check_not_ahead, clock_seconds, seconds_from_stamp, stamp_from_seconds
-from push_ros.stamps import duration_from_seconds as duration
+from push_ros.qos import JOINT_STATE_QOS, LATCHED_QOS, RELIABLE_QOS
+from push_ros.refusal import readiness_values, refusal_msg, stamp_key
+from push_ros.stamps import clock_seconds
 
 __all__ = ["PARAMETERS", "ExecutorParams", "PushExecutorNode", "main"]
 
-#: Joint states: reliable, depth 50 (docs/design/arm.md#push_executor).
-JOINT_STATE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50,
-                             reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.VOLATILE)
-#: ``time_from_start`` of the one-point hold trajectory, s.
-HOLD_TIME = 0.05
-#: Most joints a joint state may name (a bigger message is refused before any work).
-MAX_JOINTS = 1000
 #: Watchdog timer and /diagnostics periods, s.
 WATCHDOG_PERIOD, DIAGNOSTICS_PERIOD = 0.05, 1.0
-COUNTERS = ("pushes", "executed", "stopped", "models", "joint_states")
+#: The arm is parked within this of ``park_positions`` (every joint), rad; held (a pending park
+#: may start) when its last ``HELD_STATES`` joint states lie within ``HELD`` rad of each other.
+PARKED, HELD, HELD_STATES = 0.01, 1e-4, 3
+COUNTERS = ("pushes", "executed", "chained", "stopped", "parks", "models", "joint_states")
+
+
 class PushExecutorNode(Node):
     """The node (module docstring)."""
 
@@ -81,17 +84,15 @@ class PushExecutorNode(Node):
         self.health = NodeHealth(self, "push executor", "arm", COUNTERS)
         guard = self.health.guard
         self._arm: ArmKinematics | None = None
-        self._urdf = ""
-        self._joints: tuple[str, ...] = ()
-        self._q: np.ndarray | None = None
-        self._q_stamp = -math.inf
-        self._q_steady = -math.inf
+        self._robot, self._urdf, self._joints = None, "", ()
+        self.measured = MeasuredArm(HELD_STATES, HELD)
         self._enabled = bool(p["start_enabled"])
         self._run: Execution | None = None
         self._push_stamp: Any = None
-        self._stopped = False
-        self._line_error_mm = math.nan
-        self._q_problem, self._stuck = "", StuckPosture()  # push_executor.state_check
+        self._deferred: tuple[Path, float] | None = None  # a push waiting for the arm at rest
+        self._park_pending, self._stopped, self._line_error_mm = "", False, math.nan
+        self._plan_values: dict[str, str] = {}
+        self._stuck = StuckPosture()  # a posture it could not leave (push_executor.state_check)
         self._session, self._readiness = f"{os.getpid()}-{time.time_ns()}", None
         self._pub_traj = self.create_publisher(JointTrajectory, p["controller_topic"],
                                                RELIABLE_QOS)
@@ -104,6 +105,8 @@ class PushExecutorNode(Node):
         self.create_subscription(Path, "planner/push", guard(self._on_push), RELIABLE_QOS)
         self.create_subscription(JointState, "/joint_states", guard(self._on_joint_state),
                                  JOINT_STATE_QOS)
+        self.scene = SceneInputs(self, guard, lambda what, why: self.health.refuse(
+            what, why, "invalid"), self.params.clear, lambda: self._request_park("episode over"))
         if p["robot_description_file"]:
             self._load_model(FilePath(p["robot_description_file"]).read_text())
             if self._arm is None:
@@ -124,7 +127,7 @@ class PushExecutorNode(Node):
         p = self.params.values
         try:
             arm = ArmKinematics(urdf, p["base_frame"], self.params.tool, p["base_pose"],
-                                p["acceleration_limits"])
+                                p["acceleration_limits"], p["jerk_limits"])
             joints = tuple(p["joints"]) if p["joints"] else arm.joint_names
             if sorted(joints) != sorted(arm.joint_names):
                 raise ValueError(f"parameter joints {list(joints)[:16]} is not the chain "
@@ -133,8 +136,12 @@ class PushExecutorNode(Node):
         except ValueError as exc:
             self.health.refuse("robot_description", str(exc), "model")
             return
-        self._arm, self._urdf, self._joints = arm, urdf, joints
-        self._q = None
+        robot, why = robot_mask_factory(urdf, p["base_pose"], arm.joint_names) \
+            if self.params.clear["enabled"] else (None, "")
+        if why:  # the arm still works: it parks after every push
+            self.health.refuse("robot_description", f"{why}; parking after every push", "model")
+        self._arm, self._robot, self._urdf, self._joints = arm, robot, urdf, joints
+        self.measured = MeasuredArm(HELD_STATES, HELD)
         self.health.count("models")
         self._publish_status()
 
@@ -146,132 +153,200 @@ class PushExecutorNode(Node):
             return
         self._load_model(msg.data)
 
-    def _on_joint_state(self, msg: JointState) -> None:  # noqa: RET503 - None either way
+    def _on_joint_state(self, msg: JointState) -> None:
         if self._arm is None:
             return
-        if len(msg.name) > MAX_JOINTS:
-            self.health.refuse("/joint_states", f"{len(msg.name)} joints", "invalid")
-            return
         try:
-            stamp = seconds_from_stamp(msg.header.stamp)
-            check_not_ahead(stamp, clock_seconds(self.get_clock()),
-                            self.params.values["max_future_stamp"], "joint state stamp")
-            q = chain_positions(self._arm.joint_names, list(msg.name), msg.position)
-            problem = posture_problem(self._arm, q, self.params.checks.state_margin)
-        except ValueError as exc:
-            problem = nonfinite_joints(self._arm.joint_names, msg.name, msg.position)
+            stamp, q = m.joint_state_from_msg(msg, self._arm.joint_names,
+                                            clock_seconds(self.get_clock()),
+                                            self.params.values["max_future_stamp"])
+        except ValueError as exc:  # non-finite chain positions: a posture, but an unknown one
+            problem = nonfinite_joints(self._arm.joint_names, msg.name, msg.position) \
+                if len(msg.name) <= m.MAX_JOINTS else ""
             self.health.refuse("/joint_states", str(exc), "state" if problem else "invalid")
-            self._q_problem = problem or self._q_problem
+            self.measured.problem = problem or self.measured.problem
             return
+        problem = posture_problem(self._arm, q, self.params.checks.state_margin)
         if problem:  # not a posture the arm can be in: the last plausible one is kept
-            self._q_problem = problem
-            return self.health.refuse("/joint_states", problem, "state")
+            self.measured.problem = problem
+            self.health.refuse("/joint_states", problem, "state")
+            return
         steady = time.monotonic()
-        if stamp >= self._q_stamp or self._run is None:
-            self._q, self._q_stamp, self._q_steady, self._q_problem = q, stamp, steady, ""
+        self.measured.update(stamp, q, steady, replace=self._run is None)
         self.health.count("joint_states")
         if self._run is not None:
             self._finish(self._run.on_state(stamp, q, steady))
+        else:
+            self._when_held(steady)
 
     def _on_push(self, msg: Path) -> None:
         self.health.count("pushes")
+        self._take_push(msg)
+
+    def _take_push(self, msg: Path, waited: bool = False) -> None:
         stamp = msg.header.stamp
-        if self._run is not None:
-            return self._refuse(stamp, "busy", "", "the arm is executing a push")
+        run = self._run
+        if run is not None and self._enabled and not run.chainable:
+            return self._refuse(stamp, "busy", run.plan.stage_at(run.elapsed(self.measured.stamp)),
+                                "the arm is executing a push")
         try:
-            seconds_from_stamp(stamp)
-            if msg.header.frame_id != self.params.values["world_frame"]:
-                raise ValueError(f"frame {msg.header.frame_id[:64]!r} is not "
-                                 f"{self.params.values['world_frame']!r}")
-            approach, contact, end = push_points_from_path(msg)
+            approach, contact, end = m.push_from_msg(msg, self.params.values["world_frame"])
         except ValueError as exc:
             return self._refuse(stamp, "invalid", "input", str(exc))
         if self._arm is None:
             return self._refuse(stamp, "no_model", "", "no robot description yet")
         try:
-            q = check_before_planning(self._arm, self._posture(), self.params.checks,
-                                      self.params.motion, time.monotonic(),
-                                      clock_seconds(self.get_clock()))
-            plan = plan_push(self._arm, self.params.motion, approach, contact, end, q)
-            check_plan(plan, self.params.checks)
+            check_before_planning(self._arm, self.measured, self.params.checks,
+                                  self.params.motion, time.monotonic(),
+                                  clock_seconds(self.get_clock()))
         except PushRefused as refusal:
-            refusal = self._stuck.classify(refusal, self._arm, self._q, self.params.motion)
             return self._refuse(stamp, refusal.kind, refusal.stage, refusal.reason)
-        self._pub_path.publish(self._path_msg(plan))
-        t0 = clock_seconds(self.get_clock())
-        if t0 is not None:  # the measured state's stamp is the controller's time now, at least
-            t0 = max(t0, self._q_stamp)
-        if not self._enabled:
-            return self._refuse(stamp, "disabled", "", "executor disabled (dry run): planned, "
-                                "not moved")
-        if self._pub_traj.get_subscription_count() == 0:
-            return self._refuse(stamp, "no_controller", "", "no controller subscribes "
-                                f"{self._pub_traj.topic_name}")
-        if t0 is None:
-            return self._refuse(stamp, "no_state", "", "the node's clock has not started")
-        t0 += self.params.values["start_delay"]  # the motion starts then, not on receipt
-        self._pub_traj.publish(self._trajectory_msg(plan, t0))
-        self._run = Execution(plan, t0, time.monotonic(), self._q_stamp,
-                              self.params.values["tracking_tolerance"],
-                              self.params.values["state_timeout"],
-                              self.params.values["start_timeout"],
-                              self.params.values["tracking_window"])
-        self._push_stamp, self._stopped = stamp, False
-        self._publish_status()
-        return None
+        if self._run is None and self._enabled and not waited \
+                and not self.measured.held(time.monotonic()):
+            self._deferred = (msg, time.monotonic())  # planned once the states show it held
+            return None
+        view, why = self.scene.view(contact, end, self._robot)
+        self._plan_values = {"view": why or "clear pose"}
+        try:
+            self._start(lambda start, lead, first: plan_push(
+                self._arm, self.params.motion, approach, contact, end, start, view, lead,
+                first), stamp)
+        except PushRefused as refusal:
+            if self._run is None:  # planned from the measured posture: can it be left?
+                refusal = self._stuck.classify(refusal, self._arm, self.measured.q,
+                                               self.params.motion)
+            return self._refuse(stamp, refusal.kind, refusal.stage, refusal.reason)
+        self._plan_values["clear_checked"] = str(getattr(view, "checked", 0))
+        return self._publish_status()
 
     # ---- execution ---------------------------------------------------------------------------
+    def _start(self, make: PlanMaker, stamp: Any) -> None:
+        """Plan (from the measured state, or chained from the running plan) and send; raises
+        :class:`PushRefused` (also ``disabled``, ``no_controller``, ``busy``)."""
+        p = self.params.values
+        run = self._run if self._enabled or stamp is None else None  # a dry run: from here
+        plan, t0, chained = start_plan(make, run, self.measured.q, self._now, p["start_delay"],
+                                       self.params.motion.start_delay)
+        check_plan(plan, self.params.checks)
+        self._pub_path.publish(m.path_msg(plan, p["world_frame"], self.get_clock().now().to_msg()))
+        if not self._enabled and stamp is not None:
+            raise PushRefused("disabled", "", "executor disabled (dry run): planned, not moved")
+        if self._pub_traj.get_subscription_count() == 0:
+            raise PushRefused("no_controller", "", "no controller subscribes "
+                              f"{self._pub_traj.topic_name}")
+        self._pub_traj.publish(m.trajectory_msg(plan, self._joints, t0))
+        self.get_logger().info(f"{'chained' if chained else 'sent'}: {m.stage_text(plan)}; starts "
+                               f"{t0:.3f} s (measured {self.measured.stamp:.3f} s)")
+        if run is not None:
+            self.health.count("chained")
+        self._run = Execution(plan, t0, time.monotonic(), self.measured.stamp,
+                              p["tracking_tolerance"], p["state_timeout"], p["start_timeout"],
+                              p["tracking_window"], previous=run, moving=chained)
+        self._push_stamp, self._stopped, self._park_pending = stamp, False, ""
+        self._plan_values.update(plan_t0=f"{t0:.6f}", final=plan.final, stages=m.stage_text(plan),
+                                 push="" if stamp is None else stamp_key(stamp))
+
+    def _now(self) -> float:
+        """The controller's time now at least: the node's clock or the newest joint state's
+        stamp carried forward (:class:`StampClock`), s (``PushRefused`` before the clock)."""
+        clock = clock_seconds(self.get_clock())
+        if clock is None:
+            raise PushRefused("no_state", "", "the node's clock has not started")
+        return max(clock, self.measured.clock.now(time.monotonic()))
+
+    def _request_park(self, reason: str) -> None:
+        """Park once the arm is free: now if idle, after the running motion otherwise."""
+        self._park_pending = reason
+        if self._run is None and self.measured.held(time.monotonic()):
+            self._park()
+
+    def _park(self) -> None:
+        """Plan and send the park motion (only the disable's own while disabled)."""
+        reason, self._park_pending = self._park_pending, ""
+        if self._arm is None or self.measured.q is None or self._parked() \
+                or not (self._enabled or reason == "disabled"):
+            return
+        try:
+            self._start(lambda start, lead, first: plan_park(
+                self._arm, self.params.motion, start, lead, first), None)
+        except PushRefused as refusal:
+            self.health.refuse("park", f"{refusal.kind} ({refusal.stage}): {refusal.reason}",
+                               refusal.kind)
+            return
+        self.health.count("parks")
+        self.health.log.warning("park", f"parking: {reason}")
+        self._publish_status()
+
+    def _parked(self) -> bool:
+        return self.measured.at(self.params.motion.park_positions, PARKED)
+
+    def _when_held(self, steady: float) -> None:
+        """A push waiting for the arm to rest (planned at the latest after state_timeout),
+        else a pending park, once the arm is held."""
+        if self._run is not None:
+            return
+        held = self.measured.held(steady)
+        if self._deferred is not None and (held or steady - self._deferred[1] >
+                                           self.params.values["state_timeout"]):
+            msg, self._deferred = self._deferred[0], None
+            self._take_push(msg, waited=True)
+        elif self._park_pending and held:
+            self._park()
+
     def _on_watchdog(self) -> None:
+        self._when_held(time.monotonic())
         if self._run is not None:
             self._finish(self._run.on_timer(time.monotonic()))
         if self._unavailable() != self._readiness:  # executor/status says when it changes
             self._publish_status()
 
-    def _posture(self) -> MeasuredPosture:
-        return MeasuredPosture(self._q, self._q_stamp, self._q_steady, self._q_problem)
-
     def _unavailable(self) -> tuple[str, str] | None:
         """Why no push can be taken now (push_executor.state_check.unavailable), or None."""
         return unavailable(model=self._arm is not None, enabled=self._enabled, arm=self._arm,
-                           posture=self._posture(), stuck=self._stuck,
-                           config=self.params.checks, motion=self.params.motion,
+                           measured=self.measured, stuck=self._stuck, config=self.params.checks,
+                           motion=self.params.motion, moving=self._run is not None,
                            controller=self._pub_traj.get_subscription_count() > 0,
                            steady=time.monotonic(), clock=clock_seconds(self.get_clock()))
+
+    def _report(self, run: Execution) -> None:
+        """Publish the run's measured contact segment (or answer its push with a fault)."""
+        try:
+            seg = run.report(self._arm)
+        except ValueError as exc:
+            self._refuse(self._push_stamp, "fault", "push", str(exc))
+            return
+        self._line_error_mm = seg.line_error * 1e3
+        self._pub_executed.publish(m.executed_msg(seg, self.params.values["world_frame"]))
+        self.health.count("executed")
 
     def _finish(self, event: Event | None) -> None:
         if event is None or self._run is None:
             return
-        run, self._run = self._run, None
-        if event.kind == "done":
-            try:
-                seg = run.contact_segment(self._arm)
-            except ValueError as exc:
-                self._refuse(self._push_stamp, "fault", "push", str(exc))
-            else:
-                self._line_error_mm = seg.line_error * 1e3
-                stamps = [stamp_from_seconds(s, clamp=True) for s in (seg.stamp_start,
-                                                                       seg.stamp_end)]
-                self._pub_executed.publish(path_from_points(
-                    np.array([seg.start[:2], seg.end[:2]]), stamps,
-                    self.params.values["world_frame"]))
-                self.health.count("executed")
-        else:
+        run = self._run
+        if event.kind in ("executed", "done") and not run.reported:
+            self._report(run)
+        if event.kind == "executed":
+            return self._publish_status()
+        self._run = None
+        if event.kind != "done":
             self._stop(f"{event.kind}: {event.reason}")
-            self._refuse(self._push_stamp, "fault", run.plan.stage_at(
-                run.elapsed(self._q_stamp)), f"stopped ({event.kind}): {event.reason}")
+            if not run.reported:
+                self._refuse(self._push_stamp, "fault", run.plan.stage_at(
+                    run.elapsed(self.measured.stamp)), f"stopped ({event.kind}): {event.reason}")
+        elif self._park_pending:
+            self._park()
         self._publish_status()
+        return None
 
     def _stop(self, reason: str) -> bool:
         """Send the one-point hold trajectory at the measured posture; False without one."""
-        if self._q is None or self._arm is None:
+        if self.measured.q is None or self._arm is None:
             return False
-        msg = JointTrajectory(joint_names=list(self._joints))
-        q = dict(zip(self._arm.joint_names, self._q, strict=True))
-        msg.points = [JointTrajectoryPoint(positions=[float(q[j]) for j in self._joints],
-                                           velocities=[0.0] * len(self._joints),
-                                           time_from_start=duration(HOLD_TIME))]
-        self._pub_traj.publish(msg)
+        self._pub_traj.publish(m.hold_msg(self._joints, dict(zip(self._arm.joint_names,
+                                                                self.measured.q,
+                                                                strict=True))))
         self._stopped = True
+        self.measured.moved()
         self.health.count("stopped")
         self.health.log.warning("stop", f"arm stopped: {reason}")
         return True
@@ -280,18 +355,22 @@ class PushExecutorNode(Node):
                    ) -> Trigger.Response:
         run, self._run = self._run, None
         response.success = self._stop("~/cancel")
-        if run is not None:
+        if run is not None and not run.reported:
             self._refuse(self._push_stamp, "cancelled", run.plan.stage_at(
-                run.elapsed(self._q_stamp)), "cancelled by ~/cancel")
-        response.message = "holding" if response.success else "no joint state: nothing to hold"
+                run.elapsed(self.measured.stamp)), "cancelled by ~/cancel")
+        response.message = "holding, then parking" if response.success \
+            else "no joint state: nothing to hold"
+        self._park_pending = "~/cancel" if response.success else ""
         self._publish_status()
         return response
 
     def _on_enable(self, request: SetBool.Request, response: SetBool.Response
                    ) -> SetBool.Response:
-        self._enabled = bool(request.data)
-        if not self._enabled and self._run is not None:
-            self._on_cancel(Trigger.Request(), Trigger.Response())
+        was, self._enabled = self._enabled, bool(request.data)
+        if not self._enabled and was:
+            if self._run is not None and self._run.plan.is_push:
+                self._on_cancel(Trigger.Request(), Trigger.Response())
+            self._request_park("disabled")
         response.success, response.message = True, "enabled" if self._enabled else "disabled"
         self._publish_status()
         return response
@@ -304,29 +383,11 @@ class PushExecutorNode(Node):
                                               available=self._unavailable() is None))
         self._publish_status()
 
-    def _trajectory_msg(self, plan: MotionPlan, start: float) -> JointTrajectory:
-        order = [plan.joint_names.index(j) for j in self._joints]
-        msg = JointTrajectory(joint_names=list(self._joints))
-        msg.header.stamp = stamp_from_seconds(start, clamp=True)
-        msg.points = [JointTrajectoryPoint(positions=q[order].tolist(),
-                                           velocities=v[order].tolist(),
-                                           time_from_start=duration(t))
-                      for t, q, v in zip(plan.times, plan.positions, plan.velocities,
-                                         strict=True)]
-        return msg
-
-    def _path_msg(self, plan: MotionPlan) -> Path:
-        msg = Path()
-        msg.header.frame_id = self.params.values["world_frame"]
-        msg.header.stamp = self.get_clock().now().to_msg()
-        for x, y, z in plan.tip:
-            pose = PoseStamped(header=msg.header, pose=pose_msg(x, y, 0.0, z))
-            msg.poses.append(pose)
-        return msg
-
     def _publish_status(self) -> None:
-        state = ("moving" if self._run is not None else "disabled" if not self._enabled
-                 else "stopped" if self._stopped else "idle")
+        run = self._run
+        state = ("disabled" if not self._enabled and run is None
+                 else "parking" if run is not None and not run.plan.is_push
+                 else "moving" if run is not None else "stopped" if self._stopped else "idle")
         level = DiagnosticStatus.WARN if self._arm is None or self._stopped \
             else DiagnosticStatus.OK
         model = "no robot description" if self._arm is None else f"{len(self._joints)} joints"
@@ -334,10 +395,10 @@ class PushExecutorNode(Node):
         if readiness != self._readiness:  # the log says why it cannot take a push, and since when
             self.health.log.info("readiness", f"not ready: {': '.join(self._readiness)}"
                                  if self._readiness else "ready for a push")
-        extra = {"state": state, "model": model,
-                 "contact_line_error_mm": f"{self._line_error_mm:.4f}",
-                 **readiness_values(self._run is None and self._readiness is None,
-                                    self._readiness, self._session)}
+        extra = {"state": state, "model": model, "at_park": str(self._parked()).lower(),
+                 "contact_line_error_mm": f"{self._line_error_mm:.4f}", **self._plan_values,
+                 **readiness_values(run is None and self._readiness is None, self._readiness,
+                                    self._session)}
         self._pub_status.publish(self.health.status(level, f"{state}, {model}", extra))
         self.health.publish(level, f"{state}, {model}", extra)
 

@@ -7,27 +7,30 @@ joints), in the chain's order (``joint_names`` of :class:`push_executor.kinemati
 
 A joint state whose chain posture is not finite or outside the limits by more than
 ``state_margin`` (:func:`nonfinite_joints`, :func:`posture_problem`) is not taken as the
-measured posture: the node keeps the last plausible one (which a stop then holds), records the
-problem and, while a push runs, does not feed it to the tracking (implausible states alone
-stop the arm as stale ones do).
+measured posture: the node keeps the last plausible one in its
+:class:`push_executor.tracking.MeasuredArm` (which a stop then holds), records the problem
+there (``problem``) and, while a push runs, does not feed it to the tracking (implausible
+states alone stop the arm as stale ones do).
 
 Before :func:`push_executor.motion.plan_push` runs, :func:`check_before_planning` refuses
 
 - ``no_state``: no joint state yet, or none for ``state_timeout`` s (steady clock);
-- ``settling``: the arm is not at rest (a joint faster than :data:`REST_SPEED`);
 - ``state``: the newest joint state has a non-finite position of a chain joint (the posture
   is unknown; the last finite one is not used), the posture is outside the URDF position
   limits by more than ``state_margin`` (a glitched encoder: the transit from 100 rad would
-  take minutes, from -1e6 rad its samples would not fit in memory), the joint state is
+  take a minute, from -1e6 rad its samples would not fit in memory), the joint state is
   stamped more than ``max_state_age`` s before the node's clock (a driver re-sending an old
-  state), or the worst-case joint-space stage from this posture (to any posture within the
-  limits, and the park posture) would last longer than ``max_duration``.
+  state), or the worst-case joint-space stage from this posture (:func:`joint_stage_bound`)
+  would last longer than ``max_duration``.
+
+An arm still moving is not refused here: the node defers a push until the arm is held, and a
+push during its own motion chains from the running plan (docs/design/cycle.md).
 
 With the posture within the limits every joint-space stage is bounded by the joint ranges and
-the velocity limits, the Cartesian stages by the workspace and the speeds, so planning is
-bounded in time and memory for every finite input. :func:`check_plan` then refuses (kind
-``plan``) a plan longer than ``max_duration`` s or with more than ``max_points`` points before
-anything is published.
+the velocity, acceleration and jerk limits, the Cartesian stages by the workspace and the
+speeds, so planning is bounded in time and memory for every finite input. :func:`check_plan`
+then refuses (kind ``plan``) a plan longer than ``max_duration`` s or with more than
+``max_points`` points before anything is published.
 
 A refusal at the ``clear`` stage, or a ``tool_height`` refusal of the ``transit`` from a tool
 tip lower than the approach height, is a posture the executor cannot leave (re-planning
@@ -36,7 +39,9 @@ another push starts from the same posture): :class:`StuckPosture` turns it into 
 
 :func:`unavailable` is the executor's readiness in one rule (``executor/status``'s
 ``ready``): the first of ``no_model``, ``disabled``, ``no_state``, ``state`` (the checks
-above, a posture it cannot leave), ``settling``, ``no_controller`` that holds, or None (ready).
+above, a posture it cannot leave), ``settling`` (no motion of its own runs and the arm is not
+held: stopping after a hold, or moved by another client), ``no_controller`` that holds, or
+None (ready).
 """
 
 from __future__ import annotations
@@ -49,20 +54,15 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from push_executor.kinematics import ArmKinematics
-from push_executor.motion import CLEAR, MotionConfig, MotionPlan, PushRefused
+from push_executor.motion_types import CLEAR, MotionConfig, MotionPlan, PushRefused
+from push_executor.tracking import MeasuredArm
 
-__all__ = ["REST_SPEED", "STUCK_MOVE", "MeasuredPosture", "StateCheckConfig", "StuckPosture",
-           "chain_speed", "check_before_planning", "check_plan", "check_posture",
-           "joint_stage_bound", "nonfinite_joints", "posture_problem", "unavailable"]
+__all__ = ["STUCK_MOVE", "StateCheckConfig", "StuckPosture", "check_before_planning",
+           "check_plan", "check_posture", "joint_move_bound", "joint_stage_bound",
+           "nonfinite_joints", "posture_problem", "unavailable"]
 
 #: A posture the executor could not leave counts as changed once a joint moved this far, rad.
 STUCK_MOVE = 0.01
-#: A measured joint faster than this (rad/s, m/s) means the arm is not at rest (still stopping
-#: after a hold, or finishing another trajectory): a push starts from rest.
-REST_SPEED = 0.05
-#: Peak speed and acceleration factors of the quintic time scaling of the joint-space stages
-#: (``push_executor.motion.quintic_segment``: 1.875 |dq| / T and 5.7735 |dq| / T^2).
-_QUINTIC_SPEED, _QUINTIC_ACCELERATION = 1.875, 5.7735
 
 
 @dataclass(frozen=True)
@@ -100,32 +100,6 @@ class StateCheckConfig:
         if isinstance(self.max_points, bool) or int(self.max_points) != self.max_points \
                 or self.max_points < 2:
             raise ValueError(f"max_points: must be an integer >= 2, got {self.max_points!r}")
-
-
-@dataclass
-class MeasuredPosture:
-    """The newest measured posture.
-
-    Attributes
-    ----------
-    q : (n,) ndarray or None
-        The newest finite chain posture (None before the first).
-    stamp : float
-        Its joint state's stamp, s of the node's clock.
-    steady : float
-        When it arrived, s (steady).
-    problem : str
-        Non-empty when the newest joint state's chain posture could not be read (a non-finite
-        position; the joints named): ``q`` is then older than the robot's state.
-    speed : float
-        Largest joint speed of that joint state (:func:`chain_speed`; NaN: not given).
-    """
-
-    q: NDArray[np.float64] | None = None
-    stamp: float = -math.inf
-    steady: float = -math.inf
-    problem: str = ""
-    speed: float = math.nan
 
 
 def nonfinite_joints(chain: Sequence[str], names: Sequence[str], positions: ArrayLike) -> str:
@@ -168,19 +142,6 @@ def posture_problem(arm: ArmKinematics, q: ArrayLike, margin: float) -> str:
             "faulty encoder or joint state?)")
 
 
-def chain_speed(chain: Sequence[str], names: Sequence[str], velocities: ArrayLike) -> float:
-    """Largest ``|velocity|`` of the chain's joints in a joint state, NaN when the message does
-    not give a finite velocity for each of them (velocities are optional in a JointState)."""
-    v = np.asarray(velocities, dtype=float).ravel()
-    if len(v) != len(names):
-        return math.nan
-    index = {name: i for i, name in enumerate(names)}
-    values = np.array([v[index[j]] for j in chain if j in index])
-    if len(values) != len(chain) or not np.all(np.isfinite(values)):
-        return math.nan
-    return float(np.max(np.abs(values)))
-
-
 def check_posture(arm: ArmKinematics, q: ArrayLike, margin: float) -> None:
     """``PushRefused`` (kind ``state``) naming :func:`posture_problem`'s joint, if any."""
     problem = posture_problem(arm, q, margin)
@@ -188,9 +149,39 @@ def check_posture(arm: ArmKinematics, q: ArrayLike, margin: float) -> None:
         raise PushRefused("state", "", f"{problem}: not planned")
 
 
+def joint_move_bound(span: ArrayLike, velocity: ArrayLike, acceleration: ArrayLike,
+                     jerk: ArrayLike, moving: bool = True) -> float:
+    """An upper bound on the duration of a time-optimal jerk-limited joint motion
+    (:func:`push_executor.timing.joint_move`, ruckig) over ``span`` per joint, from and to
+    any state within the limits (``moving`` False: from rest to rest), s.
+
+    Per joint, with ``V``, ``A``, ``J`` its limits: the rest-to-rest profile that reaches the
+    velocity limit ramps up and down in ``V / A + A / J`` and cruises the rest, so no
+    rest-to-rest motion over ``d`` takes longer than ``d / V + V / A + A / J`` (when ``A`` is
+    not reached, ``2 sqrt(V / J)`` is smaller). A moving start or end (at most ``V``, ``A``)
+    first brakes to rest (or accelerates from rest) in at most ``t_b = V / A + 3 A / J`` over
+    at most ``(V + A^2 / 2J) t_b``, counted at both ends; ruckig's time-synchronised motion
+    lasts as long as its slowest joint's, so the bound is the largest over the joints.
+
+    Parameters
+    ----------
+    span : (n,) array_like
+        Largest distance each joint travels between start and end, rad (m).
+    velocity, acceleration, jerk : (n,) array_like
+        The limits used (already times ``speed_margin``), > 0.
+    moving : bool
+        Whether the start or the end state may move.
+    """
+    d, v, a, j = (np.asarray(x, dtype=float) for x in (span, velocity, acceleration, jerk))
+    brake = v / a + 3.0 * a / j if moving else np.zeros_like(v)
+    brake_distance = (v + a * a / (2.0 * j)) * brake
+    return float(np.max(2.0 * brake + (d + 2.0 * brake_distance) / v + v / a + a / j))
+
+
 def joint_stage_bound(arm: ArmKinematics, q: ArrayLike, motion: MotionConfig) -> float:
-    """Longest joint-space stage (quintic time scaling at ``speed_margin`` times the limits)
-    from ``q`` to any posture within the URDF limits or to ``park_positions``, s.
+    """Longest joint-space stage (:func:`joint_move_bound` at ``speed_margin`` times the
+    limits) from ``q`` to any posture within the URDF limits, or from there to
+    ``park_positions``, s.
 
     Parameters
     ----------
@@ -202,17 +193,17 @@ def joint_stage_bound(arm: ArmKinematics, q: ArrayLike, motion: MotionConfig) ->
     """
     start = np.asarray(q, dtype=float).ravel()
     park = np.asarray(motion.park_positions, dtype=float)
-    # The transit ends within the limits (the inverse kinematics clips to them), the park
-    # stage goes from within them to the park posture.
+    # The transit ends within the limits (the inverse kinematics clips to them), the withdraw
+    # and park stages go from within them to within them or to the park posture.
     span = np.maximum.reduce([np.abs(arm.upper - start), np.abs(start - arm.lower),
-                              np.abs(arm.upper - park), np.abs(park - arm.lower)])
-    vmax = arm.velocity_limits * motion.speed_margin
-    amax = arm.acceleration_limits * motion.speed_margin
-    return float(max(np.max(_QUINTIC_SPEED * span / vmax),
-                     np.max(np.sqrt(_QUINTIC_ACCELERATION * span / amax))))
+                              arm.upper - arm.lower, np.abs(arm.upper - park),
+                              np.abs(park - arm.lower)])
+    m = motion.speed_margin
+    return joint_move_bound(span, arm.velocity_limits * m, arm.acceleration_limits * m,
+                            arm.jerk_limits * m)
 
 
-def check_before_planning(arm: ArmKinematics, posture: MeasuredPosture,
+def check_before_planning(arm: ArmKinematics, measured: MeasuredArm,
                           config: StateCheckConfig, motion: MotionConfig, steady: float,
                           clock: float | None) -> NDArray[np.float64]:
     """The measured posture to plan from, or ``PushRefused`` (module docstring).
@@ -220,7 +211,8 @@ def check_before_planning(arm: ArmKinematics, posture: MeasuredPosture,
     Parameters
     ----------
     arm : ArmKinematics
-    posture : MeasuredPosture
+    measured : MeasuredArm
+        The newest plausible posture, its stamp and arrival, and the newest state's problem.
     config : StateCheckConfig
     motion : MotionConfig
     steady : float
@@ -231,34 +223,31 @@ def check_before_planning(arm: ArmKinematics, posture: MeasuredPosture,
     Returns
     -------
     (n,) ndarray
-        ``posture.q``.
+        ``measured.q``.
 
     Raises
     ------
     PushRefused
-        Kind ``no_state``, ``state`` or ``settling``.
+        Kind ``no_state`` or ``state``.
     """
-    if posture.problem:  # the robot's newest word on its posture: not one it can be in
+    if measured.problem:  # the robot's newest word on its posture: not one it can be in
         raise PushRefused("state", "", f"the newest joint state is unusable: "
-                          f"{posture.problem}; not planned")
-    if posture.q is None or steady - posture.steady > config.state_timeout:
+                          f"{measured.problem}; not planned")
+    if measured.q is None or steady - measured.steady > config.state_timeout:
         raise PushRefused("no_state", "", f"no joint state for {config.state_timeout} s "
-                          "(state_timeout)" if posture.q is not None else "no joint state yet")
-    check_posture(arm, posture.q, config.state_margin)
-    if posture.speed > REST_SPEED:
-        raise PushRefused("settling", "", f"the arm is still moving ({posture.speed:.3f} rad/s "
-                          f"> {REST_SPEED}): a push starts from rest")
-    if clock is not None and clock - posture.stamp > config.max_state_age:
+                          "(state_timeout)" if measured.q is not None else "no joint state yet")
+    check_posture(arm, measured.q, config.state_margin)
+    if clock is not None and clock - measured.stamp > config.max_state_age:
         raise PushRefused("state", "", f"the newest joint state is stamped "
-                          f"{clock - posture.stamp:.3f} s before the node's clock (more than "
+                          f"{clock - measured.stamp:.3f} s before the node's clock (more than "
                           f"max_state_age {config.max_state_age} s): a stale state, or "
                           "clocks not synchronised")
-    bound = joint_stage_bound(arm, posture.q, motion)
+    bound = joint_stage_bound(arm, measured.q, motion)
     if bound > config.max_duration:
         raise PushRefused("state", "", f"a joint-space stage from the measured posture could "
                           f"take up to {bound:.1f} s, more than max_trajectory_duration "
-                          f"{config.max_duration} s (URDF velocity limits x speed_margin)")
-    return posture.q
+                          f"{config.max_duration} s (the joint limits x speed_margin)")
+    return measured.q
 
 
 def check_plan(plan: MotionPlan, config: StateCheckConfig) -> None:
@@ -309,27 +298,32 @@ class StuckPosture:
 
 
 def unavailable(*, model: bool, enabled: bool, arm: ArmKinematics | None,
-                posture: MeasuredPosture, stuck: StuckPosture, config: StateCheckConfig,
-                motion: MotionConfig, controller: bool, steady: float, clock: float | None
-                ) -> tuple[str, str] | None:
+                measured: MeasuredArm, stuck: StuckPosture, config: StateCheckConfig,
+                motion: MotionConfig, controller: bool, moving: bool, steady: float,
+                clock: float | None) -> tuple[str, str] | None:
     """Why the executor cannot take a push now: ``(kind, reason)``, or None when it can.
 
     One rule for ``executor/status`` and the ``available`` value of a refusal (module
     docstring); a push arriving while it is None is planned (and may still be refused for its
-    own geometry).
+    own geometry). ``moving``: a motion of the executor's own runs (a push then chains, and
+    the arm is not expected to be held).
     """
     if not model or arm is None:
         return "no_model", "no robot description yet"
     if not enabled:
         return "disabled", "executor disabled (dry run): plans, moves nothing; ~/enable true"
     try:
-        check_before_planning(arm, posture, config, motion, steady, clock)
+        check_before_planning(arm, measured, config, motion, steady, clock)
     except PushRefused as refusal:
         return refusal.kind, refusal.reason
     if clock is None:
         return "no_state", "the node's clock has not started (no /clock yet)"
-    if stuck.holds(posture.q):
+    if stuck.holds(measured.q):
         return "state", stuck.reason
+    if not moving and not measured.held(steady):
+        return "settling", ("the arm is moving without a trajectory of this executor (stopping "
+                            "after a hold, or commanded by another client): a push starts once "
+                            "it is held")
     if not controller:
         return "no_controller", "no controller subscribes the trajectory topic"
     return None

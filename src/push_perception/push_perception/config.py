@@ -1,9 +1,10 @@
 """``segmentation_node``'s parameters: the declared table and the typed, validated configuration.
 
 :data:`PARAMETERS` is the one declaration of every parameter (name, default, description with
-unit, bounds, read-only); the geometry ones set the :class:`~push_perception.core.PerceptionConfig`
-field of the same name. :meth:`SegmentationParams.from_values` builds the frozen configuration
-and raises ``ValueError`` naming the parameter. docs/INTERFACES.md and
+unit, bounds, read-only); the geometry ones set the field of the same name of
+:class:`~push_perception.perception_config.PerceptionConfig`.
+:meth:`SegmentationParams.from_values` builds the frozen configuration and raises
+``ValueError`` naming the parameter. docs/INTERFACES.md and
 ``pushbot_bringup/config/push_perception.yaml`` are generated from the table
 (:mod:`push_ros.interfaces`).
 """
@@ -15,7 +16,11 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from push_perception.core import PerceptionConfig
+from rcl_interfaces.msg import ParameterType
+
+from push_core.robot_view import SIM_PANDA_BASE_POSE
+from push_perception.perception_config import PerceptionConfig
+from push_perception.robot_filter import RobotFilterConfig
 from push_ros.interfaces import SIM_TIME
 from push_ros.node import ParamSpec
 
@@ -23,6 +28,7 @@ __all__ = ["NODE_NAME", "PARAMETERS", "YAML_EXTRA", "YAML_HEADER", "YAML_NOTES",
            "SegmentationParams"]
 
 _GEOMETRY = {f.name: f.default for f in dataclasses.fields(PerceptionConfig)}
+_STRINGS = ParameterType.PARAMETER_STRING_ARRAY
 PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec("weights", "", "Segmentation network weights (.pt) written by `pushbot train "
               "segmentation`; empty = the bundled push_perception/models/segmentation.pt (model "
@@ -44,6 +50,41 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               "episode's outline and keeps its yaw reference (frames wait meanwhile); nothing in "
               "time (a fresh graph) or ~/reset = a new reference; 0 = never re-anchor.",
               (0.0, 60.0), read_only=True),
+    ParamSpec("robot_filter.enabled", False, "The robot may stand in the camera's view (an "
+              "arm): each frame's robot pixels are computed from its model and /joint_states "
+              "and never taken for the object; a frame whose robot pixels cannot be computed is "
+              "not used (the reason on perception/occlusion and /diagnostics). False: no robot "
+              "in view (the free pusher, or an arm parked out of view), nothing is "
+              "subscribed.", read_only=True),
+    ParamSpec("robot_filter.description_file", "", "URDF file of the robot; empty: subscribe "
+              "/robot_description (std_msgs/String, transient local).", read_only=True),
+    ParamSpec("robot_filter.package_dirs", None, "Folders searched for the URDF's mesh files: "
+              "package://<pkg>/<path> as <dir>/<pkg>/<path>, a relative path as <dir>/<path> "
+              "(absolute paths are read as they are).", read_only=True, type=_STRINGS),
+    ParamSpec("robot_filter.base_link", "", "URDF link standing at robot_filter.base_pose; "
+              "empty: the root link.", read_only=True),
+    ParamSpec("robot_filter.base_pose", list(SIM_PANDA_BASE_POSE), "Pose of the base link in "
+              "world: x, y, z (m), yaw (rad), as push_executor_node's base_pose; the default "
+              "is the simulated Panda's.", read_only=True),
+    ParamSpec("robot_filter.dilate_px", 2, "Margin grown around the rendered robot, pixels "
+              "(calibration and joint-state latency).", (0, 20), read_only=True),
+    ParamSpec("robot_filter.depth_margin", 0.01, "A pixel measured more than this nearer "
+              "than the robot's model is not the robot (something in front of it), m.",
+              (0.0, 0.5), read_only=True),
+    ParamSpec("robot_filter.joint_state_tolerance", 0.1, "Largest time between a frame's "
+              "stamp and the joint state used for it, s (interpolated between the states "
+              "before and after when both are this close).", (0.001, 5.0), read_only=True),
+    ParamSpec("robot_filter.still_tolerance", 2.0, "Largest age of the last joint state "
+              "before a frame that shows the robot at rest (every joint slower than 0.01 rad/s, "
+              "velocities given) and is not contradicted by a later one, s; used when no state "
+              "is within robot_filter.joint_state_tolerance.", (0.0, 60.0), read_only=True),
+    ParamSpec("max_occluded", _GEOMETRY["max_occluded"], "With robot_filter.enabled: a frame "
+              "in which the robot hides more than this share of the object's predicted "
+              "silhouette gives no pose (outcome occluded).", (0.0, 0.9)),
+    ParamSpec("occlusion_margin_px", _GEOMETRY["occlusion_margin_px"], "With "
+              "robot_filter.enabled: object boundary this close to the robot's pixels is the "
+              "robot's edge, left out of the pose fit; the episode's first frame must keep the "
+              "object this far from the robot, pixels.", (0, 20)),
     ParamSpec("resolution", _GEOMETRY["resolution"], "Cell size of the top-down "
               "(orthographic, world-aligned) view of the object, m (finer: the view falls apart "
               "between the pixels' footprints; coarser costs yaw accuracy).", (5e-4, 3e-3)),
@@ -103,14 +144,15 @@ docs/INTERFACES.md). Values below are the defaults. Units SI (REP 103): metres, 
   (`ros2 launch pushbot_bringup pushbot.launch.py` loads this file and sets use_sim_time
   from sim:=true|false; with sim:=false it also remaps the camera topics to realsense2_camera's)
 
-Read-only parameters are read at start-up; the geometry parameters (resolution to
+Read-only parameters are read at start-up; the geometry parameters (max_occluded to
 match_cost_floor) are read at start-up and again by ~/reset (std_srvs/srv/Trigger), which
 starts a new episode. A bad value stops start-up with a clear message and a non-zero exit (a
 refused reset keeps the previous values). Doubles need a decimal point (0.0, not 0)."""
 #: Comment paragraphs before a parameter in the parameter file.
 YAML_NOTES = {
     "weights": "The CNN and the node.",
-    "resolution": "From mask to state (push_perception.core.PerceptionConfig).",
+    "robot_filter.enabled": "The robot in the camera's view (push_perception.robot_filter).",
+    "max_occluded": "From mask to state (push_perception.perception_config.PerceptionConfig).",
 }
 _GEOMETRY_NAMES = tuple(n for n in _GEOMETRY if any(p.name == n for p in PARAMETERS))
 
@@ -130,6 +172,10 @@ class SegmentationParams:
         The mask-to-state parameters.
     anchor_timeout : float
         Seconds to wait for a re-anchoring after start-up (module docstring).
+    robot_filter : RobotFilterConfig or None
+        The self-filter's settings; None: ``robot_filter.enabled`` is false.
+    description_file : str
+        ``robot_filter.description_file``.
     """
 
     weights: str
@@ -140,6 +186,8 @@ class SegmentationParams:
     publish_mask: bool
     geometry: PerceptionConfig
     anchor_timeout: float = 5.0
+    robot_filter: RobotFilterConfig | None = None
+    description_file: str = ""
 
     @classmethod
     def from_values(cls, values: dict[str, Any]) -> SegmentationParams:
@@ -149,8 +197,19 @@ class SegmentationParams:
             config = PerceptionConfig(**geometry)
         except ValueError as exc:
             raise ValueError(f"invalid geometry parameter: {exc}") from None
+        robot = None
+        if values["robot_filter.enabled"]:
+            robot = RobotFilterConfig(
+                base_pose=tuple(values["robot_filter.base_pose"]),
+                base_link=str(values["robot_filter.base_link"]),
+                package_dirs=tuple(values["robot_filter.package_dirs"] or ()),
+                dilate_px=int(values["robot_filter.dilate_px"]),
+                depth_margin=float(values["robot_filter.depth_margin"]),
+                joint_state_tolerance=float(values["robot_filter.joint_state_tolerance"]),
+                still_tolerance=float(values["robot_filter.still_tolerance"]))
         return cls(weights=str(values["weights"]), torch_threads=int(values["torch_threads"]),
                    sync_queue=int(values["sync_queue"]), threshold=float(values["threshold"]),
                    min_coarse_cells=int(values["min_coarse_cells"]),
                    publish_mask=bool(values["publish_mask"]), geometry=config,
-                   anchor_timeout=float(values["anchor_timeout"]))
+                   anchor_timeout=float(values["anchor_timeout"]), robot_filter=robot,
+                   description_file=str(values["robot_filter.description_file"]))

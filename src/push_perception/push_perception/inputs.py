@@ -8,7 +8,8 @@ node converts messages with :mod:`push_ros`'s codecs and calls these rules.
 - **Refusal or outcome.** A problem of the *input* (a message or a frame the node cannot use)
   raises :class:`InputError`; the node counts it as ``refused_<kind>`` (:data:`REFUSAL_KINDS`).
   A problem of the *scene* (an empty mask, an object out of view, too little depth) is a
-  :class:`~push_perception.core.PerceptionError` of the measurement and counted under its kind.
+  :class:`~push_perception.perception_config.PerceptionError` of the measurement and counted
+  under its kind.
 - **Pairing** (:class:`FrameSync`): colour, depth and camera_info belong together when their
   header stamps are identical; a complete stamp makes every stamp that arrived before it stale
   (dropped; a colour + depth pair among them is reported: ``missing_camera_info``); at most
@@ -33,7 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from push_core.episode import precedes_episode
-from push_perception.core import PerceptionError
+from push_perception.perception_config import PerceptionError
 
 __all__ = [
     "COLOR_ENCODINGS",
@@ -61,7 +62,8 @@ STREAMS = ("rgb", "depth", "info")
 #: Kinds of :class:`InputError`: counted as ``refused_<kind>`` by the node.
 REFUSAL_KINDS = ("color", "depth", "camera_info", "extrinsics", "stamp", "size_mismatch",
                  "frame_mismatch", "missing_camera_info", "no_extrinsics",
-                 "estimator_outline", "estimator_pose")
+                 "estimator_outline", "estimator_pose", "joint_states", "robot_description",
+                 "no_robot_model", "no_joint_state", "stale_joint_state", "robot_pose")
 #: Characters of a frame id quoted in a message (an attacker's frame id may be 1 MB).
 _QUOTE = 64
 

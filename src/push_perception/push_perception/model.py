@@ -307,7 +307,8 @@ class Segmenter:
 
     def __call__(self, rgb: NDArray[np.uint8], depth: NDArray[np.floating],
                  camera_matrix: NDArray[np.floating],
-                 t_world_camera: NDArray[np.floating]) -> Segmentation:
+                 t_world_camera: NDArray[np.floating],
+                 robot: NDArray[np.bool_] | None = None) -> Segmentation:
         """Segment the object in one frame.
 
         Parameters
@@ -320,6 +321,11 @@ class Segmenter:
             K, pixels.
         t_world_camera : (4, 4)
             world <- camera_color_optical_frame.
+        robot : (H, W) bool, optional
+            The robot's pixels: never object pixels, and they join the object's pieces on
+            either side of them (the rod across the object) into one component, at both
+            stages. Their colour and depth should be neutral already
+            (:func:`push_perception.robot_filter.clear_robot`).
 
         Returns
         -------
@@ -336,15 +342,15 @@ class Segmenter:
         with torch.inference_mode():
             coarse = self.net.coarse(torch.from_numpy(small)[None])
             cmask = (coarse[0, 0] > self.logit_threshold).numpy().astype(np.uint8)
-            n, labels, stats, _ = cv2.connectedComponentsWithStats(cmask, connectivity=8)
-            if n <= 1:
-                return empty
-            best = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
-            cells = int(stats[best, cv2.CC_STAT_AREA])
-            if cells < self.min_coarse_cells:
-                return empty
             ch, cw = cmask.shape
-            x, y, bw, bh = (int(v) for v in stats[best, :4])
+            rmask = None if robot is None else cv2.resize(
+                robot.astype(np.uint8), (cw, ch), interpolation=cv2.INTER_AREA) > 0
+            best_mask = _largest_piece(cmask, rmask, connectivity=8)
+            cells = int(np.count_nonzero(best_mask))
+            if cells == 0 or cells < self.min_coarse_cells:
+                return empty
+            ys, xs = np.nonzero(best_mask)
+            x, y, bw, bh = int(xs.min()), int(ys.min()), int(np.ptp(xs)) + 1, int(np.ptp(ys)) + 1
             u0 = max(0, int(np.floor(x * w / cw)) - CROP_MARGIN)
             v0 = max(0, int(np.floor(y * h / ch)) - CROP_MARGIN)
             u1 = min(w, int(np.ceil((x + bw) * w / cw)) + CROP_MARGIN)
@@ -357,9 +363,22 @@ class Segmenter:
                                            padding_mode="border", align_corners=False)
             fine = self.net.fine(x_crop)[0, 0].numpy()
         fmask = (fine > self.logit_threshold).astype(np.uint8)
-        n, labels, stats, _ = cv2.connectedComponentsWithStats(fmask, connectivity=4)
         mask = np.zeros((h, w), dtype=bool)
-        if n > 1:
-            best = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
-            mask[v0:v1, u0:u1] = labels == best
+        mask[v0:v1, u0:u1] = _largest_piece(
+            fmask, None if robot is None else robot[v0:v1, u0:u1], connectivity=4)
         return Segmentation(mask, box, cells)
+
+
+def _largest_piece(mask: NDArray[np.uint8], robot: NDArray[np.bool_] | None,
+                   connectivity: int) -> NDArray[np.bool_]:
+    """The largest connected component of ``mask`` (empty when there is none); with
+    ``robot``, components are those of ``mask | robot`` (ranked by their ``mask`` pixels) and
+    the result is their ``mask`` pixels off the robot."""
+    joined = mask if robot is None else (mask.astype(bool) | robot).astype(np.uint8)
+    n, labels = cv2.connectedComponents(joined, connectivity=connectivity)
+    if n <= 1:
+        return np.zeros(mask.shape, dtype=bool)
+    own = mask.astype(bool) if robot is None else mask.astype(bool) & ~robot
+    counts = np.bincount(labels[own], minlength=n)
+    counts[0] = 0
+    return (labels == int(np.argmax(counts))) & own

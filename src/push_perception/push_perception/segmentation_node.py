@@ -2,12 +2,22 @@
 
 Role: pairs colour, depth and camera_info by stamp (:class:`push_perception.inputs.FrameSync`),
 segments with :class:`push_perception.model.Segmenter` and measures with
-:class:`push_perception.core.EpisodeTracker`; publishes the mask, the pose (stamped with the
+:class:`push_perception.tracker.EpisodeTracker`; publishes the mask, the pose (stamped with the
 frame) and, once per episode, the latched outline. Extrinsics:
 :class:`push_ros.extrinsics.CameraExtrinsics`. After a restart it re-anchors to the estimator's
 latched outline and estimate (:class:`push_perception.inputs.AnchorWait`); ``~/reset`` starts
 an episode, skipping frames taken before it. Input rules:
 :mod:`push_perception.inputs`; parameters: :mod:`push_perception.config`.
+
+With the robot in the camera's view (``robot_filter.enabled``, read-only, default false) it also
+subscribes ``/joint_states`` and ``/robot_description`` (or loads ``robot_filter.description_file``)
+and publishes ``perception/occlusion`` (:class:`push_perception.robot_inputs.RobotInputs`): each
+frame's robot pixels come from the robot's model posed by the joint state at the frame's stamp
+(:mod:`push_perception.robot_filter`); they are cleared before the CNN and never object pixels;
+the pose comes from the visible part and a frame in which the robot hides more than
+``max_occluded`` of the object gives no pose (outcome ``occluded``); a frame whose robot pixels
+cannot be computed (no model, no or stale joint state) is refused with the reason, never
+measured as if no robot were there (docs/design/arm-in-view.md). Without it, nothing changes.
 
 Invariants: a refused message never enters the stamp matching and never replaces the latched
 extrinsics; a frame without a pose publishes no pose; work per frame is bounded; no exception
@@ -36,7 +46,6 @@ from sensor_msgs.msg import CameraInfo, Image, PointCloud2
 from std_srvs.srv import Trigger
 
 from push_perception.config import NODE_NAME, PARAMETERS, SegmentationParams
-from push_perception.core import MAX_OUTLINE_POINTS, EpisodeTracker, Measurement, PerceptionError
 from push_perception.inputs import (
     COLOR_ENCODINGS,
     DEPTH_ENCODINGS,
@@ -50,6 +59,11 @@ from push_perception.inputs import (
     check_stamp,
     rgb_from_color,
 )
+from push_perception.outline import MAX_OUTLINE_POINTS
+from push_perception.perception_config import PerceptionError
+from push_perception.robot_filter import segment
+from push_perception.robot_inputs import RobotInputs
+from push_perception.tracker import EpisodeTracker, Measurement
 from push_ros.extrinsics import CameraExtrinsics
 from push_ros.frames import OBJECT_FRAME, WORLD_FRAME
 from push_ros.health import NodeHealth
@@ -76,7 +90,7 @@ DIAGNOSTICS_PERIOD_S = 1.0
 LATENCY_WINDOW = 100
 #: Outcomes of a frame that gave no pose (``PerceptionError`` kinds of the measurement).
 OUTCOME_KINDS = ("empty_mask", "out_of_view", "few_pixels", "no_depth", "fragmented",
-                 "too_large", "bad_input")
+                 "too_large", "occluded", "bad_input")
 #: The node's counters, all on /diagnostics from the first status on.
 COUNTERS = ("frames", "poses", "resets", "previous_episode", "waiting_for_anchor", "anchored",
             *OUTCOME_KINDS, *(f"refused_{kind}" for kind in REFUSAL_KINDS))
@@ -117,6 +131,9 @@ class SegmentationNode(Node):
                                          threshold=self._params.threshold,
                                          min_coarse_cells=self._params.min_coarse_cells)
         self._tracker = EpisodeTracker(self._params.geometry)
+        self._robot_pixels = -1  # the robot's pixels in the frame being processed
+        self._robot = None if self._params.robot_filter is None else RobotInputs(
+            self, self._params.robot_filter, self._params.description_file, self.health)
         self._sync = FrameSync(self._params.sync_queue)
         self._anchor = AnchorWait(self._params.anchor_timeout, time.monotonic())
         self._anchor_msg: PointCloud2 | None = None  # the estimator's outline to re-publish
@@ -226,11 +243,17 @@ class SegmentationNode(Node):
         if action == "anchor":
             self._start_anchor()
         self.health.count("frames")
+        self._robot_pixels = -1
         try:
             meas = self._measure(rgb_msg, depth_msg, info)
         except PerceptionError as exc:
             self._fail(exc, "frame")
+            if self._robot is not None:
+                self._robot.report(stamp, exc.kind, exc.occluded_share, self._robot_pixels,
+                                   str(exc))
             return
+        if self._robot is not None:
+            self._robot.report(stamp, "pose", meas.occluded_share, self._robot_pixels)
         self._publish_measurement(meas, stamp)
         self._latency.append(time.perf_counter() - started)
         self._last_stamp = seconds_from_stamp(stamp)
@@ -262,12 +285,19 @@ class SegmentationNode(Node):
             raise InputError("no_extrinsics", "no camera extrinsics yet (tf2 world -> "
                              f"{frame[:64]!r} or the latched camera/color/extrinsics)")
         check_frame_ids(frame, depth_msg.header.frame_id, extrinsics_frame)
-        seg = self._segmenter(rgb, depth, k, extrinsics)
+        robot = None  # the robot's pixels (robot_filter.enabled), or no robot in view
+        if self._robot is not None:
+            robot = self._robot.pixels(seconds_from_stamp(rgb_msg.header.stamp), k, extrinsics,
+                                       depth)
+            self._robot_pixels = int(robot.mask.sum())
+        seg = segment(self._segmenter, rgb, depth, k, extrinsics,
+                      None if robot is None else robot.mask)
         if self._params.publish_mask:
             self._pub_mask.publish(mask_image_msg(seg.mask, rgb_msg.header.stamp, frame))
         if seg.box is None:
             raise PerceptionError("empty_mask", "the CNN found no object in the frame")
-        return self._tracker.update(seg.mask, depth, k, extrinsics)
+        return self._tracker.update(seg.mask, depth, k, extrinsics,
+                                    *(() if robot is None else (robot.mask, robot.cover)))
 
     def _publish_measurement(self, meas: Measurement, stamp: Any) -> None:
         at = (f"t={seconds_from_stamp(stamp):.3f} s: object at ({meas.pose[0]:.4f}, "
@@ -335,7 +365,9 @@ class SegmentationNode(Node):
         self.health.publish(level, message, {
             "last_problem": self._problem, "latency_ms_median": latency,
             "has_reference": str(self._tracker.outline is not None).lower(),
-            "last_stamp": f"{self._last_stamp:.6f}"})
+            "last_stamp": f"{self._last_stamp:.6f}",
+            "robot_filter": "off" if self._robot is None else "on",
+            "occluded_share": "" if self._robot is None else f"{self._robot.last_share:.4f}"})
 
 
 def main(args: list[str] | None = None) -> None:

@@ -124,7 +124,9 @@ class PlannerNode(Node):
         self._publish_status()
 
     def _set_note(self, note: str, level: bytes = DiagnosticStatus.OK) -> None:
-        self._note, self._level = note, level
+        """The note and level ``planner/status`` shows until the next one."""
+        self._note = note
+        self._level = level
 
     def _check_stamp(self, stamp: float) -> None:
         """``ValueError`` if ``stamp`` (s) is more than ``max_future_stamp`` ahead of the
@@ -151,7 +153,8 @@ class PlannerNode(Node):
             self._model, self._planner, self._engine = episode_parts(params, self._model,
                                                                      self._engine.counts)
         except ValueError as exc:
-            response.success, response.message = False, f"reset refused: {exc}"
+            response.success = False
+            response.message = f"reset refused: {exc}"
             self.get_logger().error(response.message)
             return response
         self.params = params
@@ -307,8 +310,10 @@ class PlannerNode(Node):
         (a push clears it) or, with ``after``, kept when planning set none."""
         self._push_key = ""
         self._engine.push_lost(wait)
-        self._set_note("" if after else note, DiagnosticStatus.OK if after else
-                       DiagnosticStatus.WARN)
+        if after:
+            self._set_note("")
+        else:
+            self._set_note(note, DiagnosticStatus.WARN)
         self._try_plan()
         if after and not self._note:
             self._set_note(note, DiagnosticStatus.WARN)

@@ -12,7 +12,11 @@
   client and ``pushbot``'s own goal sender use it; RViz's volatile "2D Goal Pose" still
   works: ``planner_node`` subscribes both ways, see its module docstring);
 - :data:`CLOCK_QOS`: ``/clock`` of the sim bridge, reliable, volatile, keep last 1 (matches the
-  best-effort clock subscription of rclpy/rclcpp nodes and reliable ones).
+  best-effort clock subscription of rclpy/rclcpp nodes and reliable ones);
+- :data:`JOINT_STATE_QOS`: the readers of ``/joint_states`` (push_executor_node,
+  segmentation_node's self-filter): reliable, volatile, depth 500 (a second of a 500 Hz
+  stream -- the simulated arm at 5x real time -- waits in the queue while a node plans a push,
+  rather than being dropped: the executor needs the contact segment's samples).
 """
 
 from rclpy.qos import (
@@ -23,8 +27,8 @@ from rclpy.qos import (
     qos_profile_sensor_data,
 )
 
-__all__ = ["CLOCK_QOS", "GOAL_QOS", "LATCHED_QOS", "RELIABLE_QOS", "SENSOR_QOS",
-           "latched_reader_qos"]
+__all__ = ["CLOCK_QOS", "GOAL_QOS", "JOINT_STATE_QOS", "LATCHED_QOS", "RELIABLE_QOS",
+           "SENSOR_QOS", "latched_reader_qos"]
 
 SENSOR_QOS = qos_profile_sensor_data
 RELIABLE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
@@ -37,6 +41,9 @@ GOAL_QOS = LATCHED_QOS
 CLOCK_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                        reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.VOLATILE)
+JOINT_STATE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=500,
+                             reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.VOLATILE)
 
 
 def latched_reader_qos(depth: int = 10) -> QoSProfile:

@@ -11,8 +11,7 @@ re-plans at once instead of waiting for its ``push_timeout``:
   ``"<sec>.<nanosec, 9 digits>"`` (exact: the planner matches it against the push it has in
   flight), ``kind`` = the refusal class (``busy``, ``invalid``, ``workspace``, ``ik``,
   ``joint_limits``, ``speed``, ``singular``, ``tool_height``, ``disabled``, ``no_state``,
-  ``fault``, ...), ``stage`` = the motion stage that failed its check (or ``""``).
-
+  ``fault``, ...), ``stage`` = the motion stage that failed its check (or ``""``);
 - optional ``available`` (``true`` / ``false``): whether the executor can take a push right
   after this refusal (``push_executor_node`` always says; another executor may leave it out).
 
@@ -40,8 +39,9 @@ from dataclasses import dataclass
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
-__all__ = ["MOVING_KINDS", "UNAVAILABLE_KINDS", "Readiness", "Refusal", "read_readiness",
-           "read_refusal", "readiness_values", "refusal_msg", "robot_unavailable", "stamp_key"]
+__all__ = ["MOVING_KINDS", "UNAVAILABLE_KINDS", "Readiness", "Refusal", "check_stamp_key",
+           "read_readiness", "read_refusal", "readiness_values", "refusal_msg",
+           "robot_unavailable", "stamp_key"]
 
 #: Refusal kinds after which the robot may still be moving or the object have moved.
 MOVING_KINDS = frozenset({"busy", "fault", "cancelled"})
@@ -55,6 +55,14 @@ MAX_REASON = 500
 def stamp_key(stamp: Time) -> str:
     """``"<sec>.<nanosec, 9 digits>"``: an exact text form of a stamp (no float rounding)."""
     return f"{int(stamp.sec)}.{int(stamp.nanosec):09d}"
+
+
+def check_stamp_key(key: str, what: str) -> str:
+    """``key`` if it is a :func:`stamp_key` text, else raise ``ValueError`` naming ``what``."""
+    sec, _, nanosec = key.partition(".")
+    if not (sec.isdigit() and len(nanosec) == 9 and nanosec.isdigit() and len(sec) <= 10):
+        raise ValueError(f"{what} must be '<sec>.<9 digits>', got {key[:40]!r}")
+    return key
 
 
 @dataclass(frozen=True)
@@ -96,11 +104,7 @@ def read_refusal(msg: DiagnosticStatus) -> Refusal:
         No ``push_stamp`` value, or one not of the form ``<sec>.<9 digits>``.
     """
     values = {kv.key: kv.value for kv in msg.values[:16]}
-    key = values.get("push_stamp", "")
-    sec, _, nanosec = key.partition(".")
-    if not (sec.isdigit() and len(nanosec) == 9 and nanosec.isdigit() and len(sec) <= 10):
-        raise ValueError(f"pusher/refused: push_stamp must be '<sec>.<9 digits>', got "
-                         f"{key[:40]!r}")
+    key = check_stamp_key(values.get("push_stamp", ""), "pusher/refused: push_stamp")
     return Refusal(who=msg.name[:200], push_stamp=key, kind=values.get("kind", "")[:64],
                    stage=values.get("stage", "")[:64], reason=msg.message[:MAX_REASON],
                    available=_flag(values.get("available")))

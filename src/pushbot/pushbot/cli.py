@@ -155,7 +155,8 @@ TARGETS: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
         "push": ("pushbot.experiments.evaluate",
                  "the closed-loop experiments of the source in-process (success, steps, end "
                  "error; Figs. 5.5-5.7, Tables 5.1-5.2; --ray, --graph)"),
-        "pusht": ("pushbot.experiments.pusht", "the planner on gym-pusht Push-T (issue 16)"),
+        "pusht": ("pushbot.experiments.pusht",
+                  "the planner on gym-pusht Push-T next to Diffusion Policy"),
     }),
 }
 

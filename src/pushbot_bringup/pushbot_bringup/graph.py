@@ -12,19 +12,21 @@ the clock source). ``object`` goes to the bridge's ``object`` parameter.
 finger, only with ``sim``) or ``arm`` (``push_executor_node`` turns each push into a joint
 trajectory of a ros2_control arm; with ``sim`` the bridge simulates a Franka Panda behind that
 interface, ``robot: arm``, and the executor starts enabled; without ``sim`` the executor starts
-disabled, a dry run, until ``~/enable``). The default is ``pusher`` in simulation and ``arm``
-on a robot (docs/ROBOT.md).
+disabled, a dry run, until ``~/enable``; ``segmentation_node`` gets ``robot_filter.enabled``,
+so the arm's own pixels are never taken for the object). The default is ``pusher`` in
+simulation and ``arm`` on a robot (docs/ROBOT.md).
 
 ``sim`` false (a real robot): no ``sim_bridge_node``, ``use_sim_time: false`` for every node,
 and perception's camera inputs are remapped to the topics of the Intel RealSense ROS 2 wrapper
 (``realsense2_camera``, ``ros2 launch realsense2_camera rs_launch.py align_depth.enable:=true``):
 its topics are ``/<camera_namespace>/<camera_name>/<stream>/...`` with both defaults
 ``camera`` (realsense-ros README, ros2-development branch, the ``camera_namespace`` and
-``camera_name`` parameters; IntelRealSense/realsense-ros issue 2866, "Apply camera name in
-topics", PR 2857). Its aligned depth is ``16UC1``
-millimetres, which ``push_perception`` decodes. ``push_executor_node`` takes ``planner/push`` and
-publishes ``pusher/executed`` in place of the bridge; the camera extrinsics
-(``camera/color/extrinsics``, or tf where available) come from the robot's calibration.
+``camera_name`` parameters; "Apply camera name in topics",
+https://github.com/IntelRealSense/realsense-ros/issues/2866 and its pull request 2857). Its
+aligned depth is ``16UC1`` millimetres, which ``push_perception`` decodes.
+``push_executor_node`` takes ``planner/push`` and publishes ``pusher/executed`` in place of the
+bridge; the camera extrinsics (``camera/color/extrinsics``, or tf where available) come from
+the robot's calibration.
 
 Parameter files: ``<config_dir>/<package>.yaml`` when it exists, else the file of the same
 name in the default directory (``share/pushbot_bringup/config`` once installed,
@@ -203,6 +205,8 @@ def graph_nodes(sim: bool, object_name: str = "", config_dir: str | None = None,
                 overrides["arm.real_time_factor"] = 1.0
         if package == EXECUTOR[0]:
             overrides["start_enabled"] = sim  # a robot starts as a dry run until ~/enable
+        if package == CAMERA_CONSUMER and robot == "arm":  # the arm may be in the view
+            overrides["robot_filter.enabled"] = True
         parameters.append(overrides)
         remappings = REALSENSE_TOPICS if (not sim and package == CAMERA_CONSUMER) else ()
         nodes.append(NodeLaunch(package, executable, tuple(parameters), remappings))

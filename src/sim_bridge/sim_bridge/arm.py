@@ -7,8 +7,9 @@ with :func:`check_trajectory` and hands the accepted :class:`Trajectory` to a
 :class:`TrajectoryFollower`, which the physics loop samples every step.
 
 Acceptance (the Jazzy controller's ``validate_trajectory_msg`` with its defaults,
-``allow_partial_joints_goal`` and ``allow_nonzero_velocity_at_trajectory_end`` false;
-``/work/shared/ROBOT.md``); each rejection raises :class:`TrajectoryRejected` with a ``kind``:
+``allow_partial_joints_goal`` and ``allow_nonzero_velocity_at_trajectory_end`` false; source:
+upstream ros2_controllers jazzy, ``joint_trajectory_controller``; docs/ROBOT.md); each
+rejection raises :class:`TrajectoryRejected` with a ``kind``:
 
 - ``joints``: the joint names do not cover all controller joints exactly once (order is free:
   the trajectory is re-sorted into the controller's order; unknown or repeated names are
@@ -24,9 +25,11 @@ Acceptance (the Jazzy controller's ``validate_trajectory_msg`` with its defaults
 - additions, for bounded CPU and no NaN in the physics: ``finite`` (a non-finite number) and
   ``duration`` (the trajectory would end more than ``max_duration`` s after ``now``).
 
-A stamp of 0 means "start when received". Sampling (:meth:`Trajectory.sample`): before the
-start time the state at receipt is held; between the start and the first point the follower
-interpolates from the state at receipt (a first point with ``time_from_start`` 0 jumps);
+A stamp of 0 means "start when received". Sampling (:meth:`Trajectory.sample`): from the
+receipt to the first point the follower interpolates from the state at receipt (a first point
+with ``time_from_start`` 0 jumps; a stamp in the future stretches this segment, as the Jazzy
+controller's ``Trajectory::sample`` does: a moving arm goes on from its state, an arm at rest
+with the first point at its posture stays put);
 positions only: linear interpolation of positions (velocity = the segment's slope); positions
 and velocities: cubic Hermite; accelerations are checked for size but not used (the controller
 would interpolate quintically). After the last point the last positions are held with zero
@@ -110,7 +113,8 @@ class Trajectory:
     positions: NDArray[np.float64]
     velocities: NDArray[np.float64] | None
 
-    def sample(self, t: float, start: float, q0: ArrayLike, v0: ArrayLike
+    def sample(self, t: float, start: float, q0: ArrayLike, v0: ArrayLike,
+               received: float | None = None
                ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Desired positions and velocities at time ``t``.
 
@@ -122,6 +126,11 @@ class Trajectory:
             Time of ``time_from_start`` = 0, s.
         q0, v0 : (J,) array_like
             The state at receipt (rad, rad/s): the segment before the first point starts there.
+        received : float, optional
+            When the trajectory was received, s (default ``start``): the segment to the first
+            point starts then, as the controller's does (a stamp in the future does not stop a
+            moving arm: it goes on from its state at receipt to the first point); before it
+            the state at receipt is held.
 
         Returns
         -------
@@ -131,13 +140,14 @@ class Trajectory:
         v0 = np.asarray(v0, dtype=float)
         s = t - start
         times, pos, vel = self.times, self.positions, self.velocities
-        if s < 0.0:  # a stamp in the future: hold the state at receipt
+        begin = 0.0 if received is None else min(float(received) - start, float(times[0]))
+        if s < begin:  # before the receipt: the state then
             return q0.copy(), np.zeros_like(q0)
         if s >= times[-1]:
             return pos[-1].copy(), np.zeros(pos.shape[1])
         i = int(np.searchsorted(times, s, side="right"))  # times[i-1] <= s < times[i]
         if i == 0:
-            ta, qa, va = 0.0, q0, v0
+            ta, qa, va = begin, q0, v0
         else:
             ta, qa = float(times[i - 1]), pos[i - 1]
             va = None if vel is None else vel[i - 1]
@@ -262,7 +272,7 @@ class TrajectoryFollower:
         self._lock = threading.Lock()
         self._pending: Trajectory | None = None
         self._current: Trajectory | None = None
-        self._start = 0.0
+        self._start = self._received = 0.0
         self._q0 = np.zeros(len(self.joints))
         self._v0 = np.zeros(len(self.joints))
         self._hold: NDArray[np.float64] | None = None
@@ -315,6 +325,7 @@ class TrajectoryFollower:
             if self._pending is not None:
                 self._current, self._pending = self._pending, None
                 self._start = self._current.stamp if self._current.stamp != 0.0 else t
+                self._received = t
                 self._q0 = np.asarray(q, dtype=float).copy()
                 self._v0 = np.asarray(v, dtype=float).copy()
             current = self._current
@@ -322,4 +333,4 @@ class TrajectoryFollower:
             if self._hold is None:
                 self._hold = np.asarray(q, dtype=float).copy()
             return self._hold.copy(), np.zeros(len(self.joints))
-        return current.sample(t, self._start, self._q0, self._v0)
+        return current.sample(t, self._start, self._q0, self._v0, self._received)

@@ -6,7 +6,7 @@ Endpoints (only with ``robot: arm``; docs/design/arm.md#arm-mode-of-the-simulato
   (positions rad, velocities rad/s, efforts N m), stamp = sim time. At ``arm.joint_state_rate``
   Hz of sim time while a trajectory runs (from the physics thread), and at
   ``IDLE_JOINT_STATE_RATE`` Hz of wall time while idle (at the current time: it runs while the
-  world rests).
+  world rests), and after every camera frame at the frame's time.
 - ``/robot_description`` (std_msgs/String; reliable, transient local): the URDF the arm was
   loaded from (Panda + pusher rod, absolute mesh paths).
 - ``sim/tool_tip`` (nav_msgs/Path; reliable): ground truth for benchmarks, after every run of
@@ -113,12 +113,17 @@ class ArmEndpoints:
         The worker job that steps the physics while the arm follows trajectories.
     closing : callable
         True once the node is being destroyed (nothing is published then).
+    scene : sim_bridge.scene_ros.SceneEndpoints, optional
+        Its frames are followed by the arm's joint state at their time (a perception
+        self-filter pairs each frame with the joint state at its stamp; the idle stream's
+        10 Hz of wall time thins out on a loaded machine).
     """
 
     def __init__(self, node: Any, controller_topic: str, max_duration: float,
                  timeline: Timeline, sim_time: Callable[[], float], health: Any,
                  guard: Callable[..., Any], on_rejected: Callable[[str, str], None],
-                 worker: Worker, run: Callable[[], Any], closing: Callable[[], bool]) -> None:
+                 worker: Worker, run: Callable[[], Any], closing: Callable[[], bool],
+                 scene: Any = None) -> None:
         self.follower = TrajectoryFollower(ARM_JOINTS)
         self._node = node
         self._timeline, self._sim_time, self._closing = timeline, sim_time, closing
@@ -135,6 +140,8 @@ class ArmEndpoints:
                                  RELIABLE_QOS)
         node.create_timer(1.0 / IDLE_JOINT_STATE_RATE, guard(self._on_idle_timer),
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
+        if scene is not None:
+            scene.after_frame = self._at_frame
 
     def _on_trajectory(self, msg: JointTrajectory) -> None:
         try:
@@ -188,6 +195,12 @@ class ArmEndpoints:
         last = self._last
         if last is not None and not self.follower.running:
             self.publish_state(max(last[0], self._timeline.last), last[1])
+
+    def _at_frame(self, time: float) -> None:
+        """The arm's newest state again at a frame's time (s), unless newer ones exist."""
+        last = self._last
+        if last is not None and time >= last[0]:
+            self.publish_state(time, last[1])
 
     def publish_description(self, urdf: str) -> None:
         """Latch the URDF on ``/robot_description``."""

@@ -44,7 +44,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import numpy as np
 import pybullet as p
@@ -52,6 +51,7 @@ from numpy.typing import ArrayLike, NDArray
 from pybullet_utils.bullet_client import BulletClient
 
 from push_core.geometry import closest_point_on_polyline
+from sim_bridge.config import WorldConfig
 from sim_bridge.scene import (
     PUSHER_LENGTH,
     PUSHER_MAX_FORCE,
@@ -59,9 +59,6 @@ from sim_bridge.scene import (
     park_position,
     yaw_quaternion,
 )
-
-if TYPE_CHECKING:
-    from sim_bridge.world import WorldConfig
 
 __all__ = [
     "APPROACH_MARGIN",

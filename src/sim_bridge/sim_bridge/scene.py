@@ -49,7 +49,6 @@ import shutil
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 import pybullet as p
@@ -59,10 +58,8 @@ from pybullet_utils.bullet_client import BulletClient
 from push_core.geometry import closest_point_on_polyline
 from push_core.objects import ObjectSpec, load_object
 from push_core.shapes import Ellipse, Polygon
+from sim_bridge.config import WorldConfig
 from sim_bridge.rendering import Appearance
-
-if TYPE_CHECKING:
-    from sim_bridge.world import WorldConfig
 
 __all__ = [
     "COLLISION_TOLERANCE",
@@ -77,10 +74,8 @@ __all__ = [
     "PUSHER_MAX_FORCE",
     "PUSHER_PARK",
     "VISUAL_TOLERANCE",
-    "SUPPORT_CELL_RANGE",
     "Scene",
     "build_scene",
-    "check_support_cell",
     "park_position",
     "simulated_spec",
     "support_cells",
@@ -109,19 +104,6 @@ COLLISION_TOLERANCE = 5e-4
 VISUAL_TOLERANCE = 2e-5
 #: Collision margin of the object's convex pieces, m (pybullet's default is 1 mm).
 OBJECT_MARGIN = 1e-4
-#: Accepted ``WorldConfig.support_cell`` sizes (m) other than 0 (pieces kept whole).
-SUPPORT_CELL_RANGE = (0.005, 0.05)
-def check_support_cell(cell: object) -> float:
-    """``WorldConfig.support_cell`` as a float: 0 or in :data:`SUPPORT_CELL_RANGE` (m);
-    ``ValueError`` naming it otherwise (a bool, not a number, out of range)."""
-    low, high = SUPPORT_CELL_RANGE
-    number = not isinstance(cell, bool) and isinstance(cell, int | float | np.number)
-    if not (number and (cell == 0 or low <= cell <= high)):
-        raise ValueError(f"support_cell must be 0 or in [{low}, {high}] m (0: the pieces "
-                         f"whole), got {cell!r}")
-    return float(cell)
-
-
 #: Support cells smaller than this area (m^2, a 1 mm x 1 mm sliver) are dropped.
 _MIN_CELL_AREA = 1e-6
 #: Steps run after building the scene so that resting contacts are established.

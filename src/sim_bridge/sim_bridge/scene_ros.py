@@ -78,6 +78,9 @@ class SceneEndpoints:
         self.pub_monitor_info = pub(CameraInfo, "sim/monitor/camera_info", SENSOR_QOS)
         self._tf = tf_publisher(node)
         self._tf_static = tf_publisher(node, static=True)
+        #: Called with each published frame's time after its messages (arm mode: the joint
+        #: state at that time, so a self-filter finds one for every frame).
+        self.after_frame: Callable[[float], None] | None = None
 
     def publish(self, publisher: Any, msg: Any) -> None:
         """``publisher.publish(msg)`` unless the node is closing."""
@@ -143,6 +146,8 @@ class SceneEndpoints:
             pusher[:2, 3] = capture.pusher_xy
             self._tf.publish(transform_msg(pusher, capture.info.header.stamp, WORLD_FRAME,
                                            PUSHER_FRAME))
+        if self.after_frame is not None and not self._closing():
+            self.after_frame(capture.time)
 
     def camera_pose(self, T_world_camera: np.ndarray, time: float) -> None:
         """The latched extrinsics (and ``/tf_static``): the camera pose in world at ``time``."""

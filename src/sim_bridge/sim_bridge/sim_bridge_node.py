@@ -20,6 +20,7 @@ docs/design/sim-world.md, docs/design/node-runtime.md and docs/design/arm.md.
 
 from __future__ import annotations
 
+import time
 import traceback
 from typing import Any
 
@@ -53,6 +54,8 @@ __all__ = ["SimBridgeNode", "main"]
 LOG_THROTTLE_S = 1.0
 #: Period of the regular /diagnostics message, seconds of wall time.
 DIAGNOSTICS_PERIOD_S = 1.0
+
+
 class SimBridgeNode(Node):
     """ROS wrapper of :class:`~sim_bridge.world.PushWorld`; see the module docstring.
 
@@ -68,14 +71,15 @@ class SimBridgeNode(Node):
                                  on_error=self._on_callback_error)
         self._params = declare_config(self, PARAMETERS, SimBridgeParams.from_values)
         self._problem = ""  # the last command's refusal or failure; "" after a success
-        # _pushing: the physics runs a push or an arm run (/clock follows it)
-        self._pushing, self._closing = False, False
+        self._pushing = False  # the physics runs a push or an arm run (/clock follows it)
+        self._closing = False  # destroy_node has begun: nothing more is published
         self.faults: FaultInjector[Capture] = FaultInjector(self._params.faults,
                                                             self.health.count)
         self.scene = SceneEndpoints(self, Timeline(), lambda: self._closing,
                                     lambda c: self.faults.frames(c, c.time), self.health.log)
         self.timeline = self.scene.timeline
         self._capture: Capture | None = None
+        self._next_idle_clock = 0.0  # monotonic s: the next resting /clock is due then
         self.worker = Worker()  # every pybullet call happens in its one thread
         self.rest = Rest(self.worker)  # time and still frames while no job runs
         try:
@@ -86,7 +90,8 @@ class SimBridgeNode(Node):
 
         # The guarded callables are attributes so tests can call them with real messages.
         guard = self.health.guard
-        self.on_push, self.on_knock = guard(self._on_push), guard(self._on_knock)
+        self.on_push = guard(self._on_push)
+        self.on_knock = guard(self._on_knock)
         self.on_reset = guard(self._on_reset)
         self.create_subscription(Path, "planner/push", self.on_push, RELIABLE_QOS)
         self.create_subscription(PoseStamped, "sim/knock", self.on_knock, RELIABLE_QOS)
@@ -94,16 +99,25 @@ class SimBridgeNode(Node):
         self._arm: ArmEndpoints | None = None
         if self._params.robot == "arm":
             self._arm = ArmEndpoints(
-                self, self._params.arm_controller_topic, self._params.arm_max_duration,
-                self.timeline, lambda: self._world.sim_time, self.health, guard,
-                lambda kind, why: self._refuse("trajectory", why, kind, "trajectories_rejected"),
-                self.worker, self._run_arm, lambda: self._closing)
+                self,
+                controller_topic=self._params.arm_controller_topic,
+                max_duration=self._params.arm_max_duration,
+                timeline=self.timeline,
+                sim_time=lambda: self._world.sim_time,
+                health=self.health,
+                guard=guard,
+                on_rejected=self._refuse_trajectory,
+                worker=self.worker,
+                run=self._run_arm,
+                closing=lambda: self._closing,
+                scene=self.scene)
 
         steady = Clock(clock_type=ClockType.STEADY_TIME)
-        for period, callback in ((1.0 / self._params.clock_rate, self._on_clock_timer),
-                                 (1.0 / self._params.idle_frame_rate, self._on_idle_timer),
-                                 (DIAGNOSTICS_PERIOD_S, self._publish_diagnostics)):
-            self.create_timer(period, guard(callback), clock=steady)
+        self.create_timer(1.0 / self._params.clock_rate, guard(self._on_clock_timer),
+                          clock=steady)
+        self.create_timer(1.0 / self._params.idle_frame_rate, guard(self._on_idle_timer),
+                          clock=steady)
+        self.create_timer(DIAGNOSTICS_PERIOD_S, guard(self._publish_diagnostics), clock=steady)
         self._warn(commands.startup_warnings(parameter_values(self, PARAMETERS),
                                              bool(self.get_parameter("use_sim_time").value)))
         self.worker.call(self._after_build).result()
@@ -126,6 +140,10 @@ class SimBridgeNode(Node):
         self._publish_diagnostics()
         return self._problem
 
+    def _refuse_trajectory(self, kind: str, reason: str) -> None:
+        """A joint trajectory the arm endpoints refused (counted as rejected)."""
+        self._refuse("trajectory", reason, kind, "trajectories_rejected")
+
     def _started(self, busy: str, what: str, note: str, counter: str,
                  push_stamp: Any = None) -> None:
         """Report a started job, or refuse the command when the worker was ``busy``."""
@@ -141,7 +159,8 @@ class SimBridgeNode(Node):
         self.get_logger().error(f"{what} failed:\n{traceback.format_exc()}")
         if counter is not None:
             self.health.count(counter)
-        self.health.last_error = self._problem = text[:MAX_TEXT]
+        self._problem = text[:MAX_TEXT]
+        self.health.last_error = self._problem
         self._finish()
         return text
 
@@ -155,25 +174,39 @@ class SimBridgeNode(Node):
             self._publish_diagnostics()
 
     def _publish_diagnostics(self) -> None:
-        busy, problem, time = self.worker.busy, self._problem, max(self.timeline.last, 0.0)
-        if not self._closing:
-            self.health.publish(
-                DiagnosticStatus.WARN if problem else DiagnosticStatus.OK,
-                (f"busy: {busy}" if busy else "idle") + (f"; {problem}" if problem else ""),
-                {"state": "busy" if busy else "idle", "object": self._params.object,
-                 "sim_time": f"{time:.6f}"}, stamp_from_seconds(time))
+        if self._closing:
+            return
+        busy, problem = self.worker.busy, self._problem
+        time = max(self.timeline.last, 0.0)
+        level = DiagnosticStatus.WARN if problem else DiagnosticStatus.OK
+        message = f"busy: {busy}" if busy else "idle"
+        if problem:
+            message += f"; {problem}"
+        values = {"state": "busy" if busy else "idle", "object": self._params.object,
+                  "sim_time": f"{time:.6f}"}
+        self.health.publish(level, message, values, stamp_from_seconds(time))
 
     # ---- executor callbacks ----------------------------------------------------------------
     def _on_clock_timer(self) -> None:
         """``/clock`` at ``clock_rate``: the physics' time while it runs (``sim_time`` is plain
         arithmetic on a step counter, safe to read while the worker steps); while the world
-        rests, time passes as wall time does (:mod:`sim_bridge.resting`). Never goes back."""
+        rests, time passes as wall time does at every tick (:mod:`sim_bridge.resting`) and is
+        published at ``idle_clock_rate``. Never goes back."""
         rested = self.rest.elapsed()
         if self._pushing:
             self.scene.clock(self.timeline.at(self._world.sim_time))
         elif self._capture is not None and not self._closing:
-            self.rest.run(lambda: self.scene.clock(self.timeline.idle(rested,
-                                                                      self._world.sim_time)))
+            now = time.monotonic()
+            publish = now >= self._next_idle_clock
+            if publish:
+                self._next_idle_clock = now + 1.0 / self._params.idle_clock_rate
+            self.rest.run(lambda: self._rest_tick(rested, publish))
+
+    def _rest_tick(self, rested: float, publish: bool) -> None:
+        """Resting time passes by ``rested`` s; ``/clock`` at the new time if ``publish``."""
+        t = self.timeline.idle(rested, self._world.sim_time)
+        if publish:
+            self.scene.clock(t)
 
     def _on_idle_timer(self) -> None:
         """The camera streams while the world rests: a still frame (fresh sensor noise) with
@@ -182,8 +215,8 @@ class SimBridgeNode(Node):
             self.rest.run(self._still_frame)
 
     def _still_frame(self) -> None:
-        capture = self._capture = self.scene.still(self._capture, self._world)
-        self.scene.frame(capture)
+        self._capture = self.scene.still(self._capture, self._world)
+        self.scene.frame(self._capture)
 
     def _on_push(self, msg: Path) -> None:
         if self._arm is not None:  # the arm is driven by push_executor_node's trajectories
@@ -245,7 +278,8 @@ class SimBridgeNode(Node):
     # ---- worker-thread jobs (all pybullet calls live here) ---------------------------------
     def _after_build(self) -> str:
         """Publish everything that describes a freshly built scene; return its summary."""
-        capture = self._capture = self.scene.capture(self._world)
+        capture = self.scene.capture(self._world)
+        self._capture = capture
         self.scene.clock(capture.time)
         if self._arm is not None:
             self._arm.follower.hold(self._world.arm_state().positions)

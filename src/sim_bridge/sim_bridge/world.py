@@ -25,8 +25,8 @@ Quaternions are (x, y, z, w), the order of both pybullet and ROS messages.
 
 Structure
 ---------
-This module is the facade: :class:`WorldConfig` and :class:`PushWorld`, whose methods
-delegate to
+This module is the facade: :class:`PushWorld` and the scene definition :class:`WorldConfig`
+(:mod:`sim_bridge.config`), whose methods delegate to
 
 - :mod:`sim_bridge.scene`: the pybullet scene builder (table, pusher, the object as convex
   pieces with its visual mesh, masses, inertias, frictions) and the randomisation of the
@@ -58,8 +58,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field, replace
-from pathlib import Path
+from dataclasses import replace
 
 import numpy as np
 import pybullet as p
@@ -70,8 +69,9 @@ from push_core.geometry import closest_point_on_polyline, object_to_world
 from push_core.objects import ObjectSpec
 from sim_bridge.arm import TrajectoryFollower
 from sim_bridge.arm_motion import ArmRun, run_arm
-from sim_bridge.arm_robot import DEFAULT_BASE_POSE, DEFAULT_PARK, ArmRobot, JointState, arm_urdf
+from sim_bridge.arm_robot import ArmRobot, JointState, arm_urdf
 from sim_bridge.camera import CameraConfig, jittered, look_at_pose
+from sim_bridge.config import WorldConfig, finite_vector
 from sim_bridge.physics import (
     APPROACH_MARGIN,
     BACK_OFF,
@@ -113,7 +113,6 @@ from sim_bridge.scene import (
     PUSHER_PARK,
     VISUAL_TOLERANCE,
     build_scene,
-    check_support_cell,
     park_position,
     simulated_spec,
 )
@@ -169,139 +168,6 @@ def quiet_stdout() -> Iterator[None]:
         os.dup2(saved, 1)
         os.close(saved)
         os.close(devnull)
-
-
-@dataclass(frozen=True)
-class WorldConfig:
-    """Everything that defines a scene; ``PushWorld(cfg)`` builds it, ``reset(cfg)`` rebuilds.
-
-    Attributes
-    ----------
-    object : str or Path
-        Object library name or object specification file (``push_core.objects.load_object``).
-    object_pose : (3,) tuple
-        Initial ``(x, y, theta)`` of the object frame in ``world`` (m, m, rad); (x, y) must be
-        inside ``workspace``.
-    com_offset : (2,) tuple or None
-        COM in the object frame (m); None keeps the spec's (or a randomised) COM.
-    mass, friction_table, friction_pusher : float or None
-        Overrides (kg, Coulomb coefficients); None keeps the spec's (or randomised) value.
-    randomize : bool
-        Randomise mass, COM and frictions from ``seed`` (ranges in the module docstring).
-    seed : int
-        Seed of every random draw of the world (>= 0).
-    pusher_radius : float
-        Radius of the cylindrical pusher, m.
-    push_speed : float
-        Speed of the straight push, m/s (quasi-static: keep it below about 0.05).
-    camera : CameraConfig
-        Intrinsics and viewpoint.
-    depth_noise : bool
-        RealSense-like depth noise and dropouts.
-    randomize_appearance : bool
-        Random colours, lighting and colour noise (perception training).
-    randomize_camera : bool
-        Random jitter of the camera pose (perception training).
-    workspace : ((xmin, xmax), (ymin, ymax))
-        Reachable rectangle of the pusher in ``world``, m.
-    max_push_length : float
-        Longest accepted push ``|end - contact|``, m.
-    time_step : float
-        Physics time step, s.
-    solver_iterations : int
-        Constraint solver iterations per step.
-    settle_timeout : float
-        Longest time to wait for the object to come to rest after a push, s.
-    robot : str
-        ``"pusher"`` (the free cylinder driven by :meth:`PushWorld.execute_push`) or
-        ``"arm"`` (a Panda with the pusher rod, driven by joint trajectories through
-        :meth:`PushWorld.run_arm`; :mod:`sim_bridge.arm_robot`).
-    arm_base_pose : (4,) tuple
-        Arm mode: (x, y, z, yaw) of the arm's base in ``world``, m and rad.
-    arm_park : (7,) tuple
-        Arm mode: joint positions after a reset, rad.
-    support_cell : float
-        0 (default): the object's collision is its convex pieces, each resting on 3-4 of its
-        corners (bullet's contact manifold); > 0: the pieces cut into grid cells of this size,
-        m, in ``sim_bridge.scene.SUPPORT_CELL_RANGE``, so the table supports the whole
-        footprint (:func:`sim_bridge.scene.support_cells`).
-    """
-
-    object: str | Path = "rect1"
-    object_pose: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    com_offset: tuple[float, float] | None = None
-    mass: float | None = None
-    friction_table: float | None = None
-    friction_pusher: float | None = None
-    randomize: bool = False
-    seed: int = 0
-    pusher_radius: float = 0.0048
-    push_speed: float = 0.02
-    camera: CameraConfig = field(default_factory=CameraConfig)
-    depth_noise: bool = False
-    randomize_appearance: bool = False
-    randomize_camera: bool = False
-    workspace: tuple[tuple[float, float], tuple[float, float]] = ((-0.25, 0.25), (-0.3, 0.3))
-    max_push_length: float = 0.2
-    time_step: float = 1.0 / 240.0
-    solver_iterations: int = 10
-    settle_timeout: float = 2.0
-    robot: str = "pusher"
-    arm_base_pose: tuple[float, float, float, float] = DEFAULT_BASE_POSE
-    arm_park: tuple[float, ...] = DEFAULT_PARK
-    support_cell: float = 0.0
-
-    def __post_init__(self) -> None:
-        if self.robot not in ("pusher", "arm"):
-            raise ValueError(f"robot: expected 'pusher' or 'arm', got {self.robot!r}")
-        for name, size in (("arm_base_pose", 4), ("arm_park", 7)):
-            value = _finite_vector(name, getattr(self, name), size)
-            object.__setattr__(self, name, tuple(float(v) for v in value))
-        pose = _finite_vector("object_pose", self.object_pose, 3)
-        object.__setattr__(self, "object_pose", tuple(float(v) for v in pose))
-        if self.com_offset is not None:
-            com = _finite_vector("com_offset", self.com_offset, 2)
-            object.__setattr__(self, "com_offset", tuple(float(v) for v in com))
-        for name, low in (("mass", None), ("friction_table", 0.0), ("friction_pusher", 0.0)):
-            value = getattr(self, name)
-            if value is None:
-                continue
-            ok = np.isfinite(value) and (value > 0 if low is None else value >= low)
-            if isinstance(value, bool) or not ok:
-                rule = "> 0" if low is None else ">= 0"
-                raise ValueError(f"{name}: must be a finite number {rule} or None, got {value!r}")
-            object.__setattr__(self, name, float(value))
-        if isinstance(self.seed, bool) or int(self.seed) != self.seed or self.seed < 0:
-            raise ValueError(f"seed: expected an integer >= 0, got {self.seed!r}")
-        object.__setattr__(self, "seed", int(self.seed))
-        for name, low, high in (("pusher_radius", 1e-4, 0.05), ("push_speed", 1e-4, 0.5),
-                                ("max_push_length", 2e-3, 1.0), ("time_step", 1e-4, 0.02),
-                                ("settle_timeout", 0.0, 60.0)):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and low <= value <= high):
-                raise ValueError(f"{name}: must be in [{low}, {high}], got {value!r}")
-            object.__setattr__(self, name, float(value))
-        object.__setattr__(self, "support_cell", check_support_cell(self.support_cell))
-        iters = self.solver_iterations
-        if isinstance(iters, bool) or int(iters) != iters or not 1 <= iters <= 1000:
-            raise ValueError(f"solver_iterations: expected an integer in [1, 1000], got {iters!r}")
-        object.__setattr__(self, "solver_iterations", int(iters))
-        try:
-            ws = np.array(self.workspace, dtype=float)
-        except (TypeError, ValueError):
-            raise ValueError(f"workspace: expected ((xmin, xmax), (ymin, ymax)), got "
-                             f"{self.workspace!r}") from None
-        if ws.shape != (2, 2) or not np.all(np.isfinite(ws)) or np.any(ws[:, 1] <= ws[:, 0]):
-            raise ValueError(f"workspace: expected ((xmin, xmax), (ymin, ymax)) with min < max, "
-                             f"got {self.workspace!r}")
-        object.__setattr__(self, "workspace", tuple(tuple(float(v) for v in r) for r in ws))
-        if not (ws[0, 0] <= pose[0] <= ws[0, 1] and ws[1, 0] <= pose[1] <= ws[1, 1]):
-            raise ValueError(f"object_pose: position ({pose[0]:.3f}, {pose[1]:.3f}) m is outside "
-                             f"the workspace {self.workspace}")
-        if not isinstance(self.camera, CameraConfig):
-            raise ValueError(f"camera: expected a CameraConfig, got {type(self.camera).__name__}")
-        if not isinstance(self.object, str | Path):
-            raise ValueError(f"object: expected a library name or a path, got {self.object!r}")
 
 
 class PushWorld:
@@ -517,7 +383,7 @@ class PushWorld:
         object is placed on the table at rest and ``INITIAL_SETTLE_STEPS`` physics steps are
         run so that its resting contacts form.
         """
-        pose = _finite_vector("pose", pose, 3)
+        pose = finite_vector("pose", pose, 3)
         self._physics.place_object(pose, OBJECT_MARGIN)
         self._physics.step(INITIAL_SETTLE_STEPS)
 
@@ -529,7 +395,7 @@ class PushWorld:
         does not overlap the object (``ValueError`` if it would, with 0.3 mm of margin), and
         park it again (:meth:`park_pusher`) before the object moves.
         """
-        xy = _finite_vector("xy", xy, 2)
+        xy = finite_vector("xy", xy, 2)
         if not np.isfinite(lift) or lift < 0.0:
             raise ValueError(f"lift must be finite and >= 0, got {lift}")
         _, _, dist, _ = closest_point_on_polyline(self.object_outline(), xy)
@@ -639,6 +505,17 @@ class PushWorld:
         return render(self._client, cfg.camera, self._view, self._look, self._object,
                       cfg.depth_noise, self._rng_noise, self.sim_time, self.object_pose)
 
+    def arm_mask(self) -> NDArray[np.bool_]:
+        """The arm's pixels in the camera image, (H, W) bool: the renderer's segmentation
+        buffer, the ground truth of a robot self-filter (arm mode; ``ValueError`` in pusher
+        mode; addition). Draws no sensor noise: later frames are unchanged."""
+        arm = self._require_arm()
+        cam = self._config.camera
+        seg = self._client.getCameraImage(cam.width, cam.height, viewMatrix=self._view.view,
+                                          projectionMatrix=self._view.projection,
+                                          renderer=p.ER_TINY_RENDERER)[4]
+        return np.asarray(seg).reshape(cam.height, cam.width) == arm.body
+
 
 def push_points(pose: ArrayLike, point: ArrayLike, normal: ArrayLike, angle: float,
                 length: float, pusher_radius: float = 0.0048,
@@ -666,23 +543,12 @@ def push_points(pose: ArrayLike, point: ArrayLike, normal: ArrayLike, angle: flo
     -------
     approach, contact, end : (2,) float64 ndarrays in ``world``, collinear.
     """
-    pose = _finite_vector("pose", pose, 3)
-    n = _finite_vector("normal", normal, 2)
+    pose = finite_vector("pose", pose, 3)
+    n = finite_vector("normal", normal, 2)
     n = n / np.linalg.norm(n)
     c, s = np.cos(angle), np.sin(angle)
     direction = -np.array([c * n[0] - s * n[1], s * n[0] + c * n[1]])
-    contact = _finite_vector("point", point, 2) + pusher_radius * n
+    contact = finite_vector("point", point, 2) + pusher_radius * n
     local = np.stack([contact - gap * direction, contact, contact + length * direction])
     approach_w, contact_w, end_w = object_to_world(pose, local)
     return approach_w, contact_w, end_w
-
-
-
-def _finite_vector(name: str, value: ArrayLike, size: int) -> NDArray[np.float64]:
-    try:
-        out = np.array(value, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: expected {size} numbers, got {value!r}") from None
-    if out.shape != (size,) or not np.all(np.isfinite(out)):
-        raise ValueError(f"{name}: expected {size} finite numbers, got {value!r}")
-    return out

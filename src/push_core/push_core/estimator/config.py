@@ -94,8 +94,7 @@ class EKFConfig:
         their covariance is restarted at the prior (means kept, correlations dropped), the push
         is predicted again from the pre-push state and the observation fused if it now passes
         the gate (else the pose is re-initialised, the parameters stay at the prior
-        covariance). Default False: the pose is re-initialised and ``c``, ``l``, ``m`` kept
-        (issue 22).
+        covariance). Default False: the pose is re-initialised and ``c``, ``l``, ``m`` kept.
     relearn_window : int
         Observations after pushes in the windowed consistency test of ``relearn`` (1-64).
     relearn_probability : float

@@ -44,7 +44,7 @@ Gating: an innovation whose squared Mahalanobis distance exceeds the chi-square 
 (covariance R, no correlation with the parameters) and keeps ``c``, ``l``, ``m`` and their
 covariance; :class:`UpdateResult` reports it (``reinitialized``).
 
-Re-learning (``EKFConfig.relearn``, issue 22): a gate failure on the first observation after
+Re-learning (``EKFConfig.relearn``): a gate failure on the first observation after
 a push, or NIS values of the last ``relearn_window`` observations after pushes that together
 exceed the chi-square quantile ``relearn_probability`` (``3 x window`` degrees of freedom),
 mean the pushes' observed motion contradicts the model's prediction, most likely

@@ -12,8 +12,9 @@ the node packages imports them, so the nodes run without the simulator.
 - :mod:`.estimator_episodes`, :mod:`.estimator_evaluation`: own-model and pybullet episodes of
   the EKF (``push_core.estimator``) and ``pushbot eval estimator``;
 - :mod:`.planner_loop`: the planner's closed loop on ground-truth state in pybullet;
-- :mod:`.protocol` (the trial definition), :mod:`.inprocess` (one trial in-process),
+- :mod:`.inprocess` (one trial of :mod:`pushbot.runner.protocol` in-process),
   :mod:`.evaluate` (``pushbot eval push``: the closed-loop experiments, in-process, on Ray or
-  through the graph runner :mod:`pushbot.runner.episode`);
+  through the graph runner :mod:`pushbot.runner.episode`) and its report
+  :mod:`.eval_report` (statistics, Tables 5.1 and 5.2, Figs. 5.5-5.7);
 - :mod:`.replay`: ``pushbot replay``, a recorded episode bag to video (:mod:`pushbot.viz.render`).
 """

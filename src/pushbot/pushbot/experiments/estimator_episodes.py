@@ -250,7 +250,7 @@ class _Observer:
     ``gt-noise``: the ground-truth pose of the library's object frame plus Gaussian noise
     (covariance ``r``), the library outline. ``perception``: a 640 x 480 frame rendered by the
     world (pusher parked out of view), segmented by the CNN and measured by
-    :class:`push_perception.core.EpisodeTracker`; the outline and the ``object`` frame are the
+    :class:`push_perception.tracker.EpisodeTracker`; the outline and the ``object`` frame are the
     perception's (origin at the footprint centroid, axes = the world axes at the episode's
     first frame), so the filter's orientation is the true one minus the true yaw of the first
     frame (``theta_ref``) and the true COM in the filter's frame is the library COM turned by
@@ -265,7 +265,7 @@ class _Observer:
         if kind == "gt-noise":
             self.outline = load_object(name).outline(0.002)
             return
-        from push_perception.core import EpisodeTracker
+        from push_perception.tracker import EpisodeTracker
 
         if segmenter is None:
             segmenter = load_perception()
@@ -285,7 +285,7 @@ class _Observer:
         if getattr(self, "first", None) is not None:  # the reference frame, measured once
             first, self.first = self.first, None
             return first
-        from push_perception.core import PerceptionError
+        from push_perception.perception_config import PerceptionError
 
         try:
             meas = self.tracker.measure_frame(self.segmenter,
@@ -435,7 +435,7 @@ def report(episodes: dict[str, list[EpisodeResult]], n_pushes: int, position_noi
         frames = sum(len(e.nis) + 1 for eps in episodes.values() for e in eps)
         source = (
             "Observations: the perception (`push_perception`: segmentation CNN `Segmenter` + "
-            "`core.EpisodeTracker`, as in `pushbot eval perception`) on a 640 x 480 frame "
+            "`tracker.EpisodeTracker`, as in `pushbot eval perception`) on a 640 x 480 frame "
             "rendered after every push (nominal appearance, noise-free depth, pusher parked out "
             "of view), with the perception's covariance as R; the filter gets the perception's "
             "outline (first frame) and works in its `object` frame (origin at the footprint "

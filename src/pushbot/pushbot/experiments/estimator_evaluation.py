@@ -18,11 +18,11 @@ object frame), the executed pusher motion and the observed pose.
 Observations (``--observations``, one or both, comma-separated; each gets its own tables):
 ``gt-noise`` = ground-truth pose plus Gaussian noise, 2 mm per position axis and 1.5 deg by
 default (``--position-noise``, ``--angle-noise-deg``; the filter's R matches), with the library
-outline. ``perception`` = the perception pipeline of issue 4 in this process, as ``pushbot eval
-perception`` runs it: after the first observation and every push the world renders a 640 x 480
-RGB-D frame (pusher parked out of view), the segmentation CNN (``push_perception.model.
-Segmenter``, bundled weights, one torch thread) finds the object and
-``push_perception.core.EpisodeTracker`` measures its pose (footprint centroid, orientation
+outline. ``perception`` = the perception pipeline (``push_perception``) in this process, as
+``pushbot eval perception`` runs it: after the first observation and every push the world
+renders a 640 x 480 RGB-D frame (pusher parked out of view), the segmentation CNN
+(``push_perception.model.Segmenter``, bundled weights, one torch thread) finds the object and
+``push_perception.tracker.EpisodeTracker`` measures its pose (footprint centroid, orientation
 relative to the episode's first frame) with its covariance, which the filter uses as R; the
 filter's outline is the perception's (first frame). The truth is compared in the perception's
 frame (orientation minus the true yaw of the first frame, library COM turned by that yaw).

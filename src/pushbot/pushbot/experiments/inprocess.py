@@ -1,6 +1,6 @@
-"""One protocol trial in-process: the nodes' cores without DDS (``pushbot eval``, issue 7).
+"""One protocol trial in-process: the nodes' cores without DDS (``pushbot eval``).
 
-:func:`run_trial` builds the scene of a :class:`pushbot.experiments.protocol.Trial` in the pybullet
+:func:`run_trial` builds the scene of a :class:`pushbot.runner.protocol.Trial` in the pybullet
 world (``sim_bridge.world.PushWorld``), runs the closed loop and returns the *episode record* of
 docs/design/evaluation.md. Each cycle:
 
@@ -8,7 +8,7 @@ docs/design/evaluation.md. Each cycle:
    ``l = spec.limit_surface_guess()``; the outline is the
    library shape sampled every 2 mm. ``filter``: a 640 x 480 RGB-D frame rendered after every
    push goes through the segmentation CNN (``push_perception.model.Segmenter``) and the
-   mask-to-state core (``push_perception.core.EpisodeTracker``: position, orientation relative
+   mask-to-state core (``push_perception.tracker.EpisodeTracker``: position, orientation relative
    to the first frame, outline from the first frame); ``push_core.estimator.PushEKF`` is
    predicted with the executed pusher motion and updated with the perceived pose and its
    covariance, as ``ekf_node`` does. A frame without a pose (``PerceptionError``) leaves the
@@ -52,13 +52,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from push_core.episode import EpisodeEngine, end_score, new_record, true_errors
+from push_core.episode import EpisodeEngine, end_score, new_record, robot_times, true_errors
 from push_core.estimator import EKFConfig, PushEKF
 from push_core.geometry import rot2, wrap_angle
 from push_core.planner import Planner, PlannerConfig, prepare_outline
 from push_core.pushnet import PushNetConfig, PushNetPlanner
 from push_core.symmetry import symmetry_order_of_polygon
-from pushbot.experiments.protocol import Trial
+from pushbot.runner.protocol import Trial
 
 __all__ = ["EpisodeRunner", "end_score", "run_trial", "true_errors"]
 
@@ -139,7 +139,7 @@ class EpisodeRunner:
         """Run one trial; returns the episode record (module docstring,
         docs/design/evaluation.md#episode-record)."""
         if not isinstance(trial, Trial):
-            raise ValueError(f"trial: expected a pushbot.experiments.protocol.Trial, got "
+            raise ValueError(f"trial: expected a pushbot.runner.protocol.Trial, got "
                              f"{type(trial).__name__}")
         t_start = time.perf_counter()
         world = self._make_world(trial)
@@ -163,6 +163,7 @@ class EpisodeRunner:
         rec["poses_est"].append(state[:3].tolist())
         engine = EpisodeEngine(planner, trial.max_steps)
         engine.new_goal(goal)
+        t_goal, commands = world.sim_time, []
         engine.set_outline(outline)
         engine.estimate(world.sim_time, state, source.covariance())
         while True:
@@ -179,6 +180,7 @@ class EpisodeRunner:
             rec["pushes"].append([plan.approach.tolist(), plan.contact.tolist(),
                                   plan.end.tolist()])
             rec["poses_predicted"].append(np.asarray(plan.predicted_pose).tolist())
+            commands.append(world.sim_time)
             try:
                 result = world.execute_push(plan.approach, plan.contact, plan.end)
                 engine.push_executed(world.sim_time)
@@ -192,6 +194,7 @@ class EpisodeRunner:
             rec["poses_est"].append(state[:3].tolist())
         rec["perception_failures"] = source.failures
         rec["com_error"] = source.com_error(pose0_true[2], order)
+        rec.update(robot_times(t_goal, commands, world.sim_time))
         return self._finish(rec, world, goal_true, t_start)
 
     def _ekf_config(self, trial: Trial) -> EKFConfig:
@@ -250,7 +253,7 @@ class _Filter:
     """The ``filter`` state source: rendered frames -> segmentation -> EKF."""
 
     def __init__(self, world: Any, segmenter: Any, config: EKFConfig) -> None:
-        from push_perception.core import EpisodeTracker
+        from push_perception.tracker import EpisodeTracker
 
         self.world = world
         self.segmenter = segmenter
@@ -260,7 +263,7 @@ class _Filter:
         self.failures = 0
 
     def _measure(self) -> Any:
-        from push_perception.core import PerceptionError
+        from push_perception.perception_config import PerceptionError
 
         try:
             return self.tracker.measure_frame(self.segmenter, self.world.render())

@@ -2,7 +2,7 @@
 
 ROS-free: renders frames with the sim bridge's pybullet world in this process and runs the
 same code as the node (:class:`~push_perception.model.Segmenter` then
-:class:`~push_perception.core.EpisodeTracker`) on them.
+:class:`~push_perception.tracker.EpisodeTracker`) on them.
 
 Protocol (seeded; the default reproduces docs/results/eval_perception.md)
 ------------------------------------------------------------------------
@@ -55,7 +55,8 @@ __all__ = ["EvalConfig", "add_arguments", "evaluate", "format_report", "run",
            "symmetry_order"]
 
 SECTION_ID = "eval_perception"
-#: Acceptance targets of issue 4: (metric key, comparison, value, unit).
+#: What the perception must meet on held-out objects, each reported as met or not:
+#: (metric key, comparison, value, unit).
 TARGETS = {
     "iou": (">=", 0.95, ""),
     "position_mm": ("<=", 3.0, "mm"),
@@ -124,8 +125,9 @@ def evaluate(cfg: EvalConfig, progress: bool = True) -> _Rows:
     import cv2
     import torch
 
-    from push_perception.core import EpisodeTracker, PerceptionError
     from push_perception.model import Segmenter
+    from push_perception.perception_config import PerceptionError
+    from push_perception.tracker import EpisodeTracker
     from sim_bridge.world import PushWorld, WorldConfig
 
     torch.set_num_threads(cfg.threads)

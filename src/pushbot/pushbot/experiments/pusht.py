@@ -1,4 +1,4 @@
-"""``pushbot eval pusht``: the push_core planner on Push-T (``gym_pusht/PushT-v0``, issue 16).
+"""``pushbot eval pusht``: the push_core planner on Push-T (``gym_pusht/PushT-v0``).
 
 Runs episodes of the learned-pushing benchmark with the env's own dynamics, reward and success
 (`--obs state`: the env state; `--obs pixels`: its 96 x 96 image and the agent position, the

@@ -1,4 +1,4 @@
-"""Push-T with the object unknown (``--object-model estimated``, issue 24): the T perceived.
+"""Push-T with the object unknown (``--object-model estimated``): the T perceived.
 
 Nothing of the object comes from the env's physics (:mod:`pushbot.experiments.pusht_guard`
 seals it): the outline and its normals from the first 96 x 96 image of the episode
@@ -11,7 +11,7 @@ covariance, ``l_0`` the uniform-pressure guess with 25 % standard deviation, ``m
 
 Frames: the **perceived object frame** has its origin at the area centroid of the outline
 perceived in the episode's first image and the env's axes at that moment (env units here,
-metres in push_core: :data:`pushbot.experiments.pusht_adapter.METRES_PER_UNIT`). Its pose is
+metres in push_core: :data:`pushbot.experiments.pusht_world.METRES_PER_UNIT`). Its pose is
 tracked from the image (``--obs pixels``: the outline fitted to each image) or follows from
 the state's block pose (``--obs state``): the state reports the pose of an unknown reference
 frame ``B`` on the block; the perceived frame's pose in ``B``, ``D = B_0^-1 P_0``, is fixed by

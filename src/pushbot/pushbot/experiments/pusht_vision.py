@@ -310,12 +310,13 @@ def coarse_outline(frac: NDArray[np.float64], usable: NDArray[np.bool_], size: i
                    ) -> NDArray[np.float64]:
     """A first polygon (P, 2) (env units, counter-clockwise in the env's axes) of the region
     whose fraction image is ``frac``: the perception core's mask -> footprint step
-    (:func:`push_perception.core.top_down_view` on the pixel centres with fraction above 0.5,
+    (:func:`push_perception.footprint.top_down_view` on the pixel centres with fraction above 0.5,
     one cell per pixel), its boundary simplified by Douglas-Peucker (``cv2.approxPolyDP``,
     :data:`COARSE_TOLERANCE` pixels) and moved half a pixel outward to the pixels' edges."""
     import cv2
 
-    from push_perception.core import PerceptionConfig, top_down_view
+    from push_perception.footprint import top_down_view
+    from push_perception.perception_config import PerceptionConfig
 
     rows, cols = np.nonzero((frac > 0.5) & usable)
     if len(rows) < 9:

@@ -20,7 +20,7 @@ import math
 import sys
 from pathlib import Path
 
-from pushbot.ros2cli.bag import BagError
+from pushbot.ros2cli.bag_store import BagError
 from pushbot.viz.render import DEFAULT_FPS, MONITOR_SPEEDUP, RenderError, render_bag
 
 

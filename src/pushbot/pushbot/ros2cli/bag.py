@@ -6,8 +6,9 @@ the offered QoS profiles as a list and the RIHS01 type hash) and one ``<folder>_
 profile ``ros2``, one ``ros2msg`` schema per type holding the full message definition,
 ``cdr`` channels whose metadata carries ``offered_qos_profiles`` and ``topic_type_hash``,
 zstd-compressed chunks with CRCs, a ``rosbag2`` metadata record with ``ros_distro: jazzy``).
-The files are written by :mod:`pushbot.ros2cli.bag_mcap` with the official ``mcap`` library and
-read with the ``rosbags`` library; messages are never decoded on the way: the recorder subscribes
+The files are written by :mod:`pushbot.ros2cli.bag_mcap` with the official ``mcap`` library
+(:mod:`pushbot.ros2cli.bag_record` records) and read with the ``rosbags`` library
+(:mod:`pushbot.ros2cli.bag_store`); messages are never decoded on the way: the recorder subscribes
 with ``raw=True`` and stores the CDR bytes rclpy receives, the player publishes the stored bytes.
 So these bags are what ``ros2 bag info/play/reindex`` of a full install expect (the channel
 metadata carries what ``reindex`` rebuilds metadata.yaml from), Foxglove and any MCAP reader
@@ -41,32 +42,20 @@ import datetime
 import math
 import re
 import sys
-import threading
 import time
-from collections.abc import Iterable, Iterator, Sequence
-from contextlib import contextmanager
-from dataclasses import dataclass, field
+from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from pushbot.ros2cli.bag_mcap import Rosbag2McapWriter
+from pushbot.ros2cli.bag_record import DEFAULT_EXCLUDED, BagRecorder, TopicSelection
+from pushbot.ros2cli.bag_store import BagError, open_reader, read_messages, rosbags_package
 from pushbot.ros2cli.discovery import (
     RosUnavailableError,
     cli_node,
-    compatible_qos,
     import_message_class,
     spin_until,
 )
 
-if TYPE_CHECKING:
-    from rclpy.topic_endpoint_info import TopicEndpointInfo
-
-#: Topics ``record --all`` leaves out unless named: rosout and the parameter event stream.
-DEFAULT_EXCLUDED = ("/rosout", "/parameter_events")
-#: Seconds between two looks at the graph for new topics while recording: short, so that a
-#: short-lived publisher (``pushbot goal``, ``topic pub --once``) is subscribed while it lives
-#: (a look costs well under a millisecond on a graph of this size).
-DISCOVERY_PERIOD = 0.1
 #: Where ``record`` without ``-o`` creates its bag folder (git-ignored), as
 #: ``rosbag2_YYYY_MM_DD-HH_MM_SS`` under it.
 DEFAULT_BAG_DIR = Path("out")
@@ -89,330 +78,6 @@ def is_command_topic(name: str, msgtype: str) -> bool:
     path = name.strip("/")
     ends = (*COMMAND_TOPICS, *COMMAND_SUFFIXES)
     return msgtype in COMMAND_TYPES or any(path == e or path.endswith("/" + e) for e in ends)
-
-
-class BagError(ValueError):
-    """A bag that cannot be written or read; the message is the one-line diagnostic."""
-
-
-def _rosbags() -> Any:
-    """Import ``rosbags`` (a pip-only dependency, hence optional here) with a one-line error
-    when it is missing; returns the package with ``interfaces``, ``rosbag2`` and ``typesys``
-    loaded."""
-    try:
-        import rosbags.interfaces
-        import rosbags.rosbag2
-        import rosbags.typesys
-    except ImportError as exc:
-        raise BagError(f"the rosbags package is not installed ({exc}): run make venv") from exc
-    return rosbags
-
-
-# --------------------------------------------------------------------------------------------
-# Message definitions and QoS (shared with pushbot.viz.view)
-# --------------------------------------------------------------------------------------------
-_TYPESTORE: Any = None
-
-
-def message_definition(msgtype: str) -> tuple[str, str]:
-    """The full ``ros2msg`` definition and RIHS01 hash of ``msgtype`` (``pkg/msg/Type``).
-
-    The definition is the one rosbag2 stores in an MCAP schema: the type's fields followed by
-    every nested type, each after a ``MSG: pkg/msg/Type`` separator line. Types come from the
-    ROS 2 Jazzy type store of ``rosbags``; a type missing there is loaded from the ``.msg`` file
-    of the installed interface package (``<prefix>/share/<pkg>/msg``).
-
-    Raises
-    ------
-    BagError
-        When the type is unknown.
-    """
-    global _TYPESTORE
-    rosbags = _rosbags()
-    typesys = rosbags.typesys
-    if _TYPESTORE is None:
-        _TYPESTORE = typesys.get_typestore(typesys.Stores.ROS2_JAZZY)
-    store = _TYPESTORE
-    if msgtype not in store.fielddefs:
-        parts = msgtype.split("/")
-        found = [Path(prefix) / "share" / parts[0] / "msg" / f"{parts[-1]}.msg"
-                 for prefix in {sys.prefix, "/opt/ros/jazzy"}] if len(parts) == 3 else []
-        path = next((p for p in found if p.is_file()), None)
-        if path is None:
-            raise BagError(f"unknown message type '{msgtype}' (neither in the Jazzy type store "
-                           "nor installed as a .msg file)")
-        store.register(typesys.get_types_from_msg(path.read_text(), msgtype))
-    try:
-        msgdef, _ = store.generate_msgdef(msgtype, ros_version=2)
-        return msgdef, store.hash_rihs01(msgtype)
-    except (KeyError, typesys.TypesysError) as exc:
-        raise BagError(f"cannot describe message type '{msgtype}': {exc}") from exc
-
-
-def _qos_time(duration: Any) -> Any:
-    sec, nsec = divmod(int(duration.nanoseconds), 1_000_000_000)
-    return _rosbags().interfaces.QosTime(sec=sec, nsec=nsec)
-
-
-def offered_qos(publishers: Sequence[TopicEndpointInfo]) -> list[Any]:
-    """The publishers' QoS profiles as ``rosbags`` ``Qos`` tuples (metadata.yaml's
-    ``offered_qos_profiles``)."""
-    i = _rosbags().interfaces
-    out = []
-    for info in publishers:
-        q = info.qos_profile
-        out.append(i.Qos(
-            history=i.QosHistory[q.history.name],
-            depth=int(q.depth),
-            reliability=i.QosReliability[q.reliability.name],
-            durability=i.QosDurability[q.durability.name],
-            deadline=_qos_time(q.deadline),
-            lifespan=_qos_time(q.lifespan),
-            liveliness=i.QosLiveliness[q.liveliness.name],
-            liveliness_lease_duration=_qos_time(q.liveliness_lease_duration),
-            avoid_ros_namespace_conventions=bool(q.avoid_ros_namespace_conventions),
-        ))
-    return out
-
-
-# --------------------------------------------------------------------------------------------
-# Recording
-# --------------------------------------------------------------------------------------------
-@dataclass
-class _Topic:
-    name: str
-    msgtype: str
-    channel_id: int
-    subscription: Any
-    count: int = 0
-
-
-@dataclass
-class TopicSelection:
-    """Which topics to record: the named ones (exact, resolved names), or all but those
-    matching ``exclude``."""
-
-    topics: tuple[str, ...] = ()
-    all_topics: bool = False
-    exclude: re.Pattern[str] | None = None
-
-    def wants(self, name: str) -> bool:
-        """Whether topic ``name`` (absolute) is recorded."""
-        if self.exclude is not None and self.exclude.search(name):
-            return False
-        if self.topics:
-            return name in self.topics
-        return self.all_topics and name not in DEFAULT_EXCLUDED
-
-
-@dataclass
-class BagRecorder:
-    """Records topics of the live graph into a new rosbag2/MCAP folder; a context manager.
-
-    ``start()`` opens the bag and spins a hidden node (own rclpy context) in a background
-    thread; ``stop()`` ends it and writes the MCAP summary and ``metadata.yaml``. Topics are
-    subscribed as soon as they have a publisher.
-
-    Parameters
-    ----------
-    path : Path
-        The bag folder; must not exist.
-    selection : TopicSelection
-    """
-
-    path: Path
-    selection: TopicSelection
-    topics: dict[str, _Topic] = field(default_factory=dict)
-    skipped: dict[str, str] = field(default_factory=dict)
-    #: Callback failures (e.g. a full disk) per callback name: those messages are not in the
-    #: bag; :func:`cmd_record` reports them.
-    errors: dict[str, int] = field(default_factory=dict)
-
-    def __post_init__(self) -> None:
-        self._writer: Any = None
-        self._lock = threading.Lock()
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
-        self._ready = threading.Event()
-        self._error: BaseException | None = None
-        self._node: Any = None
-
-    def __enter__(self) -> BagRecorder:
-        self.start()
-        return self
-
-    def __exit__(self, *exc: Any) -> None:
-        self.stop()
-
-    def start(self) -> None:
-        """Open the bag and start recording in the background."""
-        _rosbags()
-        if self.path.exists():
-            raise BagError(f"{self.path} exists already: choose another -o folder")
-        # zstd-compressed chunks (compression_mode stays '' in the metadata: the storage
-        # compresses, not rosbag2).
-        writer = Rosbag2McapWriter(self.path)
-        try:
-            writer.open()
-        except ImportError as exc:
-            raise BagError(str(exc)) from exc
-        except OSError as exc:
-            raise BagError(f"cannot create bag {self.path}: {exc}") from exc
-        self._writer = writer
-        self._thread = threading.Thread(target=self._spin, name="bag_record", daemon=True)
-        self._thread.start()
-        self._ready.wait()
-        if self._error is not None:
-            self.stop()
-            raise self._error
-
-    def _spin(self) -> None:
-        try:
-            with cli_node("bag_record") as (node, executor):
-                from push_ros.node import ThrottledLog
-
-                self._node = node
-                self._log = ThrottledLog(node.get_logger(), 5.0)
-                self._discover()
-                node.create_timer(DISCOVERY_PERIOD, self._guard(self._discover, "discover"))
-                self._ready.set()
-                while not self._stop.is_set() and node.context.ok():
-                    executor.spin_once(timeout_sec=0.05)
-                self._node = None
-        except BaseException as exc:  # reported by start() or stop()
-            self._error = exc
-        finally:
-            self._ready.set()
-
-    def _discover(self) -> None:
-        node = self._node
-        for name, types in node.get_topic_names_and_types():
-            if name in self.topics or name in self.skipped or not self.selection.wants(name):
-                continue
-            publishers = node.get_publishers_info_by_topic(name)
-            if not publishers:
-                continue
-            self._subscribe(name, types, publishers)
-
-    def _subscribe(self, name: str, types: Sequence[str],
-                   publishers: Sequence[TopicEndpointInfo]) -> None:
-        if len(types) != 1:
-            self.skipped[name] = f"published with several types {sorted(types)}"
-            print(f"bag record: skipping {name}: {self.skipped[name]}", file=sys.stderr)
-            return
-        msgtype = types[0]
-        try:
-            cls = import_message_class(msgtype)
-            msgdef, rihs01 = message_definition(msgtype)
-        except (LookupError, BagError) as exc:
-            self.skipped[name] = str(exc)
-            print(f"bag record: skipping {name}: {exc}", file=sys.stderr)
-            return
-        qos = compatible_qos(publishers, depth=100)
-        with self._lock:
-            channel_id = self._writer.add_topic(name, msgtype, msgdef, rihs01,
-                                                offered_qos(publishers))
-        entry = _Topic(name, msgtype, channel_id, None)
-        guarded_write = self._guard(lambda data, info, e=entry: self._write(e, data, info),
-                                    f"write {name}")
-
-        def write(data: bytes, info: Any) -> None:  # 2 arguments: rclpy passes message info
-            guarded_write(data, info)
-
-        entry.subscription = self._node.create_subscription(cls, name, write, qos, raw=True)
-        self.topics[name] = entry
-
-    def _guard(self, callback: Any, name: str) -> Any:
-        """``callback`` that never raises (push_ros.node.guarded); failures are counted."""
-        from push_ros.node import guarded
-
-        def count(label: str, _message: str) -> None:
-            self.errors[label] = self.errors.get(label, 0) + 1
-
-        return guarded(callback, self._log, on_error=count, name=name)
-
-    def _write(self, entry: _Topic, data: bytes, info: Any = None) -> None:
-        log_time, publish_time = message_times(info)
-        with self._lock:
-            if self._writer is None:
-                return
-            self._writer.write(entry.channel_id, log_time, data, publish_time)
-            entry.count += 1
-
-    def wait_for_topics(self, names: Iterable[str], timeout: float) -> list[str]:
-        """Wait until every topic of ``names`` is subscribed; returns those still missing."""
-        names = list(names)
-        spin_until(None, lambda: all(n in self.topics for n in names),
-                   time.monotonic() + timeout)
-        return [n for n in names if n not in self.topics]
-
-    @property
-    def running(self) -> bool:
-        """Whether the recording thread still spins (False after rclpy shut its context down,
-        e.g. on a SIGINT that rclpy's own signal handler took)."""
-        return self._thread is not None and self._thread.is_alive()
-
-    def counts(self) -> dict[str, int]:
-        """Messages written per recorded topic."""
-        return {name: t.count for name, t in sorted(self.topics.items())}
-
-    def stop(self) -> None:
-        """Stop recording and close the bag (idempotent)."""
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=10.0)
-            self._thread = None
-        with self._lock:
-            writer, self._writer = self._writer, None
-        if writer is not None:
-            writer.close()
-
-
-def message_times(info: Any) -> tuple[int, int | None]:
-    """(log time, publish time) of a received message, ns since the Unix epoch, as rosbag2
-    records them: the message info's ``received_timestamp`` (now if the info has none) and
-    its ``source_timestamp`` (the sender's clock; None when unknown).
-
-    Parameters
-    ----------
-    info : dict or None
-        rclpy's message info of a two-argument subscription callback.
-    """
-    def stamp(key: str) -> int | None:
-        value = info.get(key) if isinstance(info, dict) else None
-        ok = isinstance(value, int) and not isinstance(value, bool) and value > 0
-        return int(value) if ok else None
-
-    return stamp("received_timestamp") or time.time_ns(), stamp("source_timestamp")
-
-
-def _check_bag_folder(path: Path) -> Path:
-    if not path.is_dir():
-        raise BagError(f"{path} is not a bag folder")
-    if not (path / "metadata.yaml").is_file():
-        raise BagError(f"{path} has no metadata.yaml: not a rosbag2 folder")
-    return path
-
-
-@contextmanager
-def open_reader(path: Path) -> Iterator[Any]:
-    """The opened ``rosbags`` reader of the bag folder ``path`` (a context manager).
-
-    Raises
-    ------
-    BagError
-        When the folder is no bag or cannot be read (one-line message).
-    """
-    rosbags = _rosbags()
-    reader = rosbags.rosbag2.Reader(_check_bag_folder(Path(path)))
-    try:
-        reader.open()
-    except Exception as exc:  # any reader error is a broken bag, reported in one line
-        raise BagError(f"cannot read bag {path}: {type(exc).__name__}: {exc}") from exc
-    try:
-        yield reader
-    finally:
-        reader.close()
 
 
 # --------------------------------------------------------------------------------------------
@@ -577,7 +242,7 @@ def _play_qos(offered: Sequence[Any]) -> Any:
     publisher was best effort, transient local if all were, depth = the largest depth."""
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-    i = _rosbags().interfaces
+    i = rosbags_package().interfaces
     best_effort = bool(offered) and all(q.reliability == i.QosReliability.BEST_EFFORT
                                         for q in offered)
     latched = bool(offered) and all(q.durability == i.QosDurability.TRANSIENT_LOCAL
@@ -587,16 +252,6 @@ def _play_qos(offered: Sequence[Any]) -> Any:
         history=HistoryPolicy.KEEP_LAST, depth=depth,
         reliability=ReliabilityPolicy.BEST_EFFORT if best_effort else ReliabilityPolicy.RELIABLE,
         durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
-
-
-def read_messages(reader: Any, connections: Sequence[Any]) -> Iterator[tuple[Any, int, bytes]]:
-    """``(connection, receive time ns, CDR bytes)`` of ``connections`` in time order; a
-    damaged file raises :class:`BagError` (one line) instead of the reader's exception."""
-    try:
-        yield from reader.messages(connections=connections)
-    except Exception as exc:  # any reader error is a damaged bag
-        raise BagError(f"cannot read the messages of the bag: {type(exc).__name__}: {exc}"
-                       ) from exc
 
 
 def cmd_play(args: argparse.Namespace) -> int:

@@ -150,7 +150,7 @@ class Rosbag2McapWriter:
         msgtype : str
             ``pkg/msg/Type``.
         msgdef : str
-            Full ``ros2msg`` definition (``pushbot.ros2cli.bag.message_definition``).
+            Full ``ros2msg`` definition (``pushbot.ros2cli.bag_store.message_definition``).
         type_hash : str
             ``RIHS01_<hex>`` type hash.
         offered_qos_profiles : list of rosbags.interfaces.Qos

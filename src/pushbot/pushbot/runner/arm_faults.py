@@ -30,12 +30,11 @@ from __future__ import annotations
 
 import signal
 import time
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from pushbot.runner.faults import Episode, Fault
-
-if TYPE_CHECKING:
-    from pushbot.runner.episode import GraphRunner
+from pushbot.runner.faults import Fault
+from pushbot.runner.protocol import bridge_scene_params
+from pushbot.runner.scenario import Episode, FaultTarget
 
 __all__ = ["ARM_SCENARIOS", "DOWN", "FOREIGN_POSTURE", "HANG", "INTO_PUSH", "DriverHang",
            "DryRun", "ForeignTrajectory", "KillLater", "MidPush", "make_arm_fault"]
@@ -54,7 +53,7 @@ FOREIGN_POSTURE = (-0.199, 0.788, -0.05, -1.973, 0.095, 2.759, 0.785)
 ARM_JOINTS = tuple(f"panda_joint{i}" for i in range(1, 8))
 
 
-def _pushes_after_first_execution(runner: GraphRunner, episode: Episode) -> float | None:
+def _pushes_after_first_execution(runner: FaultTarget, episode: Episode) -> float | None:
     """Wall time of the first ``planner/push`` after the episode's first executed push."""
     executed = runner.rec.executed[episode.n_exec:]
     if not executed:
@@ -71,7 +70,7 @@ class MidPush(Fault):
         self.back: float | None = None
         self._episode: Episode | None = None
 
-    def poll(self, runner: GraphRunner, episode: Episode) -> None:
+    def poll(self, runner: FaultTarget, episode: Episode) -> None:
         self._episode = episode
         if self.back is not None:
             return
@@ -85,14 +84,14 @@ class MidPush(Fault):
             self.back = time.monotonic()
             episode.notes["back_wall"] = self.back
 
-    def act(self, runner: GraphRunner, episode: Episode) -> bool:
+    def act(self, runner: FaultTarget, episode: Episode) -> bool:
         """Inject or continue the fault (called on every spin once injected); True when over."""
         raise NotImplementedError
 
-    def accepts_end(self, runner: GraphRunner, index: int) -> bool:
+    def accepts_end(self, runner: FaultTarget, index: int) -> bool:
         return self.back is not None and index >= self._status_at_injection
 
-    def record(self, runner: GraphRunner, episode: Episode) -> dict[str, Any]:
+    def record(self, runner: FaultTarget, episode: Episode) -> dict[str, Any]:
         out = super().record(runner, episode)
         if self.back is not None:
             following = [t for t, _ in runner.rec.pushes[episode.n_push:] if t >= self.back]
@@ -124,7 +123,7 @@ class KillLater(MidPush):
         self.node, self.name = node, name
         self._killed: float | None = None
 
-    def act(self, runner: GraphRunner, episode: Episode) -> bool:
+    def act(self, runner: FaultTarget, episode: Episode) -> bool:
         if self._killed is None:
             self._extra = self.restart_args(runner, episode)
             runner.nodes.kill(self.node)
@@ -138,12 +137,12 @@ class KillLater(MidPush):
         runner.nodes.restart(self.node, self._extra)
         return True
 
-    def restart_args(self, runner: GraphRunner, episode: Episode) -> list[str]:
+    def restart_args(self, runner: FaultTarget, episode: Episode) -> list[str]:
         """``name:=value`` start-up parameters of the restarted node: for the simulator the
         episode's scene with the object at its true pose now."""
         if self.node != "sim_bridge_node":
             return []
-        params = runner.bridge_scene_params(episode.trial)
+        params = bridge_scene_params(episode.trial)
         if runner.rec.true:
             x, y, theta = (float(v) for v in runner.rec.true[-1][1])
             params.update({"initial_pose.x": x, "initial_pose.y": y, "initial_pose.theta": theta})
@@ -167,7 +166,7 @@ class DriverHang(MidPush):
         super().__init__()
         self._stopped: float | None = None
 
-    def act(self, runner: GraphRunner, episode: Episode) -> bool:
+    def act(self, runner: FaultTarget, episode: Episode) -> bool:
         if self._stopped is None:
             runner.nodes.signal("sim_bridge_node", signal.SIGSTOP)
             self._stopped = time.monotonic()
@@ -177,7 +176,7 @@ class DriverHang(MidPush):
         runner.nodes.signal("sim_bridge_node", signal.SIGCONT)
         return True
 
-    def after_episode(self, runner: GraphRunner) -> None:
+    def after_episode(self, runner: FaultTarget) -> None:
         if self._stopped is not None and self.back is None:  # never leave it stopped
             runner.nodes.signal("sim_bridge_node", signal.SIGCONT)
 
@@ -192,13 +191,13 @@ class ForeignTrajectory(MidPush):
         self._start: float | None = None
         self._last = -float("inf")
 
-    def act(self, runner: GraphRunner, episode: Episode) -> bool:
+    def act(self, runner: FaultTarget, episode: Episode) -> bool:
         now = time.monotonic()
         self._start = now if self._start is None else self._start
         if now >= self._start + FOREIGN_TIME:
             return True
         if now >= self._last + FOREIGN_PERIOD:
-            runner._client().publish_trajectory(list(ARM_JOINTS), list(FOREIGN_POSTURE), 1.0)
+            runner.foreign_trajectory(list(ARM_JOINTS), list(FOREIGN_POSTURE), 1.0)
             self._last = now
         return False
 
@@ -210,21 +209,21 @@ class DryRun(Fault):
     name = "dry-run"
     end_states = ("reached", "failed", "unavailable")
 
-    def before_goal(self, runner: GraphRunner) -> None:
+    def before_goal(self, runner: FaultTarget) -> None:
         self._paths = runner.rec.executor_paths
-        runner._client().executor_enable(False)
+        runner.executor_enable(False)
         self.injected = True
 
-    def accepts_end(self, runner: GraphRunner, index: int) -> bool:
+    def accepts_end(self, runner: FaultTarget, index: int) -> bool:
         status = runner.rec.status[index]
         return status.get("state") != "unavailable" or \
             status.get("robot_unavailable", "").startswith("disabled:")
 
-    def after_episode(self, runner: GraphRunner) -> None:
+    def after_episode(self, runner: FaultTarget) -> None:
         runner.reset("planner_node")  # drop the goal first: enabled, it would push at once
-        runner._client().executor_enable(True)
+        runner.executor_enable(True)
 
-    def record(self, runner: GraphRunner, episode: Episode) -> dict[str, Any]:
+    def record(self, runner: FaultTarget, episode: Episode) -> dict[str, Any]:
         out = super().record(runner, episode)
         out["executor_paths"] = runner.rec.executor_paths - self._paths
         out["unavailable_s"] = unavailable_seconds(runner.rec.status[episode.n_status:])

@@ -44,6 +44,10 @@ class Recorded:
     est: list[tuple[float, np.ndarray]] = field(default_factory=list)
     com: list[tuple[float, np.ndarray]] = field(default_factory=list)
     pushes: list[tuple[float, np.ndarray]] = field(default_factory=list)  # (wall, 3x2)
+    #: Header stamps of the pushes (s of the planner's clock), one per entry of ``pushes``.
+    push_stamps: list[float] = field(default_factory=list)
+    #: The newest ``/clock`` (s; -inf before the first): the simulated time now.
+    clock: float = -float("inf")
     executed: list[tuple[float, float, float]] = field(default_factory=list)  # (wall, t0, t1)
     status: list[dict[str, str]] = field(default_factory=list)
     #: ``executor/status`` values as they came (``robot`` arm).
@@ -69,11 +73,13 @@ class Recorded:
 
     def forget_stamps(self) -> None:
         """Forget what is matched by stamps (ground truth, estimates, the COM, executed pushes,
-        tool tips, outline stamps, joint states): after the simulator's clock restarted, the
-        old clock's stamps would match a later episode's by mistake."""
+        tool tips, outline stamps, joint states) and the newest ``/clock``: after the
+        simulator's clock restarted, the old clock's stamps would match a later episode's by
+        mistake (and its time would start the next episode's robot time)."""
         for items in (self.true, self.est, self.com, self.executed, self.tool_tip,
                       self.outline_stamps, self.joint_states):
             items.clear()
+        self.clock = -float("inf")
 
 
 class GraphClient:
@@ -128,9 +134,10 @@ class GraphClient:
             ReliabilityPolicy,
             qos_profile_sensor_data,
         )
+        from rosgraph_msgs.msg import Clock
         from sensor_msgs.msg import CameraInfo, Image, PointCloud2
 
-        from push_ros.qos import GOAL_QOS, latched_reader_qos
+        from push_ros.qos import CLOCK_QOS, GOAL_QOS, latched_reader_qos
 
         apply_default_profile()
         self._context = Context()
@@ -149,6 +156,7 @@ class GraphClient:
         sub(PoseWithCovarianceStamped, "estimator/object_pose", self._on_est, estimates)
         sub(PointStamped, "estimator/center_of_mass", self._on_com, estimates)
         sub(PathMsg, "planner/push", self._on_push, reliable)
+        sub(Clock, "/clock", self._on_clock, CLOCK_QOS)
         sub(PathMsg, "pusher/executed", self._on_executed, reliable)
         sub(DiagnosticStatus, "planner/status", self._on_status, latched)
         sub(DiagnosticArray, "/diagnostics", self._on_diagnostics, reliable)
@@ -225,8 +233,15 @@ class GraphClient:
 
     def _on_push(self, msg: Any) -> None:
         from push_ros.paths import points_from_path
+        from push_ros.stamps import seconds_from_stamp
 
         self.rec.pushes.append((time.monotonic(), np.asarray(points_from_path(msg))[:, :2]))
+        self.rec.push_stamps.append(seconds_from_stamp(msg.header.stamp))
+
+    def _on_clock(self, msg: Any) -> None:
+        from push_ros.stamps import seconds_from_stamp
+
+        self.rec.clock = max(self.rec.clock, seconds_from_stamp(msg.clock))
 
     def _on_executed(self, msg: Any) -> None:
         from push_ros.stamps import seconds_from_stamp

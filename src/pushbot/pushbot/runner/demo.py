@@ -5,7 +5,7 @@
 2. The four nodes start as separate processes over DDS with simulated time
    (:mod:`pushbot.runner.episode`): ``sim_bridge_node`` (pybullet, camera, ``/clock``),
    ``segmentation_node``, ``ekf_node`` and ``planner_node``.
-3. One protocol trial (:class:`pushbot.experiments.protocol.Trial`; default: the *mixed* task, 10 cm
+3. One protocol trial (:class:`pushbot.runner.protocol.Trial`; default: the *mixed* task, 10 cm
    and 0.35 rad, on the held-out ``butter`` object with a random centre of mass, method ``ana``,
    k = 3): the scene is set through the bridge's parameters and ``~/reset``, the goal
    (first estimate + the task's offset) is sent on ``goal_pose``, and the graph pushes until
@@ -48,30 +48,13 @@ from typing import Any
 
 import numpy as np
 
-from pushbot.experiments.protocol import METHODS, TASKS, Trial
-from pushbot.ros2cli.bag import BagError, BagRecorder, TopicSelection
+from pushbot.ros2cli.bag_record import BagRecorder, TopicSelection
+from pushbot.ros2cli.bag_store import BagError
 from pushbot.runner.doctor import add_arguments as add_doctor_arguments
 from pushbot.runner.doctor import run_doctor
-from pushbot.viz.render import (
-    AFFORDANCES,
-    CAMERA_INFO,
-    DEPTH,
-    ESTIMATE,
-    EXTRINSICS,
-    GOAL,
-    IMAGE,
-    MASK,
-    MONITOR,
-    OUTLINE,
-    PUSH,
-    STATUS,
-    TRUTH,
-    RenderError,
-    _ring,
-    _world,
-    load_episode,
-    render_bag,
-)
+from pushbot.runner.protocol import METHODS, TASKS, Trial
+from pushbot.viz.episode_bag import DEPTH, TOPICS, load_episode
+from pushbot.viz.render import RenderError, closed_ring, in_world, render_bag
 
 EXIT_INTERRUPTED = 130
 #: Seconds the recording waits for the graph's topics before the episode starts.
@@ -213,10 +196,9 @@ def run_demo(args: argparse.Namespace) -> int:
     return 0
 
 
-#: Topics the demo's recording must have subscribed before the episode starts (the bridge
-#: always offers the monitor topic; it carries frames only when the monitor is on).
-RECORDED_TOPICS = (IMAGE, MASK, CAMERA_INFO, EXTRINSICS, OUTLINE, ESTIMATE, GOAL, PUSH,
-                   AFFORDANCES, STATUS, TRUTH, MONITOR)
+#: Topics the demo's recording must have subscribed before the episode starts: the video's
+#: (the bridge always offers the monitor topic; it carries frames only when the monitor is on).
+RECORDED_TOPICS = TOPICS
 
 
 def _bridge_args(args: argparse.Namespace) -> dict[str, list[str]]:
@@ -265,6 +247,10 @@ def _summary(rec: dict[str, Any], trial: Trial, wall: float, files: list[Path | 
         print(f'centre of mass (object frame, mm): estimated ({1e3 * est[0]:.1f}, '
               f'{1e3 * est[1]:.1f}), true ({1e3 * true[0]:.1f}, {1e3 * true[1]:.1f}), error '
               f'{1e3 * rec["com_error"]:.1f} mm')
+    cycles = rec.get("cycle_s") or []
+    print(f'robot time: {rec.get("robot_time_s", math.nan):.1f} s from the goal to the final '
+          f'stop (simulated)' + (f"; {np.median(cycles):.1f} s between pushes, median"
+                                 if cycles else ""))
     lat = rec.get("step_latency_ms") or []
     lat_text = f"; push executed -> next plan {np.median(lat):.0f} ms median" if lat else ""
     print(f'wall time: {wall:.1f} s in all, episode {rec["wall_s"]:.1f} s{lat_text}')
@@ -285,14 +271,14 @@ def _plot(rec: dict[str, Any], outline: np.ndarray | None, spec: Any, path: Path
     true = np.asarray(rec["poses_true"])
     est = np.asarray(rec["poses_est"])
     fig, ax = plt.subplots(figsize=(6.5, 6.5))
-    lib = _ring(spec.polyline())
+    lib = closed_ring(spec.polyline())
     goal_true = true[0] + trial.goal_offset()
     for j, pose in enumerate(true):
-        ax.plot(*_world(pose, lib).T, color=plt.cm.viridis(j / max(1, len(true) - 1)), lw=1,
+        ax.plot(*in_world(pose, lib).T, color=plt.cm.viridis(j / max(1, len(true) - 1)), lw=1,
                 label="true outline (after each push)" if j == 0 else None)
-    ax.plot(*_world(goal_true, lib).T, color="m", lw=2, ls="--", label="goal (true frame)")
+    ax.plot(*in_world(goal_true, lib).T, color="m", lw=2, ls="--", label="goal (true frame)")
     if outline is not None:
-        ax.plot(*_world(est[-1], _ring(outline)).T, color="orange", lw=1.5,
+        ax.plot(*in_world(est[-1], closed_ring(outline)).T, color="orange", lw=1.5,
                 label="perceived outline at the final estimate")
     ax.plot(true[:, 0], true[:, 1], "k.-", label="true position")
     ax.plot(est[:, 0], est[:, 1], "x--", color="tab:red", label="estimated position")

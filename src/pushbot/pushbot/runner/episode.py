@@ -1,4 +1,4 @@
-"""Protocol trials through the real ROS graph: four node processes over DDS (issue 7).
+"""Protocol trials through the real ROS graph: four node processes over DDS.
 
 :func:`run_graph_trials` (``pushbot eval push --graph``) and the demo (``pushbot demo``) start
 ``sim_bridge_node``, ``segmentation_node``, ``ekf_node`` and ``planner_node`` as separate
@@ -8,7 +8,7 @@ this process drives the episodes only through the nodes' public interfaces:
 
 1. **Episode parameters.** ``planner_node``: ``method``, ``direct``, ``k``,
    ``goal_tolerance.{xy,theta}``, ``max_steps``, ``seed``, ``lookahead.horizon``,
-   ``avoid_contradicted`` (:func:`pushbot.experiments.protocol.planner_episode_params`);
+   ``avoid_contradicted`` (:func:`pushbot.runner.protocol.planner_episode_params`);
    ``ekf_node``: ``relearn.enabled`` (:attr:`Trial.relearn`), via their
    ``set_parameters`` services; then ``/segmentation_node/reset`` (the next *new* frame
    becomes the episode's reference; repeated frames of the old scene are skipped),
@@ -28,13 +28,13 @@ this process drives the episodes only through the nodes' public interfaces:
    pose at the stamp of each frame the pipeline saw), estimates from
    ``estimator/object_pose``, pushes from ``planner/push``; success from the *true* pose
    against the true initial pose plus the offset, orientation modulo the object's symmetry
-   (:func:`pushbot.experiments.inprocess.end_score`); ``com_error`` from
+   (:func:`push_core.episode.end_score`); ``com_error`` from
    ``estimator/center_of_mass`` against the true COM (parsed from the bridge's reset message, 0.1 mm
    resolution) turned into the episode frame. ``planning_ms`` is empty (planning happens inside
    ``planner_node``); ``step_latency_ms`` holds, per step, the wall time from ``pusher/executed`` to
    the next ``planner/push`` as seen here (perception + estimation + planning + DDS).
 
-Fault scenarios (issue 15): ``GraphRunner.run(trial, fault)`` with a
+Fault scenarios: ``GraphRunner.run(trial, fault)`` with a
 :class:`pushbot.runner.faults.Fault` adds its episode parameters (the bridge's ``faults.*``,
 the planner's ``after_goal``), lets it act on every spin of the end wait (kill and restart a
 node, knock the object, send a push or a second goal) and ends the episode only at an end
@@ -65,14 +65,24 @@ from typing import Any
 import numpy as np
 
 from push_core.episode import new_record
-from pushbot.experiments.protocol import Trial, planner_episode_params
 from pushbot.ros2cli.discovery import sigterm_as_keyboard_interrupt
 from pushbot.runner.client import GraphClient, Recorded
-from pushbot.runner.faults import Episode, Fault
+from pushbot.runner.faults import Fault
 from pushbot.runner.graph_nodes import NODES, GraphError, GraphNodes
+from pushbot.runner.graph_record import (
+    end_reason,
+    first_estimate,
+    graph_robot_times,
+    latencies,
+    line_deviation,
+    same_goal,
+    status_seconds,
+)
+from pushbot.runner.protocol import Trial, bridge_scene_params, planner_episode_params
+from pushbot.runner.scenario import Episode
 
 __all__ = ["NODES", "GraphError", "GraphNodes", "GraphRunner", "Recorded", "check_trial",
-           "line_deviation", "run_graph_trials"]
+           "run_graph_trials"]
 
 #: Seconds from the scene reset to the first estimate (segmentation of the first frame), and
 #: how often the episode set-up is repeated when none arrives.
@@ -103,11 +113,13 @@ class GraphRunner:
     robot : str
         ``pusher`` (the simulator's finger) or ``arm`` (``push_executor_node`` and the
         simulated Panda; :class:`pushbot.runner.graph_nodes.GraphNodes`).
+    node_exe : Path, optional
+        The ``pushbot`` executable of the node processes (:class:`GraphNodes`).
     """
 
     def __init__(self, log_dir: Path | None = None, record_frames: bool = False,
-                 node_args: dict[str, Sequence[str]] | None = None, robot: str = "pusher"
-                 ) -> None:
+                 node_args: dict[str, Sequence[str]] | None = None, robot: str = "pusher",
+                 node_exe: Path | None = None) -> None:
         self._tmp = None
         if log_dir is None:
             self._tmp = tempfile.TemporaryDirectory(prefix="pushbot_graph_")
@@ -115,7 +127,7 @@ class GraphRunner:
         self.log_dir = Path(log_dir)
         self.record_frames = record_frames
         self.robot = robot
-        self.nodes = GraphNodes(self.log_dir, node_args, robot=robot)
+        self.nodes = GraphNodes(self.log_dir, node_args, robot=robot, node_exe=node_exe)
         self.rec = Recorded()
         self.client: GraphClient | None = None
         self._com_true: np.ndarray | None = None
@@ -159,7 +171,8 @@ class GraphRunner:
         """Stop everything and start again (after a failed episode)."""
         self.close()
         self.rec = Recorded()
-        self.nodes = GraphNodes(self.log_dir, self.nodes.node_args, robot=self.robot)
+        self.nodes = GraphNodes(self.log_dir, self.nodes.node_args, robot=self.robot,
+                                node_exe=self.nodes.node_exe)
         self.start()
 
     # ---- the client's waits and calls -----------------------------------------------------------
@@ -197,6 +210,15 @@ class GraphRunner:
     def client_matched(self) -> bool:
         """Whether the client's fault publishers (second goal sender, knock) are matched."""
         return self._client().matched()
+
+    def foreign_trajectory(self, names: list[str], positions: list[float], seconds: float
+                           ) -> None:
+        """Command the arm to ``positions`` in ``seconds`` as another client (``robot`` arm)."""
+        self._client().publish_trajectory(names, positions, seconds)
+
+    def executor_enable(self, enable: bool) -> str:
+        """``/push_executor_node/enable`` (``robot`` arm); its message."""
+        return self._client().executor_enable(enable)
 
     def _planner_estimates(self) -> int:
         return self._client().planner_estimates()
@@ -241,7 +263,7 @@ class GraphRunner:
         # The planner must hold this scene's outline (stamped with its reference frame) before
         # the goal: with the previous scene's outline it would plan, or declare the goal
         # reached, for the wrong object.
-        self.wait(lambda: any(_status_seconds(s, "outline_stamp") >= reference - 1e-6
+        self.wait(lambda: any(status_seconds(s, "outline_stamp") >= reference - 1e-6
                                 for s in self.rec.status),
                   STEP_TIMEOUT, f"planner_node to hold the outline of the frame at "
                   f"{reference:.3f} s")
@@ -249,6 +271,7 @@ class GraphRunner:
         goal = trial.goal(first_est)
         n_push, n_exec, n_status = (len(self.rec.pushes), len(self.rec.executed),
                                     len(self.rec.status))
+        t_goal = self.rec.clock  # the simulated time when the goal goes out
         fault.before_goal(self)
         goal_text = self._client().publish_goal(goal)
         episode = Episode(trial, n_push, n_exec, n_status, np.asarray(goal, dtype=float),
@@ -269,7 +292,7 @@ class GraphRunner:
             return restart[which] if restart and e[0] >= restart[0] else 0
         rec["steps"] = int(status.get("step", len(pushes)))
         rec["refused"] = max(0, rec["steps"] - len(executed))
-        rec["reason"] = _reason(status["_message"])
+        rec["reason"] = end_reason(status["_message"])
         if executed:  # the truth after the last push has arrived too
             t_last = executed[-1][2]
             self.wait(lambda: any(s >= t_last for s, _ in self.rec.true), STEP_TIMEOUT,
@@ -283,7 +306,9 @@ class GraphRunner:
         rec["frame_stamps"] = [first_stamp] + [
             next((st for st, _ in self.rec.est[since(e, 2):] if st >= e[2]), e[2])
             for e in executed]
-        rec["step_latency_ms"] = _latencies(executed, pushes)
+        rec["step_latency_ms"] = latencies(executed, pushes)
+        rec.update(graph_robot_times(t_goal, first_stamp, self.rec.push_stamps[n_push:],
+                                     rec["frame_stamps"][-1] if executed else None))
         if self.robot == "arm":
             rec["contact_line_error_mm"] = self._line_errors(executed, pushes)
         end_true = (self._true_after(executed[-1][2], since(executed[-1], 1)) if executed
@@ -307,7 +332,21 @@ class GraphRunner:
         rec["wall_s"] = time.perf_counter() - t_start
         if restart:  # later episodes are matched on the new clock only
             self.rec.forget_stamps()
+        if self.robot == "arm":
+            self._wait_arm_parked()
         return rec
+
+    def _wait_arm_parked(self) -> None:
+        """The executor parks the arm once the episode is over; the next scene is not set up
+        while it moves (the simulator refuses ``~/reset`` while it follows a trajectory). A
+        stopped arm stays where it is (the next scene's reset parks it)."""
+        def parked() -> bool:
+            status = self.rec.executor_status[-1] if self.rec.executor_status else {}
+            return status.get("state") == "stopped" or (
+                status.get("state") in ("idle", "disabled")
+                and status.get("at_park", "true") == "true")
+
+        self.wait(parked, STEP_TIMEOUT, "the arm parked after the episode (executor/status)")
 
     def _line_errors(self, executed: list[tuple[float, float, float]],
                      pushes: list[tuple[float, np.ndarray]]) -> list[float]:
@@ -335,9 +374,9 @@ class GraphRunner:
                                              "after_goal": "report", **fault.planner_params()})
         self.reset("planner_node")  # drop the old goal before the scene changes under it
         self.set_parameters("ekf_node", {"relearn.enabled": trial.relearn})  # at its reset
-        self.set_parameters("sim_bridge_node", {**self.bridge_scene_params(trial),
+        self.set_parameters("sim_bridge_node", {**bridge_scene_params(trial),
                                                 **NO_BRIDGE_FAULTS, **fault.bridge_params(trial)})
-        message = self.reset("sim_bridge_node")
+        message = self._reset_simulator()
         match = _COM_RE.search(message)
         self._com_true = (np.array([float(match.group(1)), float(match.group(2))])
                           if match else None)
@@ -355,20 +394,19 @@ class GraphRunner:
             if after is not None:  # estimates of the old episode are stamped at or before it
                 self._last_stamp = max(self._last_stamp, float(after.group(1)))
 
-    @staticmethod
-    def bridge_scene_params(trial: Trial) -> dict[str, Any]:
-        """``sim_bridge_node``'s scene parameters of ``trial`` (object, initial pose, COM,
-        seed, randomisation, support)."""
-        world = trial.world_kwargs()
-        x, y, theta = world["object_pose"]
-        com = world.get("com_offset")
-        return {"object": str(world["object"]), "initial_pose.x": float(x),
-                "initial_pose.y": float(y),
-                "initial_pose.theta": math.remainder(theta, 2 * math.pi),
-                "use_com_offset": com is not None,
-                "com_offset": [0.0, 0.0] if com is None else [float(v) for v in com],
-                "seed": int(world["seed"]), "randomize": bool(world["randomize"]),
-                "support_cell": float(world["support_cell"])}
+    def _reset_simulator(self) -> str:
+        """``/sim_bridge_node/reset``, again while it answers busy: the arm may still settle
+        after the episode's park (the executor reports it idle once the trajectory has ended,
+        the simulator's run ends when the arm and the object are at rest)."""
+        deadline = time.monotonic() + STEP_TIMEOUT
+        while True:
+            try:
+                return self.reset("sim_bridge_node")
+            except GraphError as exc:
+                if "busy" not in str(exc) or time.monotonic() > deadline:
+                    raise
+            pause = time.monotonic() + 0.2
+            self.wait(lambda until=pause: time.monotonic() >= until, 5.0, "a pause")
 
     def _first_estimate(self, trial: Trial, fault: Fault) -> tuple[float, float, np.ndarray]:
         """Set the episode up and wait for the first estimate of the new scene: (the stamp of
@@ -430,7 +468,7 @@ class GraphRunner:
             fault.poll(self, episode)
             mine = [(i, s) for i, s in enumerate(self.rec.status[episode.n_status:],
                                                  episode.n_status)
-                    if _same_goal(s.get("goal", ""), episode.goal_text)]
+                    if same_goal(s.get("goal", ""), episode.goal_text)]
             key = (len(self.rec.pushes), len(self.rec.executed), len(mine))
             if key != progress[0]:
                 progress[0], progress[1] = key, time.monotonic()
@@ -454,7 +492,7 @@ class GraphRunner:
         They come from other publishers than the status, so they can still be in flight (or
         queued here) when it arrives."""
         steps = int(status.get("step", 0))
-        last_end = _status_seconds(status, "last_push_end")
+        last_end = status_seconds(status, "last_push_end")
 
         def complete() -> bool:
             if len(self.rec.pushes) - n_push < steps:
@@ -485,106 +523,10 @@ class GraphRunner:
         return float(math.hypot(*(self.rec.com[-1][1] - c_true)))
 
 
-def first_estimate(outline_stamps: Sequence[float], estimates: Sequence[tuple[float, Any]],
-                   scene: float, after: float) -> tuple[float, float, Any] | None:
-    """The episode's first estimate: (reference stamp, estimate stamp, estimate) or None yet.
-
-    ``outline_stamps``: ``perception/outline`` stamps as received (s); ``estimates``: (stamp,
-    pose) as received; ``scene``: the new scene's first frame (the simulator's reset answer);
-    ``after``: the estimator's boundary. The reference is the first outline of a frame of the
-    new scene; the estimate the first one after ``after`` and at or after the reference
-    (:meth:`GraphRunner._first_estimate`).
-    """
-    ref = next((s for s in outline_stamps if s >= scene), None)
-    if ref is None:
-        return None
-    return next(((ref, s, p) for s, p in estimates if s > after and s >= ref - 1e-6), None)
-
-
-def _same_goal(a: str, b: str) -> bool:
-    try:
-        va, vb = [float(v) for v in a.split()], [float(v) for v in b.split()]
-    except ValueError:
-        return False
-    return len(va) == len(vb) == 3 and all(abs(x - y) < 2e-4 for x, y in zip(va, vb,
-                                                                              strict=True))
-
-
-def _status_seconds(status: dict[str, str], key: str) -> float:
-    """A time value (s) of planner/status; -inf when absent or unreadable."""
-    try:
-        return float(status.get(key, "-inf"))
-    except ValueError:
-        return -math.inf
-
-
-def _reason(message: str) -> str:
-    if message.startswith("goal reached"):
-        return "goal reached"
-    if message.startswith("failed after max steps"):
-        return "max steps"
-    if message.startswith("failed: no feasible push"):
-        return "no feasible push"
-    if message.startswith("failed: robot unavailable"):
-        return "robot unavailable"
-    if message.startswith("robot unavailable: "):  # an episode that ended waiting (dry run)
-        return message.split(" - ")[0]
-    return message
-
-
-#: Tool tip samples lower than this above the table count as "in contact" for the line error
-#: of an arm push (the executor pushes at 1 cm; transit and park moves are far higher), m.
-CONTACT_HEIGHT = 0.02
-
-
-def line_deviation(tip: np.ndarray, contact: np.ndarray, end: np.ndarray,
-                   max_height: float = CONTACT_HEIGHT) -> float | None:
-    """Largest horizontal distance of tool tip samples from a commanded push line, m.
-
-    Parameters
-    ----------
-    tip : (K, 3) array
-        True tool tip positions in ``world`` (m).
-    contact, end : (2,) arrays
-        The commanded contact segment (``planner/push``'s contact and end points, m).
-    max_height : float
-        Only samples at most this high count (the pushing height; not transit), m.
-
-    Returns
-    -------
-    float or None
-        The maximum over the samples whose projection falls on the segment, or None when
-        there is none.
-    """
-    tip = np.asarray(tip, dtype=float).reshape(-1, 3)
-    a, b = np.asarray(contact, dtype=float), np.asarray(end, dtype=float)
-    d = b - a
-    length = float(np.hypot(*d))
-    if length == 0.0:
-        return None
-    u = d / length
-    rel = tip[:, :2] - a
-    along = rel @ u
-    off = np.abs(rel @ np.array([-u[1], u[0]]))
-    on = (tip[:, 2] <= max_height) & (along >= 0.0) & (along <= length)
-    return float(off[on].max()) if on.any() else None
-
-
-def _latencies(executed: list[tuple[float, float, float]],
-               pushes: list[tuple[float, np.ndarray]]) -> list[float]:
-    """Wall ms from each pusher/executed to the next planner/push (as received here)."""
-    out = []
-    for t_exec, _, _ in executed:
-        following = [t for t, _ in pushes if t > t_exec]
-        if following:
-            out.append(1e3 * (following[0] - t_exec))
-    return out
-
-
 def check_trial(trial: Trial) -> None:
     """``ValueError`` for trials the graph cannot run (module docstring)."""
     if not isinstance(trial, Trial):
-        raise ValueError(f"expected a pushbot.experiments.protocol.Trial, "
+        raise ValueError(f"expected a pushbot.runner.protocol.Trial, "
                          f"got {type(trial).__name__}")
     if trial.state != "filter":
         raise ValueError(f"the graph estimates the state from images: state must be 'filter', "
@@ -596,7 +538,10 @@ def check_trial(trial: Trial) -> None:
 
 
 def run_graph_trials(trials: list[Trial], *, out_dir: Path | str | None = None,
-                     progress: bool = True, robot: str = "pusher") -> list[dict[str, Any]]:
+                     progress: bool = True, robot: str = "pusher",
+                     node_exe: Path | None = None,
+                     run: Callable[[GraphRunner, Trial], dict[str, Any]] | None = None
+                     ) -> list[dict[str, Any]]:
     """Run ``trials`` through the ROS graph (four node processes, started once) in order.
 
     Parameters
@@ -609,6 +554,11 @@ def run_graph_trials(trials: list[Trial], *, out_dir: Path | str | None = None,
         One line per trial on stderr.
     robot : str
         ``pusher`` or ``arm`` (:class:`GraphRunner`).
+    node_exe : Path, optional
+        The ``pushbot`` executable of the node processes (:class:`GraphNodes`).
+    run : callable, optional
+        ``run(graph, trial) -> record`` instead of ``graph.run(trial)`` (a benchmark that also
+        reads what the graph's client recorded meanwhile).
 
     Returns
     -------
@@ -621,10 +571,11 @@ def run_graph_trials(trials: list[Trial], *, out_dir: Path | str | None = None,
         check_trial(trial)
     log_dir = Path(out_dir) / "graph_logs" if out_dir is not None else None
     records: list[dict[str, Any]] = []
-    with sigterm_as_keyboard_interrupt(), GraphRunner(log_dir=log_dir, robot=robot) as graph:
+    with sigterm_as_keyboard_interrupt(), GraphRunner(log_dir=log_dir, robot=robot,
+                                                       node_exe=node_exe) as graph:
         for i, trial in enumerate(trials):
             try:
-                record = graph.run(trial)
+                record = graph.run(trial) if run is None else run(graph, trial)
             except GraphError as exc:
                 record = new_record(trial.as_dict(), reason=f"graph error: {exc}",
                                     engine="graph")

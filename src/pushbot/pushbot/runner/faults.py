@@ -1,11 +1,13 @@
-"""Fault scenarios of graph episodes (issue 15, item 5): what goes wrong, when, and how.
+"""Fault scenarios of graph episodes: what goes wrong, when, and how.
 
 A :class:`Fault` is handed to :meth:`pushbot.runner.episode.GraphRunner.run`; the runner asks it
 for extra episode parameters (the bridge's ``faults.*``, the planner's ``after_goal``), calls
 :meth:`Fault.poll` on every spin of its end-of-episode wait (where it injects the fault through
 the graph's public interfaces or by killing a process) and accepts an end status only when
-:meth:`Fault.accepts_end` agrees. Everything is real: node processes killed with SIGKILL and
-started again with ``pushbot run``, messages through DDS.
+:meth:`Fault.accepts_end` agrees. The hooks see the runner as a
+:class:`pushbot.runner.scenario.FaultTarget` and the episode as a
+:class:`pushbot.runner.scenario.Episode`. Everything is real: node processes killed with
+SIGKILL and started again with ``pushbot run``, messages through DDS.
 
 Scenarios (:data:`SCENARIOS`, ``benchmarks/bench_faults.py`` runs them;
 docs/design/faults.md#scenarios):
@@ -33,17 +35,14 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
-from pushbot.experiments.protocol import Trial, planner_episode_params
+from pushbot.runner.protocol import Trial, planner_episode_params
+from pushbot.runner.scenario import Episode, FaultTarget
 
-if TYPE_CHECKING:
-    from pushbot.runner.episode import GraphRunner
-
-__all__ = ["SCENARIOS", "BridgeFaults", "Episode", "Fault", "ForeignPush", "KillRestart",
+__all__ = ["SCENARIOS", "BridgeFaults", "Fault", "ForeignPush", "KillRestart",
            "Knock", "SecondGoal", "make_fault"]
 
 #: The knock of the ``knock`` scenario: (dx, dy) m and dyaw rad, far outside every goal region.
@@ -56,35 +55,6 @@ BRIDGE_COUNTERS = ("frames_dropped", "frames_delayed", "frames_reordered",
 FOREIGN_PUSH_DIRECTION, FOREIGN_PUSH_PAST_CENTRE = 0.5, 0.02
 #: The second goal of ``second-goal``: offset from the first goal (dx, dy m, dtheta rad).
 SECOND_GOAL_SHIFT = (-0.04, 0.03, -0.2)
-
-
-@dataclass
-class Episode:
-    """What the runner knows about the running episode (shared with the fault).
-
-    Attributes
-    ----------
-    trial : Trial
-    n_push, n_exec, n_status : int
-        Lengths of the runner's ``planner/push``, ``pusher/executed`` and ``planner/status``
-        records when the goal went out (this episode's entries follow).
-    goal : (3,) float
-        The goal the episode is scored against (x, y m, theta rad in the episode frame).
-    offset : (3,) float
-        The same goal relative to the first estimate (ground truth target = true initial pose
-        + offset).
-    goal_text : str
-        How planner/status shows that goal.
-    """
-
-    trial: Trial
-    n_push: int
-    n_exec: int
-    n_status: int
-    goal: np.ndarray
-    offset: np.ndarray
-    goal_text: str
-    notes: dict[str, Any] = field(default_factory=dict)
 
 
 class Fault:
@@ -106,24 +76,24 @@ class Fault:
         """Extra ``planner_node`` episode parameters."""
         return {}
 
-    def before_goal(self, runner: GraphRunner) -> None:
+    def before_goal(self, runner: FaultTarget) -> None:
         """Act before the episode's goal is sent (e.g. disable the executor)."""
 
-    def poll(self, runner: GraphRunner, episode: Episode) -> None:
+    def poll(self, runner: FaultTarget, episode: Episode) -> None:
         """Inject the fault when its moment has come (called on every spin of the wait)."""
 
-    def after_episode(self, runner: GraphRunner) -> None:
+    def after_episode(self, runner: FaultTarget) -> None:
         """Undo what the fault left behind once the episode ended (or failed)."""
 
-    def accepts_end(self, runner: GraphRunner, index: int) -> bool:
+    def accepts_end(self, runner: FaultTarget, index: int) -> bool:
         """Whether the end status at ``runner.rec.status[index]`` ends the episode."""
         return True
 
-    def _mark(self, runner: GraphRunner) -> None:
+    def _mark(self, runner: FaultTarget) -> None:
         self.injected = True
         self._status_at_injection = len(runner.rec.status)
 
-    def record(self, runner: GraphRunner, episode: Episode) -> dict[str, Any]:
+    def record(self, runner: FaultTarget, episode: Episode) -> dict[str, Any]:
         """Fault fields of the episode record."""
         mine = runner.rec.status[episode.n_status:]
         last = mine[-1] if mine else {}
@@ -141,7 +111,7 @@ class Fault:
                 **episode.notes}
 
 
-def _executed(runner: GraphRunner, episode: Episode) -> int:
+def _executed(runner: FaultTarget, episode: Episode) -> int:
     return len(runner.rec.executed) - episode.n_exec
 
 
@@ -158,7 +128,7 @@ class KillRestart(Fault):
         self.node, self.after = node, int(after)
         self.name = f"kill-{node.removesuffix('_node')}"
 
-    def poll(self, runner: GraphRunner, episode: Episode) -> None:
+    def poll(self, runner: FaultTarget, episode: Episode) -> None:
         if self.injected or _executed(runner, episode) < self.after:
             return
         extra: list[str] = []
@@ -176,7 +146,7 @@ class KillRestart(Fault):
                         "the restarted ekf_node's first estimate")
             episode.notes["first_estimate_after_restart_s"] = time.monotonic() - restarted
 
-    def accepts_end(self, runner: GraphRunner, index: int) -> bool:
+    def accepts_end(self, runner: FaultTarget, index: int) -> bool:
         # An end status of the killed planner's predecessor cannot come after the kill; for the
         # others the episode must run on after the restart.
         return self.injected and index >= self._status_at_injection
@@ -208,7 +178,7 @@ class Knock(Fault):
     def planner_params(self) -> dict[str, Any]:
         return {"after_goal": "resume"}
 
-    def poll(self, runner: GraphRunner, episode: Episode) -> None:
+    def poll(self, runner: FaultTarget, episode: Episode) -> None:
         if self.injected:
             return
         mine = runner.rec.status[episode.n_status:]
@@ -218,7 +188,7 @@ class Knock(Fault):
             self._mark(runner)
             episode.notes["knocked_after_pushes"] = _executed(runner, episode)
 
-    def accepts_end(self, runner: GraphRunner, index: int) -> bool:
+    def accepts_end(self, runner: FaultTarget, index: int) -> bool:
         # Only a "goal reached" after the planner saw the object leave (and pushed it back).
         if not self.injected or index < self._status_at_injection:
             return False
@@ -227,12 +197,13 @@ class Knock(Fault):
 
 class ForeignPush(Knock):
     """Another client sends a push on ``planner/push`` once the planner reports ``goal
-    reached`` (the issue's 28-34 mm case): the bridge executes it like any push and the
-    planner, watching after the goal, must see the object leave and push it back."""
+    reached`` (someone else moving the object a few cm out of the goal region): the bridge
+    executes it like any push and the planner, watching after the goal, must see the object
+    leave and push it back."""
 
     name = "foreign-push"
 
-    def poll(self, runner: GraphRunner, episode: Episode) -> None:
+    def poll(self, runner: FaultTarget, episode: Episode) -> None:
         if self.injected:
             return
         mine = runner.rec.status[episode.n_status:]
@@ -264,7 +235,7 @@ class SecondGoal(Fault):
         super().__init__()
         self.shift, self.after = np.asarray(shift, dtype=float), int(after)
 
-    def poll(self, runner: GraphRunner, episode: Episode) -> None:
+    def poll(self, runner: FaultTarget, episode: Episode) -> None:
         if self.injected or _executed(runner, episode) < self.after:
             return
         if not runner.client_matched():
@@ -276,7 +247,7 @@ class SecondGoal(Fault):
         self._mark(runner)
         episode.notes["first_goal"] = first_goal.tolist()
 
-    def accepts_end(self, runner: GraphRunner, index: int) -> bool:
+    def accepts_end(self, runner: FaultTarget, index: int) -> bool:
         return self.injected and index >= self._status_at_injection
 
 

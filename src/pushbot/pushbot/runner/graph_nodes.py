@@ -55,15 +55,16 @@ ARM_PUSH_TIMEOUT = 60.0
 #: trajectory start stay within its tracking window (unpaced, the simulator ran ~50x real time
 #: and the executor's clock lagged its joint states by over 10 s of sim time).
 ARM_REAL_TIME_FACTOR = 5.0
-#: push_executor_node's ``start_delay`` in protocol graphs, s of sim time (0.4 s of wall time at
-#: ARM_REAL_TIME_FACTOR): a trajectory that reaches the simulator after its stamp starts part-way
-#: in and the arm lags the plan; on a loaded machine the default 0.5 s (0.1 s of wall time) was
-#: exceeded and every push stopped with a deviation in the transit.
-ARM_START_DELAY = 2.0
 #: planner_node's ``robot_timeout`` in protocol graphs of the arm: an episode whose robot stays
 #: unavailable (a posture the executor cannot leave, a driver that never comes back) fails
 #: after this long (wall s), within the runner's STEP_TIMEOUT of no progress.
 ARM_ROBOT_TIMEOUT = 60.0
+#: The simulated arm's ``/joint_states`` rate in protocol graphs, Hz of sim time
+#: (``arm.joint_state_rate``; 250 a second of wall time at ARM_REAL_TIME_FACTOR): at 100 Hz
+#: (500 a second) the Python readers -- the executor, perception's self-filter, this client --
+#: fell behind on a loaded machine, by seconds, and dropped states; 20 ms apart the contact
+#: segment and the tool tip's ground truth are still sampled every 0.4 mm at 20 mm/s.
+ARM_JOINT_STATE_RATE = 50.0
 #: Grace periods of the shutdown: SIGINT, then SIGTERM, then SIGKILL.
 STOP_GRACE = (10.0, 5.0)
 
@@ -96,13 +97,18 @@ class GraphNodes:
     robot : str
         ``pusher`` (the four nodes) or ``arm`` (the bridge with ``robot:=arm`` and
         ``push_executor_node``, enabled, as a fifth node).
+    node_exe : Path, optional
+        The ``pushbot`` executable the nodes run from (default: this interpreter's): another
+        installation's, e.g. a checkout of an earlier version, so that its nodes meet this
+        client on the same trials.
     """
 
     def __init__(self, log_dir: Path, node_args: dict[str, Sequence[str]] | None = None,
-                 ros_args: dict[str, Sequence[str]] | None = None, robot: str = "pusher"
-                 ) -> None:
+                 ros_args: dict[str, Sequence[str]] | None = None, robot: str = "pusher",
+                 node_exe: Path | None = None) -> None:
         self.log_dir = Path(log_dir)
         self.robot = robot
+        self.node_exe = None if node_exe is None else Path(node_exe)
         self.names = graph_node_names(robot)
         self.node_args = {n: list((node_args or {}).get(n, ())) for n in self.names}
         self.ros_args = ros_args
@@ -117,7 +123,7 @@ class GraphNodes:
         """Start one node process (``extra``: more ``name:=value`` start-up parameters)."""
         env = dict(os.environ, PYTHONUNBUFFERED="1")
         apply_default_profile(env)
-        exe = Path(sys.executable).parent / "pushbot"
+        exe = self.node_exe or Path(sys.executable).parent / "pushbot"
         base = [str(exe)] if exe.exists() else [sys.executable, "-m", "pushbot.cli"]
         if self.ros_args is not None:  # pushbot up: the launch file's arguments as they are
             params = list(self.ros_args[name])
@@ -133,9 +139,12 @@ class GraphNodes:
             if name == "sim_bridge_node":
                 params += ["-p", f"robot:={self.robot}"]
                 if self.robot == "arm":
-                    params += ["-p", f"arm.real_time_factor:={ARM_REAL_TIME_FACTOR}"]
+                    params += ["-p", f"arm.real_time_factor:={ARM_REAL_TIME_FACTOR}",
+                               "-p", f"arm.joint_state_rate:={ARM_JOINT_STATE_RATE}"]
             if name == EXECUTOR_NODE:
-                params += ["-p", "start_enabled:=true", "-p", f"start_delay:={ARM_START_DELAY}"]
+                params += ["-p", "start_enabled:=true"]
+            if name == "segmentation_node" and self.robot == "arm":  # the arm may be in view
+                params += ["-p", "robot_filter.enabled:=true"]
             params += [arg for value in self.node_args[name] for arg in ("-p", value)]
         params += [arg for value in extra for arg in ("-p", value)]
         with open(self.log_dir / f"{name}.log", "ab") as log:  # a restart appends

@@ -50,7 +50,8 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 from push_ros.frames import OBJECT_FRAME, PUSHER_FRAME
-from pushbot.ros2cli.bag import BagError, TopicSelection, message_definition
+from pushbot.ros2cli.bag_record import TopicSelection
+from pushbot.ros2cli.bag_store import BagError, message_definition
 from pushbot.ros2cli.discovery import (
     RosUnavailableError,
     cli_node,

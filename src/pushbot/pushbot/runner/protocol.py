@@ -46,11 +46,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = [
+    "COM_MODES",
     "METHODS",
     "REGIONS",
     "STATE_SOURCES",
     "TASKS",
     "Trial",
+    "bridge_scene_params",
     "make_trials",
     "planner_episode_params",
 ]
@@ -122,7 +124,7 @@ class Trial:
         ``filter``: the EKF estimates the COM (True) or keeps it at the geometric centre.
         Ignored by ``gt``.
     horizon : int
-        Pushes the planner looks ahead (``PlannerConfig.horizon``, issue 22; 1 = greedy, the
+        Pushes the planner looks ahead (``PlannerConfig.horizon``; 1 = greedy, the
         source's planner). Ignored by ``pushnet``.
     avoid_contradicted : bool
         The planner avoids the contact region of a push whose observed outcome contradicted
@@ -172,7 +174,7 @@ class Trial:
             raise ValueError(f"horizon must be an integer >= 1, got {self.horizon!r}")
         object.__setattr__(self, "horizon", int(self.horizon))
         if not (isinstance(self.support_cell, float) and self.support_cell == 0.0):
-            from sim_bridge.scene import check_support_cell  # the simulator's rule
+            from sim_bridge.config import check_support_cell  # the simulator's rule
 
             object.__setattr__(self, "support_cell", check_support_cell(self.support_cell))
         for name in ("estimate_com", "avoid_contradicted", "relearn"):
@@ -287,3 +289,18 @@ def planner_episode_params(trial: Trial) -> dict[str, Any]:
             "max_steps": int(trial.max_steps), "seed": int(kw["seed"]),
             "lookahead.horizon": int(kw["horizon"]),
             "avoid_contradicted": bool(kw["avoid_contradicted"])}
+
+
+def bridge_scene_params(trial: Trial) -> dict[str, Any]:
+    """``sim_bridge_node``'s scene parameters of ``trial`` (object, initial pose, COM, seed,
+    randomisation, support), set before every graph episode (also the start-up parameters of a
+    simulator restarted mid-episode)."""
+    world = trial.world_kwargs()
+    x, y, theta = world["object_pose"]
+    com = world.get("com_offset")
+    return {"object": str(world["object"]), "initial_pose.x": float(x),
+            "initial_pose.y": float(y), "initial_pose.theta": math.remainder(theta, 2 * math.pi),
+            "use_com_offset": com is not None,
+            "com_offset": [0.0, 0.0] if com is None else [float(v) for v in com],
+            "seed": int(world["seed"]), "randomize": bool(world["randomize"]),
+            "support_cell": float(world["support_cell"])}
