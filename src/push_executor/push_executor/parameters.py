@@ -107,7 +107,9 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               "stamps stop advancing, for this long, s of the steady clock.", (0.05, 60.0),
               read_only=True),
     ParamSpec("start_timeout", 5.0, "Stop when the motion has not started this long after the "
-              "trajectory was sent, s of the steady clock.", (0.1, 600.0), read_only=True),
+              "trajectory was sent, s of the controller's time (the joint-state stamps), or "
+              "when the stamps stand still this long (steady clock).", (0.1, 600.0),
+              read_only=True),
     ParamSpec("state_margin", 0.05, "A measured joint outside its URDF position limits by "
               "more than this refuses every push (kind state) until the joint state is "
               "plausible again, rad (m for prismatic joints).", (0.0, 1.0), read_only=True),

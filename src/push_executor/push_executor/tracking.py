@@ -23,7 +23,14 @@ against the plan it replaced until its own first point:
 - ``stale``: no joint state for ``state_timeout`` s (steady), or, once the motion started, no
   *advancing* stamp for ``state_timeout`` s;
 - ``no_start``: the motion did not start (no stamp past ``t0`` and no joint moved by
-  :data:`START_MOTION`) within ``start_timeout`` s (steady).
+  :data:`START_MOTION`) within ``start_timeout`` s of the controller's time (the stamps
+  advanced that far past the newest one at sending), or the stamps did not advance at all for
+  ``start_timeout`` s (steady). A controller whose clock runs slowly (a simulator starved of
+  CPU) is not a fault: its stamps advance, and it starts when its time reaches ``t0``.
+
+All windows are judged on the joint states' stamps (the controller's time; simulated time in
+simulation), the steady clock only where nothing arrives or the stamps stand still, so CPU
+load, late or bursty delivery never read as a robot fault while a real delay still does.
 
 It keeps the samples around the contact segment (bounded: :data:`MAX_SAMPLES`), from which
 :meth:`Execution.contact_segment` gives the measured tool tip at the start and the end of the
@@ -174,10 +181,10 @@ class Execution:
         self.tolerance = float(tracking_tolerance)
         self.state_timeout, self.start_timeout = float(state_timeout), float(start_timeout)
         self._previous = None if previous is None else (previous.plan, previous.t0)
-        self._start_steady = steady
         self._last_sample = steady
         self._last_advance = steady
         self._stamp = self._stamp0 = float(last_stamp)
+        self._sent_stamp = self._stamp0 if math.isfinite(self._stamp0) else None
         self.started = moving  # a chained motion starts on a moving arm
         self._checked = -math.inf  # stamp of the last tracking check
         #: Whether the contact segment has been reported (``executed``; a push plan only).
@@ -215,6 +222,8 @@ class Execution:
         ``executed`` (the first state at or after the contact segment's end, once) does not.
         """
         self._last_sample = steady
+        if self._sent_stamp is None:  # no state before the trajectory: count from this one
+            self._sent_stamp = float(stamp)
         if stamp > self._stamp:  # the stamps advance (also before the start: a queue)
             self._stamp = stamp
             self._last_advance = steady
@@ -253,9 +262,12 @@ class Execution:
         if self.started and steady - self._last_advance > self.state_timeout:
             return Event("stale", f"joint state stamps stopped advancing "
                          f"{steady - self._last_advance:.2f} s ago")
-        if not self.started and steady - self._start_steady > self.start_timeout:
+        if not self.started and (steady - self._last_advance > self.start_timeout
+                                 or (self._sent_stamp is not None
+                                     and self._stamp - self._sent_stamp > self.start_timeout)):
             return Event("no_start", f"the motion did not start within {self.start_timeout} s "
-                         "(controller inactive or not receiving?)")
+                         "of the controller's time, or its joint-state stamps stood still "
+                         "that long (controller inactive or not receiving?)")
         return None
 
     @property
