@@ -212,8 +212,24 @@ def test_the_measured_arm_is_held_when_its_last_postures_agree() -> None:
     assert arm.held(0.06)
     arm.moved()
     assert not arm.held(0.06)
-    arm.update(0.5, np.array([9.0, 9.0]), 7.0)  # older than the newest: kept out
+    arm.update(5.5, np.array([9.0, 9.0]), 7.0)  # older than the newest: kept out
     assert arm.at([0.5, 5e-5], 1e-9)
+
+
+def test_a_restarted_clock_is_taken_at_its_word() -> None:
+    """A driver or simulator started again: its stamps start near 0. The old clock's newest
+    stamp and rate are forgotten (the controller's time is the new clock's), the arm is not
+    held until new states show it; a state a little older than the newest stays out."""
+    arm = MeasuredArm(held_states=3, held=1e-4, quiet=0.5)
+    for k in range(3):
+        assert not arm.update(500.0 + 0.1 * k, np.array([0.1, 0.0]), 0.1 * k)
+    assert arm.held(0.25) and arm.clock.now(0.3) == pytest.approx(500.3)
+    assert not arm.update(499.0, np.array([0.3, 0.0]), 0.3)  # 1.2 s older: late, not new
+    np.testing.assert_allclose(arm.q, [0.1, 0.0])
+    assert arm.update(0.5, np.array([0.2, 0.0]), 0.4)  # the restarted clock
+    assert arm.stamp == 0.5 and arm.clock.now(0.5) == pytest.approx(0.6)
+    np.testing.assert_allclose(arm.q, [0.2, 0.0])
+    assert not arm.held(0.45)
 
 
 # ---- the robot's time base under load ----------------------------------------------------------

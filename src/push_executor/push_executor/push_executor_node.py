@@ -172,10 +172,14 @@ class PushExecutorNode(Node):
             self.health.refuse("/joint_states", problem, "state")
             return
         steady = time.monotonic()
-        self.measured.update(stamp, q, steady, replace=self._run is None)
+        restarted = self.measured.update(stamp, q, steady, replace=self._run is None)
         self.health.count("joint_states")
+        if restarted:  # a restarted driver or simulator: the running plan's times are gone
+            self.health.log.warning("clock", f"joint-state stamps jumped back to {stamp:.3f} s: "
+                                    "the controller's clock restarted")
         if self._run is not None:
-            self._finish(self._run.on_state(stamp, q, steady))
+            self._finish(Event("restarted", "the controller's clock restarted") if restarted
+                         else self._run.on_state(stamp, q, steady))
         else:
             self._when_held(steady)
 

@@ -51,9 +51,9 @@ from numpy.typing import ArrayLike, NDArray
 from push_executor.kinematics import ArmKinematics
 from push_executor.motion import MotionPlan, MotionState, PushRefused, chain_point
 
-__all__ = ["MAX_SAMPLES", "START_MOTION", "ContactSegment", "Event", "Execution", "MeasuredArm",
-           "StampClock", "expected_positions", "segment_distance", "start_plan",
-           "tracking_error"]
+__all__ = ["CLOCK_RESTART", "MAX_SAMPLES", "START_MOTION", "ContactSegment", "Event",
+           "Execution", "MeasuredArm", "StampClock", "expected_positions", "segment_distance",
+           "start_plan", "tracking_error"]
 
 #: Joint motion (rad) that shows a trajectory started.
 START_MOTION = 1e-3
@@ -74,6 +74,8 @@ MAX_SAMPLE_GAP = 0.2
 MAX_BRACKET = 0.6
 #: Samples this long (s) before and after the contact segment are kept too.
 SAMPLE_MARGIN = 0.5
+#: A joint state stamped this long (s) before the newest one comes from a restarted clock.
+CLOCK_RESTART = 2.0
 
 
 def expected_positions(plan: MotionPlan, elapsed: float) -> NDArray[np.float64]:
@@ -379,13 +381,21 @@ class MeasuredArm:
         self._held, self._quiet = float(held), float(quiet)
 
     def update(self, stamp: float, q: NDArray[np.float64], steady: float,
-               replace: bool = False) -> None:
-        """A joint state; it becomes the newest unless older than it (``replace``: anyway)."""
+               replace: bool = False) -> bool:
+        """A joint state; it becomes the newest unless older than it (``replace``: anyway).
+        Returns whether it comes from a restarted clock (stamped more than
+        :data:`CLOCK_RESTART` s before the newest: a restarted driver or simulator, whose
+        clock starts again): the old clock's stamps and rate are then forgotten."""
+        restarted = stamp < self.stamp - CLOCK_RESTART
+        if restarted:
+            self.stamp, self.clock = -math.inf, StampClock(self.clock.window)
+            self._recent.clear()
         if stamp >= self.stamp or replace:
             self.q, self.stamp, self.steady = q, float(stamp), float(steady)
             self.problem = ""
             self._recent.append(q)
         self.clock.update(stamp, steady)
+        return restarted
 
     def moved(self) -> None:
         """The arm was sent moving: held again only once new states show it."""
