@@ -2,9 +2,10 @@
 
 A refusal that says the robot is not available pauses the episode (``robot unavailable:
 <kind>: <reason>`` on planner/status and /diagnostics, no step spent, nothing planned from new
-estimates); ``executor/status`` saying ``ready`` resumes it from an estimate stamped after that
-moment; a status of another executor session while a push is in flight counts that push lost
-at once (the restarted executor has forgotten it); the wait fails after ``robot_timeout``.
+estimates); ``executor/status`` saying ``ready`` resumes it from the newest estimate stamped
+since the wait began (none: the next one); a status of another executor session while a push
+is in flight counts that push lost at once (the restarted executor has forgotten it); the wait
+fails after ``robot_timeout``.
 """
 
 from __future__ import annotations
@@ -51,25 +52,35 @@ def test_an_unavailable_robot_pauses_the_episode_until_it_is_ready(
             "robot unavailable: disabled: executor disabled (dry run)")
         values = h.values()
         assert values["step"] == "0" and values["robot_unavailable"].startswith("disabled: ")
-        # New estimates are taken but nothing is planned while waiting.
-        h.publish_estimate((0.0, 0.0, 0.0), stamp=wall_now())
-        assert h.spin_until(lambda: h.count("estimates") >= 2)
-        assert len(h.pushes) == 1 and h.values()["state"] == "unavailable"
-        # The executor is ready again: planned from the next estimate stamped after that.
-        ready_at = wall_now()
+        # The executor is ready again, with no estimate since the wait began: nothing is
+        # planned from the one before the wait (the world may have changed meanwhile) ...
         status_pub.publish(executor_status(True, "s1"))
         assert h.spin_until(lambda: h.values().get("state") == "waiting")
-        assert len(h.pushes) == 1  # the estimate before the robot came back is not used
-        h.publish_estimate((0.0, 0.0, 0.0), stamp=max(wall_now(), ready_at) + 1.0)
+        assert len(h.pushes) == 1
+        # ... the next estimate is used.
+        h.publish_estimate((0.0, 0.0, 0.0), stamp=wall_now())
         assert h.spin_until(lambda: len(h.pushes) == 2)
         assert h.spin_until(lambda: h.values().get("step") == "1")
+        # Unavailable again: new estimates are taken but nothing is planned while waiting; the
+        # newest since the wait began is used at once when the robot is ready (a simulator
+        # publishes no frame until the arm moves).
+        h.pubs["refused"].publish(refusal_msg("/push_executor_node", h.pushes[1].header.stamp,
+                                              "no_state", "no joint state", available=False))
+        assert h.spin_until(lambda: h.values().get("state") == "unavailable")
+        n_estimates = h.count("estimates")
+        h.publish_estimate((0.0, 0.0, 0.0), stamp=wall_now())  # before the ready
+        assert h.spin_until(lambda: h.count("estimates") > n_estimates)
+        assert len(h.pushes) == 2 and h.values()["state"] == "unavailable"
+        status_pub.publish(executor_status(True, "s1"))
+        assert h.spin_until(lambda: len(h.pushes) == 3)
+        assert h.spin_until(lambda: h.values().get("step") == "1")  # the refused one given back
         # The executor restarts (a new session) with the push in flight: lost at once, and
         # planned again from a newer estimate (the arm may have been moving).
         status_pub.publish(executor_status(True, "s2"))
         assert h.spin_until(lambda: h.count("lost") == 1)
         assert h.spin_until(lambda: "executor restarted" in h.status[-1].message)
-        h.publish_estimate((0.0, 0.0, 0.0), stamp=wall_now() + 2.0)
-        assert h.spin_until(lambda: len(h.pushes) == 3)
+        h.publish_estimate((0.0, 0.0, 0.0), stamp=wall_now() + 3.0)
+        assert h.spin_until(lambda: len(h.pushes) == 4)
         assert h.spin_until(lambda: h.values().get("step") == "2")
 
 

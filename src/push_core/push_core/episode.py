@@ -68,7 +68,7 @@ Rules (docs/design/episode-engine.md):
    ``unavailable`` (:meth:`EpisodeEngine.status_text`: ``robot unavailable: <kind>: <reason>``)
    and nothing is planned, so no step is spent while waiting. :meth:`EpisodeEngine.robot_available`
    (the robot says it is ready) resumes the episode from an estimate stamped after the given
-   time (a fresh frame: the world may have changed meanwhile);
+   time (``planner_node``: when the wait began; the world may have changed meanwhile);
    :meth:`EpisodeEngine.robot_waited` fails the episode (``robot unavailable``) once the robot
    has been unavailable for ``robot_timeout`` s without an executed push since. These times
    are the caller's clock (``now``), not the estimates' stamps.

@@ -80,8 +80,8 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               "refused a push as not available (disabled for a dry run, no joint states, no "
               "controller, an impossible posture: no other push avoids it): the episode waits "
               "('robot unavailable: <kind>: <reason>', no step spent) until the executor says "
-              "on executor/status that it is ready again, then resumes from a fresh frame; it "
-              "fails with that reason after this long.", (0.1, 86400.0)),
+              "on executor/status that it is ready again, then resumes from a frame taken since "
+              "the wait began; it fails with that reason after this long.", (0.1, 86400.0)),
     ParamSpec("max_future_stamp", 10.0, "Estimates and pusher/executed stamped more than this "
               "many seconds ahead of the node's clock are refused (one far-future stamp would "
               "make every later estimate look stale), s; not applied while a sim-time clock "

@@ -264,7 +264,8 @@ class PlannerNode(Node):
             return
         note = robot.refusal_note(self._engine.steps, refusal)
         self.health.count("pushes_refused")
-        waiting = self._robot.refused(self._engine, refusal, self._steady_s())
+        waiting = self._robot.refused(self._engine, refusal, self._steady_s(),
+                                      clock_seconds(self.get_clock()))
         self.health.log.warning("push_refused", f"{note}; {waiting or robot.REPLANNING}")
         if waiting:  # rule 9: paused until the executor is ready again
             self._push_key = ""
@@ -273,8 +274,7 @@ class PlannerNode(Node):
         self._lost(note, wait=refusal.kind in MOVING_KINDS)
 
     def _on_executor_status(self, msg: DiagnosticStatus) -> None:
-        event = self._robot.status(self._engine, read_readiness(msg),
-                                   clock_seconds(self.get_clock()))
+        event = self._robot.status(self._engine, read_readiness(msg))
         if event == robot.RESTARTED:
             self.health.log.warning("executor_restart", event)
             self._lost(event, wait=True)
@@ -286,6 +286,7 @@ class PlannerNode(Node):
 
     def _on_clock_jump(self, delta: float) -> None:
         self._engine.clock_restarted()  # rule 10 of push_core.episode
+        self._robot.clock_restarted()
         self._pairing.clear()
         self._publish_status()
 

@@ -6,8 +6,11 @@
 - a refusal of the push in flight that says the robot is not available
   (:func:`push_ros.refusal.robot_unavailable`) pauses the episode
   (:meth:`push_core.episode.EpisodeEngine.robot_unavailable`): no step is spent while waiting;
-- an ``executor/status`` that says ``ready`` while the episode waits resumes it from an
-  estimate stamped after the planner's clock at that moment (a fresh frame);
+- an ``executor/status`` that says ``ready`` while the episode waits resumes it from the newest
+  estimate stamped after the wait began (the planner's clock at the refusal; any estimate of a
+  clock restarted meanwhile): a frame of the world as the wait left it. Not "after the ready":
+  a simulator publishes a frame only when the world comes to rest, and a restarted one its
+  first frame before the executor is ready again, so the episode never resumed;
 - an ``executor/status`` of another executor *session* (a restarted process) while a push is in
   flight means that push is gone with the old process: the caller counts it lost at once
   instead of waiting out ``push_timeout``.
@@ -17,6 +20,8 @@ Times: ``now`` is the node's steady clock (s; the ``robot_timeout``), ``stamp_no
 """
 
 from __future__ import annotations
+
+import math
 
 from push_core.episode import EpisodeEngine
 from push_ros.refusal import MOVING_KINDS, Readiness, Refusal, robot_unavailable
@@ -29,7 +34,8 @@ RESTARTED = ("the executor restarted during the push (a new session on executor/
              "push is gone with the old process; planning again")
 #: What the planner does after any other refusal of its push.
 REPLANNING = "counted as a step, planning again"
-RESUMED = "the robot is ready again: resuming the episode from the next fresh estimate"
+RESUMED = ("the robot is ready again: resuming the episode from the newest estimate since the "
+           "wait began")
 
 
 def refusal_note(step: int, refusal: Refusal) -> str:
@@ -59,26 +65,32 @@ class RobotLink:
         #: Whether that status said ``ready`` (None: never said).
         self.ready: bool | None = None
         self._push_session = ""
+        #: When the wait began (s, the estimates' clock; -inf: any estimate is fresh).
+        self.wait_stamp = -math.inf
 
     def push_sent(self) -> None:
         """A push went out: it is the current session's (a later session has not seen it)."""
         self._push_session = self.session
 
-    def refused(self, engine: EpisodeEngine, refusal: Refusal, now: float) -> str:
+    def refused(self, engine: EpisodeEngine, refusal: Refusal, now: float,
+                stamp_now: float | None = None) -> str:
         """The push in flight was refused: pause the episode if the refusal says the robot
-        is not available and return the status note, else ``""`` (the caller re-plans)."""
+        is not available and return the status note, else ``""`` (the caller re-plans).
+        ``stamp_now``: the estimates' clock now (None: not started)."""
         if not robot_unavailable(refusal):
             return ""
+        if engine.phase != "unavailable":  # the wait begins
+            self.wait_stamp = -math.inf if stamp_now is None else float(stamp_now)
         reason = f"{refusal.kind}: {refusal.reason}"
         engine.robot_unavailable(reason, now, moved=refusal.kind in MOVING_KINDS)
         return (f"the robot ({refusal.who}) cannot take a push; waiting for it to say it is "
                 "ready on executor/status, no step spent")
 
-    def status(self, engine: EpisodeEngine, readiness: Readiness, stamp_now: float | None
-               ) -> str:
+    def status(self, engine: EpisodeEngine, readiness: Readiness) -> str:
         """An ``executor/status`` arrived. Returns :data:`RESTARTED` (the push in flight was
         given to an executor process that is gone: count it lost), :data:`RESUMED` (the episode
-        was waiting and the robot is ready: plan from the next fresh estimate) or ``""``."""
+        was waiting and the robot is ready: plan from the newest estimate since the wait began)
+        or ``""``."""
         if readiness.ready is None:
             return ""
         self.session = readiness.session or self.session
@@ -88,6 +100,10 @@ class RobotLink:
                 self._push_session = readiness.session
             elif readiness.session != self._push_session:
                 return RESTARTED
-        if readiness.ready and stamp_now is not None and engine.robot_available(stamp_now):
+        if readiness.ready and engine.robot_available(self.wait_stamp):
             return RESUMED
         return ""
+
+    def clock_restarted(self) -> None:
+        """The estimates' clock jumped back: every estimate of the new one is after the wait."""
+        self.wait_stamp = -math.inf
