@@ -310,7 +310,8 @@ class GraphRunner:
         rec.update(graph_robot_times(t_goal, first_stamp, self.rec.push_stamps[n_push:],
                                      rec["frame_stamps"][-1] if executed else None))
         if self.robot == "arm":
-            rec["contact_line_error_mm"] = self._line_errors(executed, pushes)
+            rec["contact_line_error_mm"] = self._line_errors(executed, pushes,
+                                                             restart[0] if restart else -math.inf)
         end_true = (self._true_after(executed[-1][2], since(executed[-1], 1)) if executed
                     else pose0_true)
         from push_core.episode import end_score
@@ -349,12 +350,15 @@ class GraphRunner:
         self.wait(parked, STEP_TIMEOUT, "the arm parked after the episode (executor/status)")
 
     def _line_errors(self, executed: list[tuple[float, float, float]],
-                     pushes: list[tuple[float, np.ndarray]]) -> list[float]:
+                     pushes: list[tuple[float, np.ndarray]], since: float = -math.inf
+                     ) -> list[float]:
         """Per executed arm push: the true tool tip's largest distance from the commanded
-        contact segment (``sim/tool_tip`` vs ``planner/push``), mm (:func:`line_deviation`)."""
+        contact segment (``sim/tool_tip`` vs ``planner/push``), mm (:func:`line_deviation`).
+        Waited for from wall time ``since`` on (a simulator killed during a run never sent
+        that run's)."""
         def runs_in() -> bool:  # sim/tool_tip goes out before the run's camera frame
             return all(any(st[0] <= t0 and st[-1] >= t1 for _, st, _ in self.rec.tool_tip
-                           if len(st)) for _, t0, t1 in executed)
+                           if len(st)) for wall, t0, t1 in executed if wall >= since)
 
         self.wait(runs_in, STEP_TIMEOUT, "sim/tool_tip of every executed push")
         errors = []
