@@ -88,7 +88,7 @@ PANDA_LOWER, PANDA_UPPER = tuple(_PANDA.lower), tuple(_PANDA.upper)
 STATE_MARGIN = StateCheckConfig().state_margin
 #: The node's simulated clock, s: valid joint states are stamped at it (their age is checked).
 CLOCK = 10.0
-#: The clock while a push runs under fuzzing: ahead of every drawn joint state stamp (0-50 s).
+#: The clock while a push runs under fuzzing, s.
 MOVING_CLOCK = 60.0
 
 
@@ -156,12 +156,15 @@ def pushes(draw: Callable) -> Path:
 
 
 @st.composite
-def joint_states(draw: Callable, far: bool = True) -> JointState:
+def joint_states(draw: Callable, far: bool = True, around: float | None = None) -> JointState:
+    """Hostile joint states; stamped 0-20 s, or (``around``) within the last 1.5 s before it
+    (an older stamp would be a restarted clock, which stops a running motion at once)."""
     kind = draw(st.sampled_from(["ok", "ok", "nan", *(["far"] if far else []), "short", "long",
                                  "mismatch", "repeat", "unknown", "huge", "stamp", "empty"]))
     rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
     q = np.array(PANDA_PARK) + rng.normal(0.0, draw(st.sampled_from([1e-3] * 20 + [0.2])), 7)
-    msg = valid_state(draw(st.floats(0.0, 20.0)), q)
+    msg = valid_state(draw(st.floats(0.0, 20.0) if around is None
+                           else st.floats(around - 1.5, around)), q)
     if kind == "nan":
         msg.position[int(rng.integers(7))] = draw(st.sampled_from(SPECIAL[:3]))
     elif kind == "far":  # a glitched encoder: far outside the joint's limits
@@ -180,8 +183,10 @@ def joint_states(draw: Callable, far: bool = True) -> JointState:
         n = int(rng.choice([1001, 100_000]))
         msg.name = [f"j{i}" for i in range(n)]
         msg.position = np.zeros(n).tolist()
-    elif kind == "stamp":
-        msg.header.stamp = draw(STAMP)
+    elif kind == "stamp":  # while moving mostly late, sometimes a restarted clock or far ahead
+        anywhere = around is None or draw(st.integers(0, 9)) == 0
+        msg.header.stamp = draw(STAMP) if anywhere else stamp_from_seconds(
+            draw(st.floats(around - 1.5, around)))
     elif kind == "empty":
         msg.name, msg.position = [], []
     msg.velocity = draw(st.sampled_from([[], [math.nan] * 3, [0.0] * 8]))
@@ -239,10 +244,10 @@ def test_fuzz_joint_states(probe: Probe) -> None:
 
 def test_fuzz_joint_states_while_moving(probe: Probe) -> None:
     """A push is running (enabled, a controller 'matched'): hostile joint states may stop it
-    (deviation, a far-future stamp) but never raise; samples stay bounded. The clock is ahead
-    of the drawn stamps (0-50 s), so most states are older than the motion's start (tracked
-    against its start posture, as a delayed stream would be); impossible postures are never
-    tracked (they are not a posture the arm can be in)."""
+    (deviation, a far-future stamp, a restarted clock) but never raise; samples stay bounded.
+    Most states are stamped up to 1.5 s before the motion's start (tracked against its start
+    posture, as a delayed stream would be), a few anywhere (the ``stamp`` case: a restarted
+    clock); impossible postures are never tracked (they are not a posture the arm can be in)."""
     node = probe.node
     node._enabled = True
     node._pub_traj.get_subscription_count = lambda: 1  # the captured publisher is "matched"
@@ -251,7 +256,7 @@ def test_fuzz_joint_states_while_moving(probe: Probe) -> None:
     stops = 0
 
     @settings(FUZZ, max_examples=N_FUZZ)
-    @given(joint_states())
+    @given(joint_states(around=MOVING_CLOCK))
     def run(msg: JointState) -> None:
         nonlocal stops
         if node._run is None:
