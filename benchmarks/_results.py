@@ -56,7 +56,7 @@ GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("Shape classes and Push-T", ("eval_shapes", "eval_shapes_variant", "eval_pusht")),
     ("The ROS graph, the CLI and recording", ("graph", "demo_repeat", "faults", "cli", "record",
                                               "view_relay")),
-    ("Pushing with an arm", ("bench_arm_reach", "bench_arm_perception", "arm")),
+    ("Pushing with an arm", ("bench_arm_reach", "bench_arm_perception", "arm", "faults_arm")),
     ("The test suite and refactors", ("test_tiers", "same_trials")),
 )
 OTHER_GROUP = "Other results"

@@ -12,14 +12,25 @@ scenario-specific counts (goal switches noted by the planner, goal left after a 
 bridge's dropped / delayed / reordered frames and refused pushes, re-anchored perceptions).
 Scenarios are described in :mod:`pushbot.runner.faults`.
 
-Writes ``docs/results/faults.md`` (``--no-write`` to only print). The
-machine is shared (2 cores): the load average is recorded with the figures.
+With ``--robot arm`` the graph is the arm's (``push_executor_node`` and the simulated Panda)
+and the scenarios are :data:`pushbot.runner.arm_faults.ARM_SCENARIOS` (with ``none``): the
+executor killed mid-push and restarted 3 s later, the simulated arm (``sim_bridge_node``)
+likewise, a 6 s hang of the simulator (SIGSTOP, SIGCONT), another client commanding the arm for
+5 s, and the dry run. Judged by ground truth like the others; per scenario also the time from
+the process being back (or the hang ending) to the next push (target <= 10 s) and how long the
+planner waited for the robot; the dry run passes when it ends waiting (``robot unavailable:
+disabled``) with 0 steps spent and a planned path published.
+
+Writes ``docs/results/faults.md`` (``docs/results/faults_arm.md`` with ``--robot arm``;
+``--no-write`` to only print). The machine is shared (2 cores): the load average is recorded
+with the figures.
 
 Usage::
 
     .venv/bin/python benchmarks/bench_faults.py [--runs N] [--frame-drop-runs N]
                                                 [--objects a,b] [--scenarios a,b,...]
-                                                [--json FILE] [--no-write]
+                                                [--robot pusher|arm] [--json FILE]
+                                                [--no-write]
 """
 
 from __future__ import annotations
@@ -40,6 +51,25 @@ from _results import format_section, update_section  # noqa: E402
 REPO = Path(__file__).resolve().parents[1]
 
 
+ARM_SUMMARY = ("Fault scenarios of the arm graph: executor and simulated-arm kills, a driver "
+               "hang, a foreign trajectory publisher and the dry run.")
+ARM_INTRO = " ".join("""Fault scenarios of the arm graph (five node processes over DDS:
+push_executor_node drives the simulated Panda behind the controller's interface,
+`pushbot.runner.arm_faults`): {objects}, mixed task (10 cm, 0.35 rad), random COM, ana, k = 3,
+perception + EKF, trial indices 0..n-1. Success = the true end pose within 0.75 cm / 5 deg of
+the true initial pose + the goal offset, 95 % Wilson interval. Mid-push scenarios act 1 s after
+the first push that follows the episode's first executed push: `kill-executor` (SIGKILL of
+push_executor_node, started again 3 s later), `kill-arm-sim` (SIGKILL of sim_bridge_node, started
+again 3 s later with the scene and the object at its true pose; its clock starts again near 0),
+`arm-hang` (sim_bridge_node stopped with SIGSTOP for 6 s, then SIGCONT), `foreign-trajectory`
+(another client sends a one-point trajectory to a posture with the tool tip 1.5 cm above the
+table every 0.2 s for 5 s on the controller topic); `dry-run`: the executor disabled before the
+goal, which must end with the planner waiting (`robot unavailable: disabled`), 0 steps spent and
+a planned path published. "back -> next push": wall time from the process being started again
+(or the hang ending, or the foreign commands stopping) to the planner's next push (target
+<= 10 s); "waited": wall time the planner said `robot unavailable`.""".split())
+
+
 def wilson(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
     """95 % Wilson score interval of a binomial proportion."""
     p = successes / n
@@ -48,11 +78,11 @@ def wilson(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
     return max(0.0, centre - half), min(1.0, centre + half)
 
 
-def run_scenario(graph, name: str, n: int, obj: str) -> list[dict]:
-    """``n`` trials of scenario ``name`` with object ``obj`` on ``graph``; one record each."""
+def run_scenario(graph, name: str, n: int, obj: str, make_fault) -> list[dict]:
+    """``n`` trials of scenario ``name`` (``make_fault(name)``) with object ``obj`` on
+    ``graph``; one record each."""
     from push_core.episode import new_record
     from pushbot.runner.episode import GraphError
-    from pushbot.runner.faults import make_fault
     from pushbot.runner.protocol import Trial
 
     records = []
@@ -81,7 +111,9 @@ def run_scenario(graph, name: str, n: int, obj: str) -> list[dict]:
               + (f"end {1e3 * err:.1f} mm / {math.degrees(rec['end_error_theta']):.1f} deg, "
                  if err is not None else "")
               + f"pushes {rec.get('pushes_sent')}, injected {rec.get('fault_injected')}, "
-              f"{rec['wall_s']:.0f} s", file=sys.stderr, flush=True)
+              + (f"recovery {rec['recovery_s']:.1f} s, " if rec.get("recovery_s") is not None
+                 else "")
+              + f"{rec['wall_s']:.0f} s", file=sys.stderr, flush=True)
     return records
 
 
@@ -130,7 +162,20 @@ def summary_row(name: str, obj: str, records: list[dict]) -> str:
     if name == "knock":
         extra.append(f"left the goal seen {sum(r.get('left_goal', 0) >= 1 for r in records)}"
                      f"/{n}")
-    ends = ", ".join(f"{k} {v}" for k, v in sorted(reasons.items()))
+    if name == "dry-run":
+        ok_dry = sum(r["reason"].startswith("robot unavailable: disabled") and r["steps"] == 0
+                     and r.get("executor_paths", 0) >= 1 for r in records)
+        extra.append(f"ended waiting with 0 steps and a planned path {ok_dry}/{n}")
+    recoveries = [r["recovery_s"] for r in records if r.get("recovery_s") is not None]
+    if recoveries:
+        extra.append(f"back -> next push {statistics.median(recoveries):.1f} s median, max "
+                     f"{max(recoveries):.1f} s ({sum(v <= 10.0 for v in recoveries)}/"
+                     f"{len(recoveries)} <= 10 s)")
+    waits = [r["unavailable_s"] for r in records if r.get("unavailable_s")]
+    if waits and name != "dry-run":  # the dry run ends as the wait begins
+        extra.append(f"planner waited for the robot {statistics.median(waits):.1f} s median "
+                     f"(max {max(waits):.1f} s) in {len(waits)}/{n}")
+    ends = ", ".join(f"{k[:80]} {v}" for k, v in sorted(reasons.items()))
     return (f"| {name} | {obj} | {n} | {injected}/{n} | {ok}/{n} = {ok / n:.2f} "
             f"[{lo:.2f}, {hi:.2f}] | {err} | {push_text} | "
             f"{'; '.join([ends, *extra])} |")
@@ -140,42 +185,52 @@ def main() -> int:
     # Its own DDS domain (outside the test sessions' 1-100) unless the caller chose one.
     os.environ.setdefault("ROS_DOMAIN_ID", str(200 + os.getpid() % 30))
     from pushbot.ros2cli.discovery import sigterm_as_keyboard_interrupt
+    from pushbot.runner.arm_faults import ARM_SCENARIOS, make_arm_fault
     from pushbot.runner.episode import GraphRunner
-    from pushbot.runner.faults import SCENARIOS
+    from pushbot.runner.faults import SCENARIOS, make_fault
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=3, help="runs per scenario (default 3)")
     parser.add_argument("--frame-drop-runs", type=int, default=20,
                         help="runs of the frame-drop scenario (default 20)")
-    parser.add_argument("--scenarios", default=",".join(SCENARIOS),
-                        help="comma-separated scenarios (default: all)")
+    parser.add_argument("--robot", default="pusher", choices=("pusher", "arm"),
+                        help="the graph: pusher (the simulator's finger) or arm (the executor "
+                             "and the simulated Panda, with the arm scenarios)")
+    parser.add_argument("--scenarios", default="",
+                        help="comma-separated scenarios (default: all of the robot's)")
     parser.add_argument("--objects", default="butter",
                         help="comma-separated objects, each runs every scenario (default butter)")
     parser.add_argument("--json", type=Path, help="also write every record to this file")
     parser.add_argument("--no-write", action="store_true", help="do not write the result page")
     args = parser.parse_args()
-    names = [s for s in args.scenarios.split(",") if s]
-    unknown = [s for s in names if s not in SCENARIOS]
+    arm = args.robot == "arm"
+    known = {"none": SCENARIOS["none"], **ARM_SCENARIOS} if arm else SCENARIOS
+    names = [s for s in args.scenarios.split(",") if s] or list(known)
+    unknown = [s for s in names if s not in known]
     if unknown:
-        parser.error(f"unknown scenarios {unknown}; known: {', '.join(SCENARIOS)}")
+        parser.error(f"unknown scenarios {unknown}; known: {', '.join(known)}")
+
+    def factory(name: str):
+        return make_arm_fault(name) if arm and name != "none" else make_fault(name)
     load_before = os.getloadavg()
     t0 = time.monotonic()
     results: dict[tuple[str, str], list[dict]] = {}
     objects = [o for o in args.objects.split(",") if o]
     with tempfile.TemporaryDirectory(prefix="bench_faults_") as tmp, \
-            sigterm_as_keyboard_interrupt(), GraphRunner(log_dir=Path(tmp)) as graph:
+            sigterm_as_keyboard_interrupt(), GraphRunner(log_dir=Path(tmp),
+                                                         robot=args.robot) as graph:
         for obj in objects:
             for name in names:
                 n = args.frame_drop_runs if name == "frame-drop" else args.runs
-                results[name, obj] = run_scenario(graph, name, n, obj)
+                results[name, obj] = run_scenario(graph, name, n, obj, factory)
     wall = time.monotonic() - t0
     load_after = os.getloadavg()
     if args.json:
         args.json.write_text(json.dumps({f"{k[0]} {k[1]}": v for k, v in results.items()},
                                         indent=1, default=str))
     rows = [summary_row(name, obj, recs) for (name, obj), recs in results.items()]
-    body = [
-        " ".join(f"""Fault scenarios through the real graph (four node processes over DDS,
+    intro = ARM_INTRO.format(objects=", ".join(objects)) if arm else " ".join(f"""Fault
+        scenarios through the real graph (four node processes over DDS,
         `pushbot.runner.faults`): {', '.join(objects)}, mixed task (10 cm, 0.35 rad), random COM,
         ana, k = 3, perception + EKF, trial indices 0..n-1 (seeded scenes, goals, planner seeds
         and fault draws). Success = the true end pose within 0.75 cm / 5 deg of the true
@@ -191,7 +246,9 @@ def main() -> int:
         include it), `second-goal` (another, volatile
         client sends a goal shifted by (-40, 30) mm and -0.2 rad after the first push). Event
         counts are the bridge's and the perception's /diagnostics counters at the end of each
-        episode (1 Hz: approximate).""".split()),
+        episode (1 Hz: approximate).""".split())
+    body = [
+        intro,
         "",
         "| scenario | object | runs | fault injected | success (ground truth) | median end "
         "error (max) | pushes sent, median (range) | ends |",
@@ -204,9 +261,13 @@ def main() -> int:
     print("\n".join(body))
     if not args.no_write:
         command = ("python benchmarks/bench_faults.py " + " ".join(sys.argv[1:])).strip()
-        update_section("faults", format_section(
-            "Fault scenarios in graph mode (`faults`)", command, "\n".join(body)),
-            data=f"every record in `{args.json}` (no render path)" if args.json else None)
+        section = "faults_arm" if arm else "faults"
+        title = ("Fault scenarios of the arm graph (`faults_arm`)" if arm
+                 else "Fault scenarios in graph mode (`faults`)")
+        update_section(section, format_section(title, command, "\n".join(body)),
+                       summary=ARM_SUMMARY if arm else None,
+                       data=f"every record in `{args.json}` (no render path)" if args.json
+                       else None)
     return 0
 
 

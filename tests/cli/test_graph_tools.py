@@ -277,6 +277,19 @@ def test_topic_echo_into_a_closed_pipe_ends_without_traceback(
     assert b"Traceback" not in err and b"BrokenPipeError" not in err, err
 
 
+def test_a_second_up_on_the_domain_is_refused_naming_a_free_one(graph: Graph) -> None:
+    """The first ``pushbot up`` holds this domain: a second one starts no node, says so in one
+    line with a domain to use, exit 1."""
+    result = pushbot("up", "--object", "rect1", timeout=60)
+    assert result.returncode == 1, result.stdout + result.stderr
+    domain = os.environ["ROS_DOMAIN_ID"]
+    assert result.stderr.startswith(f"pushbot up: a pushbot graph already runs on "
+                                    f"ROS_DOMAIN_ID={domain} (held by pushbot up, pid ")
+    assert result.stderr.count("\n") == 1 and "[up] started" not in result.stdout
+    match = re.search(r"e\.g\. ROS_DOMAIN_ID=(\d+) pushbot up", result.stderr)
+    assert match and match.group(1) != domain, result.stderr
+
+
 def test_up_reports_a_killed_node_and_stops_the_others(
         graph: Graph) -> None:
     proc, output = graph

@@ -44,6 +44,9 @@ def test_fill_convex_counts_the_pixel_centres_inside() -> None:
     mask = fill_convex([[1.5, 1.5], [5.5, 1.5], [5.5, 3.5], [1.5, 3.5]], 10, 8)
     assert mask.sum() == 4 * 2 and mask[2:4, 2:6].all()
     assert not fill_convex([[0, 0], [1, 1]], 5, 5).any()  # fewer than 3 vertices
+    # vertices beyond the integer range: the box is clipped before the cast, not wrapped
+    huge = fill_convex([[-1e19, -1e19], [1e19, -1e19], [0.0, 1e19]], 10, 8)
+    assert huge[4:, 3:7].all()
 
 
 def test_projection_and_silhouette_of_a_square() -> None:
@@ -56,6 +59,11 @@ def test_projection_and_silhouette_of_a_square() -> None:
     # a prism 0.5 m tall seen from 1 m above: its top is twice as large
     tall = silhouette(cam, SQUARE * 5, 0.5)
     assert tall.sum() == pytest.approx(41 * 41, abs=2 * 41)
+    # a camera inside the prism, or a corner beside the camera's plane: all of the image
+    assert silhouette(cam, SQUARE * 5, 1.5).all()
+    beside = CameraView(cam.camera_matrix, cam.width, cam.height,
+                        np.array([[1.0, 0, 0, 0], [0, 0, 1, 0.3], [0, -1, 0, 0], [0, 0, 0, 1]]))
+    assert silhouette(beside, SQUARE * 5 + [0.0, 0.2], 0.0).all()
     half = cam.scaled(0.5)
     assert (half.width, half.height) == (50, 50)
     np.testing.assert_allclose(half.project([[0.1, 0.2, 0.0]])[0], [[29.75, 14.75]])

@@ -14,6 +14,8 @@ import pytest
 from push_executor.kinematics import ArmKinematics, ToolSpec
 from push_executor.motion import (
     CLEAR,
+    CLEAR_EXTRA,
+    CLEAR_START_MATCH,
     LIFT_EXTRA,
     PARK,
     MotionConfig,
@@ -338,14 +340,90 @@ def test_a_transit_that_dips_rises_first(arm: ArmKinematics) -> None:
     assert_within_limits(arm, plan)
 
 
-def test_transit_clearance(arm: ArmKinematics) -> None:
-    """Low beside the workspace (no clear stage: the tip is not over it), the joint-space
-    transit would enter the workspace below the approach height: refused."""
+def test_a_low_start_beside_the_workspace_rises_first(arm: ArmKinematics) -> None:
+    """Low beside the workspace (outside its band: no clear stage at first) the joint-space
+    transit would enter the workspace below the approach height; the arm rises straight up
+    first (from anywhere the tool is), then crosses: a push, not a refusal."""
     ready = np.array(PANDA_READY)
     beside = arm.solve_ik([-0.1, 0.38, 0.02], ready, ready).q
-    r = refusal(arm, push=((0.0, 0.1), (0.0, 0.095), (0.0, 0.05)), q=beside)
-    floor = CONFIG.approach_height - 0.005  # the joint-space stages' 5 mm slack
-    assert (r.kind, r.stage) == ("tool_height", "transit") and f"below {floor:.4f} m" in r.reason
+    plan = plan_push(arm, CONFIG, (0.0, 0.1), (0.0, 0.095), (0.0, 0.05), beside)
+    assert plan.stages[0].name == CLEAR
+    assert_clear_stage(arm, plan, beside, straight=True)
+
+
+def assert_clear_stage(arm: ArmKinematics, plan: MotionPlan, start: np.ndarray,
+                       straight: bool) -> None:
+    """The plan starts at the measured posture ``start`` with a clear stage that never goes
+    below the tip's start height and ends at CLEAR_EXTRA above the approach height (straight
+    up when ``straight``: the tip's x, y kept), then crosses at the approach height."""
+    np.testing.assert_allclose(plan.positions[0], start, atol=CLEAR_START_MATCH)
+    tip0 = arm.tip_pose(start)[0]
+    clear, transit = plan.stages[:2]
+    during = plan.times <= clear.t_end + 1e-9
+    assert np.min(plan.tip[during, 2]) >= tip0[2] - 1e-4
+    assert plan.tip[during][-1, 2] == pytest.approx(CONFIG.approach_height + CLEAR_EXTRA,
+                                                    abs=1e-4)
+    if straight:
+        np.testing.assert_allclose(plan.tip[during, :2], [tip0[:2]] * int(np.sum(during)),
+                                   atol=1e-4)
+    after = (plan.times >= transit.t_start) & (plan.times <= transit.t_end)
+    assert np.min(plan.tip[after, 2]) >= CONFIG.approach_height - 5e-3 - 1e-5
+    assert_within_limits(arm, plan)
+
+
+@pytest.mark.parametrize("case", ["other elbow", "tilted", "edge band"])
+def test_the_clear_stage_starts_at_the_measured_posture(arm: ArmKinematics, case: str) -> None:
+    """After a foreign motion or a stop the tool may rest low anywhere, in any posture: the
+    trajectory's first point is the measured posture (before, the clear stage's first inverse
+    kinematics solution was: up to 0.46 rad away when the arm's redundancy differed from the
+    reference posture), and the tip only rises. A tilted tool straightens in joint space; a
+    tip over the workspace's band but outside its rectangle goes straight up (not refused for
+    leaving the workspace)."""
+    ready = np.array(PANDA_READY)
+    other = ready + np.array([-0.4, 0.0, 0.8, 0.0, 0.0, 0.0, 0.0])
+    if case == "other elbow":
+        q = arm.solve_ik([0.05, 0.05, 0.012], other, other, posture_gain=1.0,
+                         posture_tolerance=1e-8).q
+        assert np.max(np.abs(q - arm.solve_ik([0.05, 0.05, 0.012], ready, ready).q)) > 0.1
+    elif case == "tilted":
+        q = arm.solve_ik([0.05, 0.0, 0.02], ready, ready).q + np.array([0.0] * 5 + [0.2, 0.0])
+    else:
+        y_max = CONFIG.workspace[3]
+        q = arm.solve_ik([0.0, y_max + 0.02, 0.012], ready, ready).q
+    plan = plan_push(arm, CONFIG, *PUSH, q)
+    assert plan.stages[0].name == CLEAR
+    assert_clear_stage(arm, plan, q, straight=case != "tilted")
+
+
+def test_a_clear_stage_that_cannot_be_planned_is_refused_at_it(arm: ArmKinematics) -> None:
+    """Where the arm cannot rise from (the clear height out of reach), the push is refused at
+    the clear stage: the node turns that into "cannot leave its posture" (state_check)."""
+    ready = np.array(PANDA_READY)
+    low = arm.solve_ik([0.0, 0.0, 0.01], ready, ready).q
+    config = dataclasses.replace(CONFIG, approach_height=1.5)
+    with pytest.raises(PushRefused) as info:
+        plan_push(arm, config, *PUSH, low)
+    assert info.value.stage == CLEAR
+
+
+def test_a_push_chained_into_a_low_park_takes_over_above_the_table(arm: ArmKinematics
+                                                                   ) -> None:
+    """A moving start: a push chained into a park that began low (clear, park) takes over
+    after the clear stage, with the tool above the approach height, and stays above it until
+    its descend."""
+    ready = np.array(PANDA_READY)
+    low = arm.solve_ik([0.0, -0.2, 0.01], ready, ready).q
+    park = plan_park(arm, CONFIG, low)
+    assert tuple(s.name for s in park.stages) == (CLEAR, PARK)
+    take_over = chain_point(park, 0.0)
+    assert take_over >= park.stages[0].t_end - 1e-9
+    start = park.state_at(take_over)
+    assert arm.tip_pose(start.q)[0][2] >= CONFIG.approach_height
+    plan = plan_push(arm, CONFIG, *PUSH, start, lead_in=park, lead_from=0.0)
+    descend = next(s for s in plan.stages if s.name == "descend")
+    lead_in = plan.stages[0]  # the park's own points up to the take-over
+    before = (plan.times >= lead_in.t_end - 1e-9) & (plan.times <= descend.t_start)
+    assert np.min(plan.tip[before, 2]) >= CONFIG.approach_height - 5e-3 - 1e-5
 
 
 def test_singular(arm: ArmKinematics) -> None:

@@ -212,5 +212,129 @@ def test_the_measured_arm_is_held_when_its_last_postures_agree() -> None:
     assert arm.held(0.06)
     arm.moved()
     assert not arm.held(0.06)
-    arm.update(0.5, np.array([9.0, 9.0]), 7.0)  # older than the newest: kept out
+    arm.update(5.5, np.array([9.0, 9.0]), 7.0)  # older than the newest: kept out
     assert arm.at([0.5, 5e-5], 1e-9)
+
+
+def test_a_restarted_clock_is_taken_at_its_word() -> None:
+    """A driver or simulator started again: its stamps start near 0. The old clock's newest
+    stamp and rate are forgotten (the controller's time is the new clock's), the arm is not
+    held until new states show it; a state a little older than the newest stays out."""
+    arm = MeasuredArm(held_states=3, held=1e-4, quiet=0.5)
+    for k in range(3):
+        assert not arm.update(500.0 + 0.1 * k, np.array([0.1, 0.0]), 0.1 * k)
+    assert arm.held(0.25) and arm.clock.now(0.3) == pytest.approx(500.3)
+    assert not arm.update(499.0, np.array([0.3, 0.0]), 0.3)  # 1.2 s older: late, not new
+    np.testing.assert_allclose(arm.q, [0.1, 0.0])
+    assert arm.update(0.5, np.array([0.2, 0.0]), 0.4)  # the restarted clock
+    assert arm.stamp == 0.5 and arm.clock.now(0.5) == pytest.approx(0.6)
+    np.testing.assert_allclose(arm.q, [0.2, 0.0])
+    assert not arm.held(0.45)
+
+
+# ---- the robot's time base under load ----------------------------------------------------------
+def load_plan() -> MotionPlan:
+    """Joint 1 from 0 to 1.5 rad at 1 rad/s from plan time 0.05 s (the start delay) to 1.55 s;
+    the contact segment 0.3-1.3 s."""
+    times = np.array([0.05, 0.55, 1.05, 1.55])
+    q = np.column_stack([[0.0, 0.5, 1.0, 1.5], [0.5] * 4])
+    qd = np.column_stack([[1.0] * 4, [0.0] * 4])
+    return MotionPlan(joint_names=("j1", "j2"), times=times, positions=q, velocities=qd,
+                      accelerations=np.zeros_like(q), tip=np.zeros((4, 3)),
+                      stages=(StageSpan("push", 0.05, 1.55),), contact_start=0.3,
+                      contact_end=1.3, line=np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]))
+
+
+def run_under_load(rates: list[tuple[float, float]], *, seed: int = 0,
+                   stall: tuple[float, float] = (4.3, 4.6),
+                   lost: tuple[float, float] = (0.2, 0.45), follows: bool = True,
+                   frozen: bool = False) -> list[str]:
+    """One motion of :func:`load_plan` through a simulated controller and a late, bursty
+    joint-state stream; the executor's side as the node does it (the trajectory's start from
+    StampClock, Execution fed every delivered state, its timer every 50 ms). Returns the
+    events' kinds (``executed`` reports the contact segment; ``no contact sample`` when that
+    fails, which the node answers with a fault).
+
+    ``rates``: (wall s from which, the controller's clock rate against the wall clock), the
+    first from 0; the trajectory is sent at wall 0.5 s. The controller holds until the
+    trajectory's stamp, then follows it (``follows``; else the arm stays put); ``frozen``: its
+    clock stops at the send (its states keep coming, 10 a second, with that stamp). Joint
+    states every 0.02 s of the controller's time, delivered 0-40 ms late (seeded), 10 % lost,
+    those of the wall interval ``stall`` all at its end (a reader that fell behind), none of
+    plan times ``lost`` (around the contact start)."""
+    rng = np.random.default_rng(seed)
+    plan, send = load_plan(), 0.5
+
+    def clock_at(w: float) -> float:
+        t, w0, rate = 100.0, 0.0, rates[0][1]
+        for start, r in rates[1:]:
+            if w <= start:
+                break
+            t, w0, rate = t + (start - w0) * rate, start, r
+        return t + (w - w0) * rate
+
+    deliveries, stamp_pub, wall_pub, delivered = [], -math.inf, -math.inf, 0.0
+    for w in np.arange(0.0, 40.0, 1e-3):
+        t = clock_at(min(w, send) if frozen else w)
+        if not (t >= stamp_pub + 0.02 - 1e-9 or (frozen and w >= wall_pub + 0.1)):
+            continue
+        stamp_pub, wall_pub = t, w
+        delivery = w + rng.uniform(0.0, 0.04)
+        if stall[0] <= delivery < stall[1]:
+            delivery = stall[1]
+        delivered = max(delivered, delivery)  # reliable: in order
+        if rng.random() >= 0.1:
+            deliveries.append((delivered, t))
+    clock, run, events = StampClock(), None, []
+    timers = [(w, None) for w in np.arange(0.0, 40.0, 0.05)]
+    for w, stamp in sorted(deliveries + timers, key=lambda e: e[0]):
+        if run is None and w >= send:  # the node sends the trajectory
+            newest = max((s for d, s in deliveries if d < send), default=-math.inf)
+            t0 = clock.now(send) + 0.05
+            run = Execution(plan, t0, send, newest, tracking_tolerance=0.05, state_timeout=1.0,
+                            start_timeout=1.0, time_window=0.3)
+        event = None
+        if stamp is None:
+            event = run.on_timer(w) if run is not None else None
+        else:
+            clock.update(stamp, w)
+            elapsed = stamp - t0 if run is not None else -math.inf
+            if run is not None and not lost[0] <= elapsed <= lost[1]:
+                moving = follows and elapsed >= 0.0  # held until the stamp, then follows
+                q = plan.positions_at([elapsed])[0] if moving else plan.positions[0]
+                event = run.on_state(stamp, q, w)
+        if event is not None:
+            events.append(event.kind)
+            if event.kind != "executed":
+                break
+            try:
+                run.report(ArmKinematics(PLANAR, "base", ToolSpec("flange", 0.0, 0.1)))
+            except ValueError:  # the node answers the push with a fault
+                events.append("no contact sample")
+                break
+    return events
+
+
+#: The controller's clock: at rest at the wall rate, then starved of CPU (a twentieth of real
+#: time: the trajectory's start is reached 1 s of wall time after the send, the start timeout),
+#: then at 5x real time (the simulator catching up).
+LOADED = [(0.0, 1.0), (0.5, 0.05), (2.5, 5.0)]
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_cpu_load_never_reads_as_a_robot_fault(seed: int) -> None:
+    """The failures of a loaded machine -- a deviation in the transit, ``no_start``, no joint
+    state near the contact start -- are not raised when the controller's clock is slow, the
+    joint states arrive late and in bursts and some are lost: the windows are judged on the
+    stamps. (The start watchdog on the wall clock alone said no_start here.)"""
+    assert run_under_load(LOADED, seed=seed) == ["executed", "done"]
+
+
+def test_real_faults_under_the_same_load_still_stop_the_arm() -> None:
+    """A controller that does not move (its clock running), a clock that stands still, joint
+    states lost over more than MAX_BRACKET around the contact start: still faults."""
+    assert run_under_load(LOADED, follows=False) == ["deviation"]
+    assert run_under_load(LOADED, frozen=True) == ["no_start"]
+    fast = [(0.0, 1.0), (0.5, 5.0)]
+    assert run_under_load(fast) == ["executed", "done"]
+    assert run_under_load(fast, lost=(-0.1, 0.6)) == ["executed", "no contact sample"]

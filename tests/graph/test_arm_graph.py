@@ -179,3 +179,35 @@ def _reset_when_idle(graph: GraphRunner, timeout: float = 60.0) -> None:
             if "busy" not in str(exc) or time.monotonic() > deadline:
                 raise
         time.sleep(0.5)
+
+
+def test_a_dry_run_episode_ends_waiting_with_no_step_spent(graph: GraphRunner) -> None:
+    """The executor disabled: the planner's push is planned (executor/path) and refused as
+    disabled, the episode waits for the robot ('robot unavailable: disabled: ...') with no step
+    spent; the graph runner's record and ``pushbot goal --wait`` (exit 3) say so."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from pushbot.runner.arm_faults import DryRun
+
+    trial = Trial(object="rect1", task="mixed", method="ana", k=3, state="filter",
+                  com="centre", index=1, seed=0)
+    rec = graph.run(trial, DryRun())
+    assert rec["fault"] == "dry-run" and rec["steps"] == 0, rec
+    assert rec["reason"].startswith("robot unavailable: disabled: "), rec["reason"]
+    assert rec["executor_paths"] >= 1 and not rec["success"]
+    client = graph._client()
+    client.executor_enable(False)
+    try:
+        exe = Path(sys.executable).parent / "pushbot"
+        result = subprocess.run([str(exe), "goal", "0.03", "0.0", "0.0", "--wait", "--timeout",
+                                 "120"], capture_output=True, text=True, timeout=180,
+                                env=dict(os.environ), stdin=subprocess.DEVNULL)
+        assert result.returncode == 3, result.stdout + result.stderr
+        assert result.stderr.startswith("pushbot goal: dry run: the executor is disabled")
+        assert "robot unavailable: disabled" in result.stdout
+    finally:
+        graph.reset("planner_node")
+        client.executor_enable(True)

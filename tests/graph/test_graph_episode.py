@@ -31,10 +31,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pushbot.runner.episode import GraphRunner, check_trial, run_graph_trials
+from pushbot.runner.episode import GraphRunner, run_graph_trials
 from pushbot.runner.faults import KillRestart, Knock
 from pushbot.runner.graph_record import same_goal
-from pushbot.runner.protocol import Trial
+from pushbot.runner.protocol import Trial, check_graph_trial
 
 pytestmark = [pytest.mark.ros, pytest.mark.graph, pytest.mark.slow]
 
@@ -198,7 +198,7 @@ def test_an_object_knocked_after_the_goal_is_pushed_back(graph: GraphRunner) -> 
 
 def test_trials_the_graph_cannot_run_are_refused() -> None:
     with pytest.raises(ValueError, match="state must be 'filter'"):
-        check_trial(Trial(object="butter", state="gt"))
+        check_graph_trial(Trial(object="butter", state="gt"))
     with pytest.raises(ValueError, match="Push-Net"):
         run_graph_trials([Trial(object="butter", state="filter", method="pushnet")],
                          progress=False)

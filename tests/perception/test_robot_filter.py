@@ -81,6 +81,22 @@ def test_the_joint_history_is_bounded_and_bad_states_are_refused() -> None:
         buf.add(1.0, ["a"], [0.0, 1.0])
 
 
+def test_a_restarted_clock_replaces_the_joint_history() -> None:
+    """A restarted simulator's stamps start near 0: a full history of the old clock must not
+    keep them out (they were inserted first and dropped as the oldest, and every frame of the
+    new clock was refused for 220 s of stamps to the nearest joint state); a state a little
+    older than the newest is kept."""
+    buf = JointStateBuffer()
+    for i in range(JOINT_HISTORY):
+        buf.add(200.0 + 0.01 * i, ["a"], [1.0])
+    buf.add(209.0, ["a"], [1.0])  # 1 s older than the newest: late, kept
+    assert len(buf) == JOINT_HISTORY
+    buf.add(0.6, ["a"], [2.0])
+    assert len(buf) == 1
+    names, q, at = buf.at(0.6, 0.05)
+    assert names == ("a",) and q[0] == 2.0 and at == 0.6
+
+
 def test_no_model_no_state_or_a_stale_state_refuses_the_frame() -> None:
     filt = RobotFilter(CFG)
     with pytest.raises(InputError) as info:

@@ -289,7 +289,7 @@ class Harness:
         return self.reset_callback(Trigger.Request(), Trigger.Response())
 
     def state(self) -> tuple:
-        ekf = self.node.filter
+        ekf = self.node._ekf
         if ekf is None:
             return (None,)
         x, p, initialized, *_ = ekf.snapshot()
@@ -312,9 +312,9 @@ class Harness:
         truth = np.array([0.0, 0.0, 0.0, 0.004, -0.006, 0.03, 0.3])
         reference = PushEKF(SQUARE.astype(np.float32), SQUARE_NORMALS.astype(np.float32))
         observed = predict_push(truth, reference.outline, start, end).state[:3]
-        pushes = self.node.counts["pushes"]
+        pushes = self.node.health.counts["pushes"]
         self.push(start, end, t0 + 2.0, t0 + 3.25)
-        assert self.node.counts["pushes"] == pushes + 1
+        assert self.node.health.counts["pushes"] == pushes + 1
         self.observe(observed, t0 + 4.0)
         assert len(self.published) == n_before + 2
         pose = self.published[-1].pose.pose.position
@@ -324,8 +324,8 @@ class Harness:
         reference.update_pose([0.0, 0.0, 0.0])
         reference.predict_push(start, end)
         reference.update_pose(observed)
-        np.testing.assert_array_equal(self.node.filter.state, reference.state)
-        assert self.node.counts["callback_errors"] == 0
+        np.testing.assert_array_equal(self.node._ekf.state, reference.state)
+        assert self.node.health.counts["callback_errors"] == 0
 
 
 @pytest.fixture
@@ -352,11 +352,11 @@ _OWN_COUNTERS = {"refused_nan", "refused_invalid", "refused_out_of_range", "refu
 
 def _assert_rejected_or_applied(h: Harness, before_state: tuple, before: dict[str, int],
                                 applied: str) -> None:
-    after = h.node.counts
+    after = h.node.health.counts
     assert after["callback_errors"] == 0, h.node._problem
     changed = {k for k in after if after[k] != before[k]}
     if applied in changed:
-        ekf = h.node.filter
+        ekf = h.node._ekf
         assert np.all(np.isfinite(ekf.state)) and np.all(np.isfinite(ekf.covariance))
     else:  # refused: ``refused`` and exactly one refusal class moved, nothing else changed
         assert len(changed & _OWN_COUNTERS) == 1 and "refused" in changed, changed
@@ -369,7 +369,7 @@ def test_fuzz_observations(harness: Harness) -> None:
     h = harness
     h.outline()
     h.observe((0.0, 0.0, 0.0), 1.0)
-    assert h.node.filter.initialized
+    assert h.node._ekf.initialized
 
     @FUZZ
     @given(msg=observations(), reset=st.integers(0, 19))
@@ -378,12 +378,12 @@ def test_fuzz_observations(harness: Harness) -> None:
     def run(msg: PoseWithCovarianceStamped, reset: int) -> None:
         if reset == 0:
             assert h.reset().success
-        before_state, before = h.state(), h.node.counts
+        before_state, before = h.state(), h.node.health.counts
         h.callbacks["/perception/object_pose"](msg)
         _assert_rejected_or_applied(h, before_state, before, "observations")
 
     run()
-    counts = h.node.counts
+    counts = h.node.health.counts
     assert counts["refused_future"] > 0 and counts["refused_nan"] > 0
     assert counts["refused_invalid"] > 0 and counts["observations"] > 0
     # The largest stamps: 2147483647 s 999999999 ns is refused when read, and a far-future
@@ -409,7 +409,7 @@ def test_fuzz_pushes(harness: Harness) -> None:
         if reset == 0:
             assert h.reset().success
             h.observe((0.0, 0.0, 0.0), 0.0)
-        before_state, before = h.state(), h.node.counts
+        before_state, before = h.state(), h.node.health.counts
         calls = len(h.model_calls)
         h.callbacks["/pusher/executed"](msg)
         _assert_rejected_or_applied(h, before_state, before, "pushes")
@@ -422,7 +422,7 @@ def test_fuzz_pushes(harness: Harness) -> None:
         assert all(n <= h.node.params.config.max_substeps for n in h.model_calls[calls:])
 
     run()
-    counts = h.node.counts
+    counts = h.node.health.counts
     assert counts["refused_out_of_range"] > 0 and counts["pushes"] > 0
     assert counts["refused_invalid"] > 0 and counts["refused_nan"] > 0
     h.check_valid_episode()
@@ -435,14 +435,14 @@ def test_a_long_push_is_refused_before_any_model_step_and_the_loop_is_bounded(
     h.observe((0.0, 0.0, 0.0), 1.0)
     for length in (1e9, 1e4, 1.5):
         h.push((-0.05, 0.0), (-0.05 + length, 0.0), 2.0, 3.0)
-    assert h.model_calls == [] and h.node.counts["refused_out_of_range"] == 3
+    assert h.model_calls == [] and h.node.health.counts["refused_out_of_range"] == 3
     # A 1 m push with 0.1 mm substeps would take 10,000 model steps: bounded at max_substeps.
     h.node.set_parameters([Parameter("substep", value=1e-4),
                            Parameter("max_substeps", value=500)])
     assert h.reset().success
     h.observe((0.0, 0.0, 0.0), 1.5)  # (1.0 would repeat the previous episode's last frame)
     h.push((-0.5, 0.0), (0.5, 0.0), 2.0, 3.0)
-    assert h.node.counts["pushes"] == 1 and h.model_calls == [500]
+    assert h.node.health.counts["pushes"] == 1 and h.model_calls == [500]
     # The default never binds: 1 m at 1 cm is 100 substeps.
     assert EKFConfig().max_substeps * EKFConfig().substep >= 10 * h.node.params.max_push_length
 
@@ -457,20 +457,20 @@ def test_fuzz_outlines(harness: Harness) -> None:
     @example(msg=outline_cloud_msg(big, big_normals))
     @example(msg=outline_cloud_msg(dense, dense_normals))
     def run(msg: PointCloud2) -> None:
-        before_state, before = h.state(), h.node.counts
+        before_state, before = h.state(), h.node.health.counts
         h.callbacks["/perception/outline"](msg)
-        after = h.node.counts
+        after = h.node.health.counts
         assert after["callback_errors"] == 0, h.node._problem
         if after["outlines"] == before["outlines"]:
             assert h.state() == before_state  # rejected or the same outline again
         else:
             assert len(h.node._outline) <= node_module.OUTLINE_WORKING_POINTS
-            assert len(h.node.filter.outline.vertices) <= node_module.OUTLINE_WORKING_POINTS
+            assert len(h.node._ekf.outline.vertices) <= node_module.OUTLINE_WORKING_POINTS
         if msg.width * msg.height > MAX_OUTLINE_CLOUD_POINTS:
             assert after["outlines"] == before["outlines"]
 
     run()
-    counts = h.node.counts
+    counts = h.node.health.counts
     assert counts["refused_outline"] > N_FUZZ // 2
     # After the fuzz the node still takes valid outlines, each a new one (how many valid ones
     # the generator happened to draw depends on its derandomized seed, not on the node).
@@ -478,8 +478,8 @@ def test_fuzz_outlines(harness: Harness) -> None:
         points, normals = _circle(200)
         msg = outline_cloud_msg(points * (0.5 + 0.05 * i), normals)
         h.callbacks["/perception/outline"](msg)
-    assert h.node.counts["outlines"] == counts["outlines"] + 12
-    assert h.node.counts["callback_errors"] == 0
+    assert h.node.health.counts["outlines"] == counts["outlines"] + 12
+    assert h.node.health.counts["callback_errors"] == 0
     assert counts["decimated_outlines"] >= 1  # the 3,000-point circle
     h.check_valid_episode()
 
@@ -502,10 +502,10 @@ def test_fuzz_parameter_sets(harness: Harness) -> None:
         if reset:
             assert h.reset().success, h.node._problem
             # Applied: the node's configuration is built from the current values.
-            assert h.node.filter.config == h.node.params.config
+            assert h.node._ekf.config == h.node.params.config
             assert h.node.params == node_module.EkfNodeParams.from_values(
                 node_module.parameter_values(h.node, PARAMETERS))
-        assert h.node.counts["callback_errors"] == 0
+        assert h.node.health.counts["callback_errors"] == 0
 
     run()
     # Back to the defaults in one atomic set: one at a time, a default can be refused against
@@ -522,17 +522,17 @@ def test_a_parameter_set_takes_effect_at_the_next_reset(harness: Harness) -> Non
     h.observe((0.0, 0.0, 0.0), 1.0)
     [result] = h.node.set_parameters([Parameter("gate_probability", value=1.0)])
     assert result.successful
-    assert h.node.filter.config.gate_probability == pytest.approx(0.9999)  # until the reset
+    assert h.node._ekf.config.gate_probability == pytest.approx(0.9999)  # until the reset
     response = h.reset()
     assert response.success and "gate_probability=1.0" in response.message
-    assert h.node.filter.config.gate_threshold == math.inf
+    assert h.node._ekf.config.gate_threshold == math.inf
     h.observe((0.0, 0.0, 0.0), 2.0)
     h.observe((0.12, 0.05, 1.0), 3.0)  # knocked: with gating off it is fused, not gated
-    assert h.node.counts["gated"] == 0 and h.node.counts["observations"] == 3
+    assert h.node.health.counts["gated"] == 0 and h.node.health.counts["observations"] == 3
     # Out of range, or an invalid combination: refused at set time with the reason.
     [bad] = h.node.set_parameters([Parameter("initial.m", value=1.5)])  # > limits.m_max
     assert not bad.successful and "m_init" in bad.reason
-    assert h.reset().success and h.node.filter.config.m_init == pytest.approx(0.3)
+    assert h.reset().success and h.node._ekf.config.m_init == pytest.approx(0.3)
 
 
 def test_stamps_cannot_wedge_the_node_and_reset_clears_them(harness: Harness) -> None:
@@ -542,41 +542,48 @@ def test_stamps_cannot_wedge_the_node_and_reset_clears_them(harness: Harness) ->
     msg = pose_with_covariance_msg((0.0, 0.0, 0.0), np.zeros((3, 3)),
                                    Time(sec=2147483646, nanosec=0))
     h.callbacks["/perception/object_pose"](msg)
-    assert h.node.counts["refused_future"] == 1
+    assert h.node.health.counts["refused_future"] == 1
     msg.header.stamp = Time(sec=2147483647, nanosec=999_999_999)
     h.callbacks["/perception/object_pose"](msg)
-    assert h.node.counts["refused_invalid"] == 1
+    assert h.node.health.counts["refused_invalid"] == 1
     h.observe((0.001, 0.0, 0.0), 3.0)  # still accepted: not wedged
-    assert h.node.counts["observations"] == 2
+    assert h.node.health.counts["observations"] == 2
     h.observe((0.001, 0.0, 0.0), 0.5)  # before the episode
-    assert h.node.counts["refused_out_of_order"] == 1
+    assert h.node.health.counts["refused_out_of_order"] == 1
     assert "before the episode" in h.node._problem
     assert h.reset().success
     h.observe((0.0, 0.0, 0.0), 0.5)  # a new episode may start earlier (a restarted clock)
-    assert h.node.counts["observations"] == 3 and h.node.filter.initialized
+    assert h.node.health.counts["observations"] == 3 and h.node._ekf.initialized
+
+
+def sim_time_harness(ros_context: Any) -> Harness:
+    """A harness around a node on simulated time (its /clock callback among the callbacks)."""
+    node = EkfNode(context=ros_context,
+                   parameter_overrides=[Parameter("use_sim_time", value=True)])
+    h = Harness.__new__(Harness)
+    h.node, h.published = node, []
+    h.callbacks = {s.topic_name: s.callback for s in node.subscriptions}
+    h.reset_callback = next(s.callback for s in node.services
+                            if s.srv_name.endswith("/reset"))
+    return h
 
 
 def test_with_sim_time_before_the_first_clock_the_future_rule_waits_and_reset_recovers(
         ros_context: Any) -> None:
     """The documented case: use_sim_time and no /clock yet (the clock reads 0, not valid)."""
-    node = EkfNode(context=ros_context,
-                   parameter_overrides=[Parameter("use_sim_time", value=True)])
+    h = sim_time_harness(ros_context)
+    node = h.node
     try:
-        h = Harness.__new__(Harness)
-        h.node, h.published = node, []
-        h.callbacks = {s.topic_name: s.callback for s in node.subscriptions}
-        h.reset_callback = next(s.callback for s in node.services
-                                if s.srv_name.endswith("/reset"))
         h.outline()
         h.observe((0.0, 0.0, 0.0), 1.0)
         h.observe((0.0, 0.0, 0.0), 2147483646.0)  # cannot be judged yet: applied
-        assert node.counts["observations"] == 2 and node.counts["refused_future"] == 0
+        assert node.health.counts["observations"] == 2 and node.health.counts["refused_future"] == 0
         h.observe((0.0, 0.0, 0.0), 3.0)  # older than the last applied input
-        assert node.counts["refused_out_of_order"] == 1
+        assert node.health.counts["refused_out_of_order"] == 1
         assert h.reset().success  # clears every "last applied" time
         h.observe((0.0, 0.0, 0.0), 3.0)
-        assert node.counts["observations"] == 3 and node.filter.initialized
-        assert node.counts["callback_errors"] == 0
+        assert node.health.counts["observations"] == 3 and node._ekf.initialized
+        assert node.health.counts["callback_errors"] == 0
     finally:
         node.destroy_node()
 
@@ -643,11 +650,11 @@ def test_over_dds_the_node_survives_and_answers_reset(ros_context: Any,
         assert wait_for(lambda: all(p.get_subscription_count() > 0 for p in pubs.values()),
                         executor=executor)
         pubs["outline"].publish(outline_cloud_msg(SQUARE, SQUARE_NORMALS))
-        assert wait_for(lambda: node.counts["outlines"] == 1, executor=executor)
+        assert wait_for(lambda: node.health.counts["outlines"] == 1, executor=executor)
         pubs["pose"].publish(pose_with_covariance_msg((0.0, 0.0, 0.0), np.zeros((3, 3)),
                                                       stamp_from_seconds(1.0)))
-        assert wait_for(lambda: node.counts["observations"] == 1, executor=executor)
-        received = lambda: sum(node.counts.values())  # noqa: E731
+        assert wait_for(lambda: node.health.counts["observations"] == 1, executor=executor)
+        received = lambda: sum(node.health.counts.values())  # noqa: E731
         for name, strategy in (("pose", observations()), ("push", paths()),
                                ("outline", clouds())):
             for msg in _draw(strategy, N_DDS):
@@ -660,8 +667,35 @@ def test_over_dds_the_node_survives_and_answers_reset(ros_context: Any,
         future = client.call_async(Trigger.Request())
         assert wait_for(future.done, executor=executor)
         assert future.result().success
-        assert node.counts["callback_errors"] == 0
+        assert node.health.counts["callback_errors"] == 0
     finally:
         executor.shutdown(timeout_sec=1.0)
         node.destroy_node()
         tester.destroy_node()
+
+
+def test_a_restarted_clock_is_followed_and_the_filter_kept(ros_context: Any) -> None:
+    """A restarted simulator's clock starts near 0: after the node's clock jumped back, its
+    observations are taken at once (not refused until the new clock passes the old one) and
+    the filter goes on from its state (the object did not move)."""
+    from rosgraph_msgs.msg import Clock
+
+    h = sim_time_harness(ros_context)
+    node = h.node
+    try:
+        clock = h.callbacks["/clock"]
+        clock(Clock(clock=stamp_from_seconds(40.0)))
+        h.outline()
+        h.observe((0.01, 0.0, 0.0), 39.0)
+        h.observe((0.01, 0.0, 0.0), 39.5)
+        state = node._ekf.state.copy()
+        h.observe((0.01, 0.0, 0.0), 3.0)  # the new clock before the jump is seen: refused
+        assert node.health.counts["refused_out_of_order"] == 1
+        clock(Clock(clock=stamp_from_seconds(3.5)))  # the jump back
+        h.observe((0.01, 0.0, 0.0), 3.5)
+        assert node.health.counts["observations"] == 3
+        assert node.health.counts["refused_out_of_order"] == 1 and node._ekf.initialized
+        np.testing.assert_allclose(node._ekf.state[:3], state[:3], atol=2e-3)
+        assert node.health.counts["callback_errors"] == 0
+    finally:
+        node.destroy_node()

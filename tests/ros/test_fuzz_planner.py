@@ -62,7 +62,12 @@ from push_planner.planner_node import PARAMETERS, PlannerNode  # noqa: E402
 from push_ros.outline import outline_cloud_msg  # noqa: E402
 from push_ros.poses import pose_with_covariance_msg  # noqa: E402
 from push_ros.qos import LATCHED_QOS, RELIABLE_QOS  # noqa: E402
-from push_ros.refusal import MOVING_KINDS, read_refusal  # noqa: E402
+from push_ros.refusal import (  # noqa: E402
+    MOVING_KINDS,
+    read_readiness,
+    read_refusal,
+    robot_unavailable,
+)
 from push_ros.stamps import stamp_from_seconds  # noqa: E402
 from push_ros.state import state_array_msg  # noqa: E402
 
@@ -539,9 +544,19 @@ def test_fuzz_refusals(probe: Probe) -> None:
             assert snapshot(node) == before and len(probe.pushes) == pushes
             return
         matched[0] += 1
+        refusal = read_refusal(msg)
+        if robot_unavailable(refusal):  # the episode waits for the robot: nothing planned
+            steps = node._engine.steps
+            assert node._engine.phase == "unavailable" and len(probe.pushes) == pushes
+            assert node._engine.counts["lost"] == lost + (refusal.kind in MOVING_KINDS)
+            assert "robot unavailable" in node.health.status(node._level,
+                                                             *node._status_text()).message
+            assert node._engine.robot_available(T0) and node._engine.steps == steps
+            start_pushing(probe)
+            return
         assert node._engine.counts["lost"] == lost + 1
-        assert "refused" in node._status().message
-        if read_refusal(msg).kind in MOVING_KINDS:  # the robot may move: wait for an estimate
+        assert "refused" in node.health.status(node._level, *node._status_text()).message
+        if refusal.kind in MOVING_KINDS:  # the robot may move: wait for an estimate
             assert len(probe.pushes) == pushes and not node._engine.in_flight
         else:
             assert len(probe.pushes) == pushes + (node._engine.phase == "pushing")
@@ -551,6 +566,52 @@ def test_fuzz_refusals(probe: Probe) -> None:
     run()
     assert matched[0] >= N_FUZZ // 20 and probe.errors == 0
     assert probe.refused > 0 and probe.node.health.get("refusals_ignored") > 0
+
+
+@st.composite
+def executor_statuses(draw: Callable) -> DiagnosticStatus:
+    """An ``executor/status``: readiness values (``ready``, ``unavailable``, ``session``)
+    mostly plausible, sometimes garbage, among other keys."""
+    msg = DiagnosticStatus(level=bytes([draw(st.integers(0, 255))]), name=draw(TEXT),
+                           message=draw(TEXT))
+    pairs = draw(st.lists(st.tuples(KEY, TEXT), max_size=4))
+    pairs.append(("ready", draw(st.sampled_from(["true", "false", "true", "", "TRUE", "1",
+                                                 "x" * 300]))))
+    pairs.append(("session", draw(st.sampled_from(["s1", "s1", "s1", "s2", "", "s" * 500]))))
+    pairs.append(("unavailable", draw(TEXT)))
+    msg.values = [KeyValue(key=k, value=v) for k, v in draw(st.permutations(pairs))]
+    if draw(st.integers(0, 9)) == 0:
+        msg.values = [KeyValue(key="other", value="")] * 100 + msg.values
+    return msg
+
+
+def test_fuzz_executor_status(probe: Probe) -> None:
+    """Hostile ``executor/status`` messages while pushing, waiting for the robot or idle: no
+    exception; a waiting episode resumes only on ``ready: true``; a push in flight is counted
+    lost only on a new session; never more steps than ``max_steps``."""
+    start_pushing(probe)
+
+    @settings(FUZZ, max_examples=N_PLANNED)  # a push given back is planned again: a plan each
+    @given(executor_statuses(), st.sampled_from(["pushing", "pushing", "unavailable"]))
+    def run(msg: DiagnosticStatus, mode: str) -> None:
+        node = probe.node
+        engine = node._engine
+        if not engine.in_flight and engine.phase != "unavailable":
+            start_pushing(probe)
+        if mode == "unavailable" and engine.in_flight:
+            engine.robot_unavailable("no_state: fuzz", 0.0)
+        phase, lost, session = engine.phase, engine.counts["lost"], node._robot._push_session
+        probe.send("executor/status", msg)
+        assert probe.errors == 0, node.health.last_error
+        readiness = read_readiness(msg)
+        if phase == "unavailable" and engine.phase != "unavailable":
+            assert readiness.ready is True
+        if engine.counts["lost"] > lost:  # a restarted executor: not the push's session
+            assert readiness.session not in ("", session) and session != ""
+        assert engine.steps <= node.params.max_steps
+
+    run()
+    assert probe.errors == 0
 
 
 def parameter_values() -> st.SearchStrategy[tuple[str, Any]]:

@@ -61,25 +61,47 @@ Rules (docs/design/episode-engine.md):
    by :meth:`EpisodeEngine.status_text` until the next push is planned: the same push is not
    planned again, the planner tries another contact region (with the estimator's
    ``EKFConfig.relearn`` the model is re-learnt from the same observation).
+9. **A robot that is not available pauses the episode** (:meth:`EpisodeEngine.robot_unavailable`:
+   the robot refused a push for a reason no other push avoids: disabled for a dry run, no joint
+   states, no controller, an impossible measured posture). The push in flight is given back
+   (not a step; a push the robot had started counts as lost), the phase becomes
+   ``unavailable`` (:meth:`EpisodeEngine.status_text`: ``robot unavailable: <kind>: <reason>``)
+   and nothing is planned, so no step is spent while waiting. :meth:`EpisodeEngine.robot_available`
+   (the robot says it is ready) resumes the episode from an estimate stamped after the given
+   time (``planner_node``: when the wait began; the world may have changed meanwhile);
+   :meth:`EpisodeEngine.robot_waited` fails the episode (``robot unavailable``) once the robot
+   has been unavailable for ``robot_timeout`` s without an executed push since. These times
+   are the caller's clock (``now``), not the estimates' stamps.
+10. **A restarted clock** (:meth:`EpisodeEngine.clock_restarted`: the time source jumped back,
+    e.g. a restarted simulator starting near 0): the stamps of the old clock mean nothing any
+    more; the end of the last push, the used and the fresh-frame stamps are forgotten and so is
+    the newest estimate (the next one is of the new clock).
 
-Scoring (:func:`end_score`, :func:`true_errors`): success from the *true* end pose against the
-true goal, the orientation modulo the object's k-fold symmetry and not counted for a
-continuously symmetric outline (:mod:`push_core.symmetry`).
+Scoring (:func:`end_score`, :func:`true_errors`, re-exported from
+:mod:`push_core.episode_record` with the record's other helpers): success from the *true* end
+pose against the true goal, the orientation modulo the object's k-fold symmetry and not counted
+for a continuously symmetric outline (:mod:`push_core.symmetry`).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from push_core.episode_record import (
+    check_goal_offset,
+    end_score,
+    min_pushes,
+    new_record,
+    robot_times,
+    true_errors,
+)
 from push_core.geometry import wrap_angle
 from push_core.planner import NoFeasiblePush, Outline, Planner, PushPlan, motion_score
-from push_core.symmetry import has_continuous_symmetry, symmetry_order_of_polygon
 
 __all__ = [
     "AFTER_GOAL",
@@ -100,7 +122,7 @@ __all__ = [
 
 #: Counters an :class:`EpisodeEngine` keeps (``planner_node`` reports them in its status).
 COUNTERS = ("estimates", "planned", "ignored_stale", "ignored_duplicate", "ignored_busy",
-            "lost", "left", "contradicted")
+            "lost", "left", "contradicted", "robot_unavailable", "clock_restarts")
 #: Rule 8: an executed push contradicts its prediction when the observed pose is more than this
 #: (eq. 5.1 score units, mm + lambda deg) from the predicted one ...
 CONTRADICTION_MISS = 10.0
@@ -171,16 +193,22 @@ class EpisodeEngine:
     after_goal : str
         ``resume`` | ``report``: what happens when the object leaves the goal region after
         ``reached`` (module docstring, rule 7).
+    robot_timeout : float
+        Longest wait for an unavailable robot before the episode fails (rule 9), s of the
+        caller's clock.
 
     Attributes
     ----------
     phase : str
         ``waiting`` | ``pushing`` | ``reached`` | ``left`` (after_goal ``report``) |
-        ``failed``.
+        ``unavailable`` (rule 9) | ``failed``.
     steps : int
-        Pushes sent in this episode.
+        Pushes sent in this episode (a push given back by rule 9 is not one).
     failure : str
-        ``max steps`` or ``no feasible push`` once failed.
+        ``max steps``, ``no feasible push`` or ``robot unavailable`` once failed.
+    unavailable : str
+        Why the robot is not available (``<kind>: <reason>``) while the phase is
+        ``unavailable``, else empty.
     counts : dict
         The :data:`COUNTERS` (over the engine's life, not reset by a new goal).
     """
@@ -188,9 +216,11 @@ class EpisodeEngine:
     planner: Planner | Any
     max_steps: int = 30
     after_goal: str = "resume"
+    robot_timeout: float = 300.0
     phase: str = "waiting"
     steps: int = 0
     failure: str = ""
+    unavailable: str = ""
     goal: NDArray[np.float64] | None = None
     outline: Outline | None = None
     last_push_end: float = -math.inf
@@ -206,6 +236,11 @@ class EpisodeEngine:
     _outcome: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None = None
     _planned: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None = None
     last_contradiction: str = ""
+    #: Rule 9: since when (caller's clock) the robot has been unavailable without an executed
+    #: push; the next estimate used must be stamped after ``_fresh_after``.
+    _unavailable_since: float = math.nan
+    _fresh_after: float = -math.inf
+    _failure_detail: str = ""
 
     def __post_init__(self) -> None:
         if not (callable(getattr(self.planner, "plan", None))
@@ -219,6 +254,8 @@ class EpisodeEngine:
         if self.after_goal not in AFTER_GOAL:
             raise ValueError(f"after_goal: expected one of {', '.join(AFTER_GOAL)}, got "
                              f"{self.after_goal!r}")
+        if not (isinstance(self.robot_timeout, int | float) and self.robot_timeout > 0):
+            raise ValueError(f"robot_timeout: expected > 0 s, got {self.robot_timeout!r}")
 
     # ---- events --------------------------------------------------------------------------------
     def new_goal(self, goal: ArrayLike) -> None:
@@ -228,7 +265,8 @@ class EpisodeEngine:
         if g.shape != (3,) or not np.all(np.isfinite(g)):
             raise ValueError(f"goal: expected 3 finite numbers, got {goal!r}")
         self.goal = g
-        self.phase, self.steps, self.failure = "waiting", 0, ""
+        self.phase, self.steps, self.failure, self.unavailable = "waiting", 0, "", ""
+        self._unavailable_since = math.nan
         self._used_stamp = -math.inf
         self._contradicted.clear()
         self._outcome = None
@@ -257,7 +295,7 @@ class EpisodeEngine:
         self.counts["estimates"] += 1
         if self._latest is None or stamp >= self._latest[0]:
             self._latest = (float(stamp), s, cov)
-        if stamp < self.last_push_end:
+        if stamp < self.last_push_end or stamp <= self._fresh_after:
             self.counts["ignored_stale"] += 1
         elif stamp <= self._used_stamp:
             self.counts["ignored_duplicate"] += 1
@@ -267,6 +305,7 @@ class EpisodeEngine:
     def push_executed(self, end_stamp: float) -> None:
         """The push in flight was executed; it ended at ``end_stamp``."""
         self.last_push_end = max(self.last_push_end, float(end_stamp))
+        self._unavailable_since = math.nan  # progress: a later wait is timed afresh
         self.in_flight, self._in_flight_point = False, None
         self._avoid.clear()
         self._outcome, self._planned = self._planned, None
@@ -288,6 +327,50 @@ class EpisodeEngine:
         self._in_flight_point = None
         self._planned = None
 
+    def robot_unavailable(self, reason: str, now: float, moved: bool = False) -> None:
+        """Rule 9: the robot cannot take any push (``reason``: ``<kind>: <reason>``). The push
+        in flight is given back (``moved``: the robot had started it, it counts as lost) and
+        the episode waits; ``now`` (s, the caller's clock) starts the ``robot_timeout``."""
+        if self.phase in ("failed", "reached", "left") and not self.in_flight:
+            return
+        if self.in_flight:
+            self.in_flight, self._in_flight_point, self._planned = False, None, None
+            if moved:
+                self.counts["lost"] += 1
+            else:
+                self.steps = max(0, self.steps - 1)
+        self.phase, self.unavailable = "unavailable", str(reason)
+        self.counts["robot_unavailable"] += 1
+        if not math.isfinite(self._unavailable_since):
+            self._unavailable_since = float(now)
+
+    def robot_available(self, fresh_after: float) -> bool:
+        """Rule 9: the robot is ready again; the episode resumes from an estimate stamped
+        after ``fresh_after`` (s, the estimates' clock). False when it was not waiting."""
+        if self.phase != "unavailable":
+            return False
+        self.phase = "pushing" if self.steps > 0 else "waiting"
+        self.unavailable = ""
+        self._fresh_after = max(self._fresh_after, float(fresh_after))
+        return True
+
+    def robot_waited(self, now: float) -> Step | None:
+        """Rule 9's time-out: ``failed`` once the robot has been unavailable for more than
+        ``robot_timeout`` s at ``now`` (the caller's clock), else None."""
+        waited = float(now) - self._unavailable_since
+        if self.phase != "unavailable" or not waited > self.robot_timeout:
+            return None
+        self.phase, self.failure = "failed", "robot unavailable"
+        self._failure_detail = (f"robot unavailable for {waited:.0f} s (robot_timeout "
+                                f"{self.robot_timeout:g} s): {self.unavailable}")
+        return Step("failed", reason=self._failure_detail)
+
+    def clock_restarted(self) -> None:
+        """Rule 10: the clock of the stamps jumped back; forget every stamp of the old one."""
+        self.last_push_end = self._used_stamp = self._fresh_after = -math.inf
+        self._latest = None
+        self.counts["clock_restarts"] += 1
+
     # ---- decision ------------------------------------------------------------------------------
     @property
     def finished(self) -> bool:
@@ -307,8 +390,9 @@ class EpisodeEngine:
     def status_text(self) -> str:
         """The episode in words: ``waiting`` (``for goal, outline, estimate`` what is missing),
         ``pushing step n``, ``goal reached`` (with ``(ORIENTATION_IGNORED)`` for a continuously
-        symmetric outline), ``goal left``, ``failed after max steps`` or ``failed: no feasible
-        push``."""
+        symmetric outline), ``goal left``, ``robot unavailable: <kind>: <reason>``, ``failed
+        after max steps``, ``failed: no feasible push`` or ``failed: robot unavailable for
+        ...``."""
         if self.phase == "pushing":
             return f"pushing step {self.steps}" + (f" - {self.last_contradiction}"
                                                    if self.last_contradiction else "")
@@ -317,9 +401,12 @@ class EpisodeEngine:
                                      else f" ({ORIENTATION_IGNORED})")
         if self.phase == "left":
             return "goal left"
+        if self.phase == "unavailable":
+            return f"robot unavailable: {self.unavailable}"
         if self.phase == "failed":
-            return ("failed after max steps" if self.failure == "max steps"
-                    else "failed: no feasible push")
+            return {"max steps": "failed after max steps",
+                    "robot unavailable": f"failed: {self._failure_detail}"}.get(
+                        self.failure, "failed: no feasible push")
         missing = [name for name, have in (("goal", self.goal is not None),
                                            ("outline", self.outline is not None),
                                            ("estimate", self._latest is not None)) if not have]
@@ -328,10 +415,10 @@ class EpisodeEngine:
     def step(self) -> Step:
         """Decide on the newest estimate if rule 1 allows it (module docstring, rules 2-3)."""
         if (self._latest is None or self.goal is None or self.outline is None
-                or self.phase == "failed" or self.in_flight):
+                or self.phase in ("failed", "unavailable") or self.in_flight):
             return Step("wait")
         stamp, state, cov = self._latest
-        if stamp < self.last_push_end or stamp <= self._used_stamp:
+        if stamp < self.last_push_end or stamp <= self._used_stamp or stamp <= self._fresh_after:
             return Step("wait")
         self._used_stamp = stamp
         self._judge_outcome(state)
@@ -439,125 +526,3 @@ def contradiction(start: ArrayLike, predicted: ArrayLike, observed: ArrayLike, g
     if miss > CONTRADICTION_MISS and go[0] - go[2] < CONTRADICTION_GAIN * (go[0] - go[1]):
         return go[0], go[1], go[2]
     return None
-
-
-def true_errors(pose: ArrayLike, goal: ArrayLike, order: int) -> tuple[float, float]:
-    """Position (m) and absolute orientation error (rad) of ``pose`` against ``goal``, the
-    orientation modulo ``2 pi / order`` (closest equivalent)."""
-    p, g = np.asarray(pose, dtype=np.float64), np.asarray(goal, dtype=np.float64)
-    dxy = float(math.hypot(g[0] - p[0], g[1] - p[1]))
-    period = 2.0 * math.pi / max(int(order), 1)
-    d = float(wrap_angle(g[2] - p[2]))
-    d -= period * round(d / period)
-    return dxy, abs(d)
-
-
-def new_record(trial: dict[str, Any], **extra: Any) -> dict[str, Any]:
-    """An empty episode record (docs/design/evaluation.md#episode-record) for ``trial`` (the
-    trial as a dict), with ``extra`` keys of the engine that fills it."""
-    rec: dict[str, Any] = {"trial": trial, "success": False, "steps": 0, "end_error_xy": None,
-                           "end_error_theta": None, "com_error": None, "planning_ms": [],
-                           "poses_true": [], "poses_est": [], "pushes": [], "refused": 0,
-                           "wall_s": 0.0, "reason": ""}
-    rec.update(extra)
-    return rec
-
-
-def robot_times(goal: float, commands: Sequence[float], stop: float) -> dict[str, Any]:
-    """The episode record's robot time: ``robot_time_s``, the robot's (simulated) seconds
-    from the goal to the final stop (``stop - goal``), and ``cycle_s``, the seconds between
-    successive push commands (one per push after the first).
-
-    Parameters
-    ----------
-    goal : float
-        When the goal was given, s of the robot's clock.
-    commands : sequence of float
-        When each push was commanded, s, in order.
-    stop : float
-        When the robot came to rest after the last push (``goal`` without pushes), s.
-
-    Raises
-    ------
-    ValueError
-        Non-finite times, commands out of order, or one before the goal or after the stop.
-    """
-    times = np.asarray([goal, *commands, stop], dtype=float)
-    if not np.all(np.isfinite(times)) or np.any(np.diff(times) < 0.0):
-        raise ValueError(f"robot times must be finite and in order (goal <= commands <= stop), "
-                         f"got goal {goal}, commands {list(commands)[:8]}, stop {stop}")
-    return {"robot_time_s": float(stop - goal),
-            "cycle_s": np.diff(np.asarray(commands, dtype=float)).tolist()}
-
-
-def end_score(polyline: ArrayLike, end_true: ArrayLike, goal_true: ArrayLike,
-              tolerances: tuple[float, float]) -> dict[str, Any]:
-    """Success and true end errors of an episode (one rule for every episode record).
-
-    ``polyline``: the true object's outline (object frame). The orientation error is taken
-    modulo the outline's k-fold symmetry; for a continuously symmetric outline (a disc,
-    :func:`push_core.symmetry.has_continuous_symmetry`) it is reported but not counted
-    (``orientation_ignored``). Returns ``end_error_xy`` (m), ``end_error_theta`` (rad),
-    ``success`` and ``orientation_ignored``.
-    """
-    ignored = has_continuous_symmetry(polyline)
-    exy, eth = true_errors(end_true, goal_true, symmetry_order_of_polygon(polyline))
-    tol_xy, tol_theta = tolerances
-    return {"end_error_xy": exy, "end_error_theta": eth,
-            "success": bool(exy <= tol_xy and (ignored or eth <= tol_theta)),
-            "orientation_ignored": ignored}
-
-
-def check_goal_offset(offset: ArrayLike, tolerances: tuple[float, float],
-                      max_push_length: float) -> tuple[NDArray[np.float64], float, float]:
-    """The arguments of :func:`min_pushes` checked: ``(offset (3,), tol_xy, tol_theta)``;
-    ``ValueError`` naming ``offset``, ``tolerances`` or ``max_push_length``."""
-    o = np.asarray(offset, dtype=np.float64)
-    if o.shape != (3,) or not np.all(np.isfinite(o)):
-        raise ValueError(f"offset: expected 3 finite numbers, got {offset!r}")
-    tol_xy, tol_theta = (float(v) for v in tolerances)
-    if not (tol_xy > 0.0 and tol_theta > 0.0):
-        raise ValueError(f"tolerances: expected positive (m, rad), got {tolerances!r}")
-    if not (isinstance(max_push_length, int | float | np.floating)
-            and math.isfinite(max_push_length) and max_push_length > 0.0):
-        raise ValueError(f"max_push_length: expected > 0 m, got {max_push_length!r}")
-    return o, tol_xy, tol_theta
-
-
-def min_pushes(offset: ArrayLike, tolerances: tuple[float, float], max_push_length: float,
-               order: int = 1) -> int:
-    """The physical minimum of pushes for a goal ``offset`` (docs/design/physical-minimum.md)::
-
-        n_min = max(ceil((d - tol_xy) / L_max), 1 if |theta| > tol_theta else 0)
-
-    ``d = |(dx, dy)|``: a quasi-static object moves no farther than the pusher, which advances
-    at most ``L_max`` past the contact per push, and the goal region accepts ``tol_xy`` less;
-    a rotation beyond the tolerance needs at least one push (one push can turn an object by
-    any amount, pivoting near the contact). ``theta`` is taken modulo ``2 pi / order`` (the
-    object's symmetry).
-
-    Parameters
-    ----------
-    offset : array_like, shape (3,)
-        Goal minus initial pose: ``(dx, dy)`` in metres (any frame), ``theta`` in radians.
-    tolerances : (float, float)
-        Goal region: position (m) and orientation (rad), > 0.
-    max_push_length : float
-        Longest push past the contact, metres (> 0).
-    order : int
-        Rotational symmetry order of the object (1: none).
-
-    Returns
-    -------
-    int
-        >= 0 (0: the goal is already within the region).
-
-    Raises
-    ------
-    ValueError
-        Naming ``offset``, ``tolerances`` or ``max_push_length``.
-    """
-    o, tol_xy, tol_theta = check_goal_offset(offset, tolerances, max_push_length)
-    dxy, dtheta = true_errors(np.zeros(3), o, order)
-    translation = max(0, math.ceil((dxy - tol_xy) / max_push_length - 1e-9))
-    return max(translation, 1 if dtheta > tol_theta else 0)

@@ -44,7 +44,7 @@ from push_estimator.config import (
     check_parameter_set,
 )
 from push_ros.health import NodeHealth
-from push_ros.node import declare_config, parameter_values, run_node
+from push_ros.node import declare_config, on_clock_jump_back, parameter_values, run_node
 from push_ros.outline import decimate_outline, outline_from_cloud
 from push_ros.paths import executed_push_from_path
 from push_ros.poses import (
@@ -118,6 +118,7 @@ class EkfNode(Node):
                                  guard(self._on_observation), RELIABLE_QOS)
         self.create_subscription(Path, "pusher/executed", guard(self._on_push), RELIABLE_QOS)
         self.create_service(Trigger, "~/reset", guard(self._on_reset))
+        self._jump = on_clock_jump_back(self, guard(self._on_clock_restart))
         self.create_timer(self.params.diagnostics_period, guard(self._publish_diagnostics),
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
@@ -125,16 +126,6 @@ class EkfNode(Node):
             f"iterations={self.params.config.iterations}); waiting for perception/outline")
 
     # ---- state ---------------------------------------------------------------------------
-    @property
-    def filter(self) -> PushEKF | None:
-        """The current filter (None before the first outline)."""
-        return self._ekf
-
-    @property
-    def counts(self) -> dict[str, int]:
-        """The counters reported on /diagnostics (a copy)."""
-        return self.health.counts
-
     def _status(self) -> str:
         if self._ekf is None:
             return "waiting for outline"
@@ -178,6 +169,12 @@ class EkfNode(Node):
         self._replay.clear(self._ekf)
         self._inputs.last = -math.inf
         self._episode_start = -math.inf
+
+    def _on_clock_restart(self, delta: float) -> None:
+        """The clock jumped back (a restarted simulator): the object did not move, its stamps
+        did; the filter is kept, the stamp order and episode boundary start again."""
+        self._new_episode()
+        self._inputs.boundary = -math.inf
 
     def _read_parameters(self) -> tuple[EkfNodeParams, str]:
         """The current parameter values, built, and those changed since the last episode."""

@@ -49,6 +49,9 @@ __all__ = ["CameraView", "ClearView", "clear_candidates", "fill_convex", "object
 DIRECTIONS = tuple(math.radians(a) for a in (0, 45, -45, 90, -90, 135, -135, 180))
 #: Points on the circle a margin is approximated by (the region grows by their hull).
 MARGIN_POINTS = 12
+#: Corners of the object's prism nearer the camera's plane than this (m, optical depth), or
+#: projected farther than this from the image origin (px), make its silhouette the whole image.
+NEAR, FAR_PX = 1e-3, 1e6
 
 
 @dataclass(frozen=True)
@@ -153,8 +156,11 @@ def fill_convex(polygon: ArrayLike, width: int, height: int) -> NDArray[np.bool_
     hull = _hull(poly)  # counter-clockwise in (u, v)
     if len(hull) < 3:
         return mask
-    lo = np.clip(np.floor(hull.min(axis=0)).astype(int), 0, [width - 1, height - 1])
-    hi = np.clip(np.ceil(hull.max(axis=0)).astype(int), 0, [width - 1, height - 1])
+    # clipped before the cast: a vertex far outside the image (a point near the camera's
+    # plane projects to 1e300 px) would overflow the integer and wrap
+    size = [width - 1, height - 1]
+    lo = np.floor(np.clip(hull.min(axis=0), 0, size)).astype(int)
+    hi = np.ceil(np.clip(hull.max(axis=0), 0, size)).astype(int)
     u, v = np.meshgrid(np.arange(lo[0], hi[0] + 1), np.arange(lo[1], hi[1] + 1))
     inside = np.ones(u.shape, dtype=bool)
     for a, b in zip(hull, np.roll(hull, -1, axis=0), strict=True):
@@ -166,12 +172,16 @@ def fill_convex(polygon: ArrayLike, width: int, height: int) -> NDArray[np.bool_
 def silhouette(camera: CameraView, region: ArrayLike, height: float) -> NDArray[np.bool_]:
     """The image (``camera.height`` x ``camera.width`` bool) of the prism over ``region``
     (M, 2; ``world``) from the table (z = 0) up to ``height`` (m): the convex hull of its
-    projected corners (points behind the camera are dropped)."""
+    projected corners; the whole image when a corner lies within :data:`NEAR` of the camera's
+    plane or behind it, or projects beyond :data:`FAR_PX` (no pose is then clear of it: the
+    arm parks)."""
     region = np.asarray(region, dtype=float).reshape(-1, 2)
     corners = np.vstack([np.column_stack([region, np.full(len(region), z)])
                          for z in (0.0, height)])
     uv, z = camera.project(corners)
-    return fill_convex(uv[z > 1e-9], camera.width, camera.height)
+    if np.any(z <= NEAR) or not np.all(np.abs(uv) <= FAR_PX):  # the camera inside or beside
+        return np.ones((camera.height, camera.width), dtype=bool)  # the prism: all of it
+    return fill_convex(uv, camera.width, camera.height)
 
 
 def clear_candidates(top: ArrayLike, region: ArrayLike, distance: float, rise: float

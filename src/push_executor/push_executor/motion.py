@@ -50,13 +50,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import CubicSpline
 
 from push_executor.kinematics import ArmKinematics
+from push_executor.motion_checks import TRANSIT_SLACK, Stage, StageChecks
 from push_executor.motion_types import (
     CLEAR,
     PARK,
@@ -73,21 +73,16 @@ from push_executor.timing import blend_speed, joint_move, line_profile
 __all__ = ["CLEAR", "MotionConfig", "MotionPlan", "MotionState", "PushRefused", "StageSpan",
            "View", "chain_point", "plan_park", "plan_push"]
 
-#: The joint-space stages may dip this far below their clearance height, m (a motion from
-#: rest at that height starts with a dip of a few millimetres).
-TRANSIT_SLACK = 5e-3
 #: The lift ends this far above the approach height (a transit from rest there dips by up to
 #: 1.6 cm on its way; measured on the graph), m.
 LIFT_EXTRA = 0.025
 #: The clear stage lifts this much above the approach height (the transit then comes down to
 #: it instead of crossing at it), m.
 CLEAR_EXTRA = 0.05
-#: Band around the workspace where the joint-space stages keep the approach height, m.
-CLEARANCE_MARGIN = 0.05
-#: Largest distance of the contact point from the approach -> end segment, m.
-CONTACT_OFF_LINE = 1e-3
-#: Relative slack of the speed, acceleration and jerk checks (sampling round-off).
-LIMIT_SLACK = 1e-6
+#: The clear stage goes straight up when the tool axis is within this of vertical (rad) and
+#: the line's first sample within this of the measured posture (rad; the controller takes the
+#: step within the trajectory's first point); else it moves in joint space.
+CLEAR_TILT = CLEAR_START_MATCH = 1e-3
 #: Inverse kinematics along the Cartesian stages: the redundancy fully pulled toward the
 #: reference each iteration and converged to this joint step (rad), so that the solutions form
 #: a smooth path whose finite differences give the joint accelerations and jerks (the solver's
@@ -100,41 +95,17 @@ RAMP_SCALES = (1.0, 0.5, 0.25)
 LINE_KNOT = 0.005
 
 
-@dataclass
-class _Stage:
-    name: str
-    times: NDArray[np.float64]  # from the stage's start, s
-    q: NDArray[np.float64]
-    qd: NDArray[np.float64]
-    qdd: NDArray[np.float64]
-    tip: NDArray[np.float64]
-
-    @property
-    def end(self) -> MotionState:
-        return MotionState(self.q[-1].copy(), self.qd[-1].copy(), self.qdd[-1].copy())
-
-    @property
-    def start(self) -> MotionState:
-        return MotionState(self.q[0].copy(), self.qd[0].copy(), self.qdd[0].copy())
-
-
-class _Planner:
+class _Planner(StageChecks):
     """Builds and checks the stages of one motion (see :func:`plan_push`)."""
 
     def __init__(self, arm: ArmKinematics, config: MotionConfig) -> None:
-        self.arm, self.cfg = arm, config
-        config.check_chain(arm.joint_names)
+        super().__init__(arm, config)
         self.reference = np.array(config.reference_positions, dtype=float)
-        self.vmax = arm.velocity_limits * config.speed_margin
-        self.amax = arm.acceleration_limits * config.speed_margin
-        self.jmax = arm.jerk_limits * config.speed_margin
-        self.lower = arm.lower + config.limit_margin
-        self.upper = arm.upper - config.limit_margin
 
     # ---- stages ------------------------------------------------------------------------------
     def joint_stage(self, name: str, start: MotionState, q_b: NDArray[np.float64],
                     qd_b: NDArray[np.float64] | None = None,
-                    qdd_b: NDArray[np.float64] | None = None) -> _Stage:
+                    qdd_b: NDArray[np.float64] | None = None) -> Stage:
         """Time-optimal joint motion from ``start`` to ``q_b`` (at rest unless given)."""
         zero = np.zeros_like(q_b)
         target = (q_b, zero if qd_b is None else qd_b, zero if qdd_b is None else qdd_b)
@@ -155,20 +126,24 @@ class _Planner:
             kind = "joint_limits" if "Positional" in str(exc) else "speed"
             raise PushRefused(kind, name, f"no joint trajectory within the limits: {exc}"
                               ) from None
-        return _Stage(name, times, q, qd, qdd, self.arm.tip_positions(q))
+        return Stage(name, times, q, qd, qdd, self.arm.tip_positions(q))
 
     def line_stage(self, name: str, q_a: NDArray[np.float64], p_a: NDArray[np.float64],
-                   p_b: NDArray[np.float64], speed: float, v0: float = 0.0, v1: float = 0.0
-                   ) -> _Stage:
+                   p_b: NDArray[np.float64], speed: float, v0: float = 0.0, v1: float = 0.0,
+                   reference: NDArray[np.float64] | None = None,
+                   min_height: float | None = None) -> Stage:
         """The tip on the straight line ``p_a`` -> ``p_b`` (jerk-limited speed profile from
-        ``v0`` to ``v1``), IK per sample seeded from ``q_a``, checked (``min_tool_height``).
-        A profile whose joint speeds, accelerations or jerks exceed the limits is tried again
-        with the Cartesian acceleration, jerk and speed (not the push's) scaled by
-        :data:`RAMP_SCALES` (the blend speeds lowered to fit); the last failure refuses."""
+        ``v0`` to ``v1``), IK per sample seeded from ``q_a`` (redundancy pulled toward
+        ``reference``, default ``reference_positions``), checked (tip above ``min_height``,
+        default ``min_tool_height``; the workspace, except for the clear stage's vertical line
+        from where the tip already is). A profile whose joint speeds, accelerations or jerks
+        exceed the limits is tried again with the Cartesian acceleration, jerk and speed (not
+        the push's) scaled by :data:`RAMP_SCALES` (the blend speeds lowered to fit); the last
+        failure refuses."""
         cfg = self.cfg
         length = float(np.linalg.norm(p_b - p_a))
         u = (p_b - p_a) / length if length > 0 else np.zeros(3)
-        path = self.line_path(name, q_a, p_a, u, length)
+        path = self.line_path(name, q_a, p_a, u, length, reference)
         failure = None
         for scale in RAMP_SCALES:
             acc, jerk = cfg.cartesian_acceleration * scale, cfg.cartesian_jerk * scale
@@ -188,10 +163,12 @@ class _Planner:
                 q, q_s, q_ss = path(s), path(s, 1), path(s, 2)
                 qd = q_s * sd[:, None]
                 qdd = q_s * sdd[:, None] + q_ss * (sd**2)[:, None]
-            stage = _Stage(name, times, q, qd, qdd, self.check_line(name, q, p_a + s[:, None] * u))
-            self.check_workspace(stage)
+            stage = Stage(name, times, q, qd, qdd, self.check_line(name, q, p_a + s[:, None] * u))
+            if name != CLEAR:
+                self.check_workspace(stage)
             try:
-                self.check_stage(stage, q_a, cfg.min_tool_height)
+                self.check_stage(stage, q_a, cfg.min_tool_height if min_height is None
+                                 else min_height)
             except PushRefused as refusal:
                 if refusal.kind != "speed":
                     raise
@@ -202,7 +179,8 @@ class _Planner:
         raise failure
 
     def line_path(self, name: str, q_a: NDArray[np.float64], p_a: NDArray[np.float64],
-                  u: NDArray[np.float64], length: float) -> CubicSpline | None:
+                  u: NDArray[np.float64], length: float,
+                  reference: NDArray[np.float64] | None = None) -> CubicSpline | None:
         """The joint path along the line as a cubic spline over the path parameter (m) through
         IK solutions every :data:`LINE_KNOT` (each seeded with the path extrapolated from the
         two before), their manipulability checked; None for a line of length 0."""
@@ -213,7 +191,8 @@ class _Planner:
         for i, s in enumerate(knots):
             target = p_a + s * u
             seed = q_a if i == 0 else q[0] if i == 1 else 2.0 * q[i - 1] - q[i - 2]
-            result = self.arm.solve_ik(target, seed, self.reference,
+            result = self.arm.solve_ik(target, seed,
+                                       self.reference if reference is None else reference,
                                        posture_gain=LINE_POSTURE_GAIN,
                                        posture_tolerance=LINE_POSTURE_STEP)
             self.check_ik(name, result.position_error, result.axis_error, target)
@@ -239,139 +218,52 @@ class _Planner:
                            cfg.cartesian_acceleration, cfg.cartesian_jerk)
 
     def ik_point(self, stage: str, target: NDArray[np.float64],
-                 seed: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
+                 seed: NDArray[np.float64] | None = None,
+                 reference: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
         result = self.arm.solve_ik(target, self.reference if seed is None else seed,
-                                   self.reference, posture_gain=LINE_POSTURE_GAIN,
+                                   self.reference if reference is None else reference,
+                                   posture_gain=LINE_POSTURE_GAIN,
                                    posture_tolerance=LINE_POSTURE_STEP)
         self.check_ik(stage, result.position_error, result.axis_error, target)
         return result.q
 
-    # ---- checks ------------------------------------------------------------------------------
-    def check_ik(self, stage: str, position_error: float, axis_error: float,
-                 target: NDArray[np.float64]) -> None:
-        if not (position_error <= self.cfg.ik_tolerance and axis_error <= self.cfg.ik_tolerance):
-            raise PushRefused("ik", stage, f"no inverse kinematics solution for the tip at "
-                              f"({target[0]:.3f}, {target[1]:.3f}, {target[2]:.3f}) m: residual "
-                              f"{position_error * 1e3:.3f} mm, tool axis {axis_error:.2e} rad "
-                              "off vertical (out of reach?)")
-
-    def check_workspace(self, stage: _Stage) -> None:
-        x_min, x_max, y_min, y_max = self.cfg.workspace
-        xy = stage.tip[:, :2]
-        out = (xy[:, 0] < x_min - 1e-9) | (xy[:, 0] > x_max + 1e-9) | \
-            (xy[:, 1] < y_min - 1e-9) | (xy[:, 1] > y_max + 1e-9)
-        if np.any(out):
-            x, y = xy[np.argmax(out)]
-            raise PushRefused("workspace", stage.name, f"tip at ({x:.3f}, {y:.3f}) m leaves the "
-                              f"workspace x [{x_min}, {x_max}], y [{y_min}, {y_max}] m")
-
-    def check_singular(self, name: str, q: NDArray[np.float64], along: NDArray[np.float64]
-                       ) -> None:
-        """Manipulability of postures ``q`` at ``along`` m of a line's length."""
-        m = np.array([self.arm.manipulability(posture) for posture in q])
-        if np.min(m) < self.cfg.min_manipulability:
-            i = int(np.argmin(m))
-            raise PushRefused("singular", name, f"manipulability {m[i]:.4f} < "
-                              f"{self.cfg.min_manipulability} {1e3 * along[i]:.0f} mm along "
-                              "the line (near a singular posture)")
-
-    def over_workspace(self, xy: NDArray[np.float64]) -> NDArray[np.bool_]:
-        """Which (N, 2) points lie within CLEARANCE_MARGIN of the workspace rectangle."""
-        x_min, x_max, y_min, y_max = self.cfg.workspace
-        m = CLEARANCE_MARGIN
-        return ((xy[:, 0] >= x_min - m) & (xy[:, 0] <= x_max + m)
-                & (xy[:, 1] >= y_min - m) & (xy[:, 1] <= y_max + m))
-
-    def clearance_floor(self, stage: _Stage) -> NDArray[np.float64]:
-        """Per sample of a joint-space stage: the approach height (less the slack) over the
-        workspace and its margin, ``min_tool_height`` elsewhere."""
-        cfg = self.cfg
-        return np.where(self.over_workspace(stage.tip[:, :2]),
-                        max(cfg.approach_height - TRANSIT_SLACK, cfg.min_tool_height),
-                        cfg.min_tool_height)
-
-    def check_stage(self, stage: _Stage, q_start: NDArray[np.float64],
-                    min_height: float | NDArray[np.float64]) -> None:
-        """Joint limits, tool height (per sample or one value), speeds, accelerations, jerks."""
-        arm, margin = self.arm, self.cfg.limit_margin
-        lower, upper = self.lower, self.upper
-        if stage.name in ("transit", "withdraw", PARK):  # may start outside, never go further
-            lower, upper = np.minimum(lower, q_start), np.maximum(upper, q_start)
-        bad = (stage.q < lower - 1e-9) | (stage.q > upper + 1e-9)
-        if np.any(bad):
-            i, j = np.argwhere(bad)[0]
-            raise PushRefused("joint_limits", stage.name, f"{arm.joint_names[j]} at "
-                              f"{stage.q[i, j]:.4f} outside [{lower[j]:.4f}, {upper[j]:.4f}] "
-                              f"(URDF limits with margin {margin})")
-        z = stage.tip[:, 2]
-        floor = np.broadcast_to(min_height, z.shape)
-        low = z < floor - self.cfg.ik_tolerance  # the tip is only known to the IK's accuracy
-        if np.any(low):
-            i = int(np.argmax(low))
-            raise PushRefused("tool_height", stage.name, f"tip at ({stage.tip[i, 0]:.3f}, "
-                              f"{stage.tip[i, 1]:.3f}, {z[i]:.4f}) m, below {floor[i]:.4f} m "
-                              f"at t = {stage.times[i]:.2f} s")
-        self.check_limits(stage.name, stage.times, stage.qd, stage.qdd)
-
-    def check_limits(self, name: str, times: NDArray[np.float64], qd: NDArray[np.float64],
-                     qdd: NDArray[np.float64]) -> None:
-        """Speeds, accelerations (the samples' and the velocities' finite differences) and
-        jerks (the accelerations' finite differences) within the limits x speed_margin."""
-        names = self.arm.joint_names
-        checks = [("", "/s", "velocity", qd, self.vmax, times)]
-        if len(times) > 1:
-            dt = np.diff(times)[:, None]
-            checks += [(" accelerates at", "/s^2", "acceleration", qdd, self.amax, times),
-                       (" accelerates at", "/s^2", "acceleration", np.diff(qd, axis=0) / dt,
-                        self.amax, times[1:]),
-                       (" jerks at", "/s^3", "jerk", np.diff(qdd, axis=0) / dt, self.jmax,
-                        times[1:])]
-        for verb, unit, what, values, limit, at in checks:
-            ratio = np.abs(values) / limit
-            if np.max(ratio) > 1.0 + LIMIT_SLACK:
-                i, j = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
-                raise PushRefused("speed", name, f"{names[j]}{verb or ' at'} "
-                                  f"{values[i, j]:.3f} {unit}, limit {limit[j]:.3f} {unit} "
-                                  f"({what} limit x speed_margin) at t = {at[i]:.2f} s")
-
-    def check_input(self, approach: NDArray[np.float64], contact: NDArray[np.float64],
-                    end: NDArray[np.float64]) -> float:
-        """Finite points in the workspace, a straight push; returns approach -> contact."""
-        x_min, x_max, y_min, y_max = self.cfg.workspace
-        for label, p in (("approach", approach), ("contact", contact), ("end", end)):
-            if not (x_min <= p[0] <= x_max and y_min <= p[1] <= y_max):
-                raise PushRefused("workspace", "input", f"{label} point ({p[0]:.3f}, "
-                                  f"{p[1]:.3f}) m outside the workspace x [{x_min}, {x_max}], "
-                                  f"y [{y_min}, {y_max}] m")
-        length = float(np.linalg.norm(end - approach))
-        if not length <= self.cfg.max_push_length:
-            raise PushRefused("invalid", "input", f"push {length:.3f} m long, more than "
-                              f"max_push_length {self.cfg.max_push_length} m")
-        if length < 1e-4:
-            raise PushRefused("invalid", "input", "approach and end point coincide")
-        u = (end - approach) / length
-        along = float((contact - approach) @ u)
-        off = float(np.linalg.norm(contact - approach - along * u))
-        if off > CONTACT_OFF_LINE or not -1e-9 <= along <= length + 1e-9:
-            raise PushRefused("invalid", "input", "the contact point is not on the approach -> "
-                              f"end segment ({off * 1e3:.1f} mm off)")
-        return along
-
     # ---- composite pieces --------------------------------------------------------------------
-    def start_stages(self, start: MotionState, rise: bool = False) -> list[_Stage]:
-        """The clear stage when the arm rests low over the workspace, or (``rise``) rests
-        anywhere below the clear height (else nothing)."""
+    def start_stages(self, start: MotionState, rise: bool = False) -> list[Stage]:
+        """The clear stage when the arm rests low over the workspace (its band), or
+        (``rise``) rests anywhere below the clear height (else nothing): up to
+        :data:`CLEAR_EXTRA` above the approach height, never lower than the tip starts.
+
+        A vertical tool (:data:`CLEAR_TILT`) goes straight up, its redundancy kept near the
+        start posture (the stage's first sample within :data:`CLEAR_START_MATCH` of the
+        measured posture); a tilted tool (or one whose straight line would not start at its
+        posture, or leaves the reach) moves in joint space to the vertical posture above its
+        tip, checked to stay at or above the tip's start height."""
         cfg = self.cfg
-        tip0 = self.arm.tip_pose(start.q)[0]
+        tip0, axis0 = self.arm.tip_pose(start.q)
         high = cfg.approach_height + CLEAR_EXTRA - 1e-6 if rise \
             else cfg.approach_height - TRANSIT_SLACK
-        if not (start.resting and self.over_workspace(tip0[None, :2])[0] and tip0[2] < high):
+        if not (start.resting and tip0[2] < high
+                and (rise or self.over_workspace(tip0[None, :2])[0])):
             return []
         top = np.array([tip0[0], tip0[1], cfg.approach_height + CLEAR_EXTRA])
-        return [self.line_stage(CLEAR, start.q, tip0, top, cfg.cartesian_speed)]
+        floor = min(cfg.min_tool_height, float(tip0[2]))  # it may start below: it rises
+        if float(-axis0[2]) >= math.cos(CLEAR_TILT):
+            try:
+                stage = self.line_stage(CLEAR, start.q, tip0, top, cfg.cartesian_speed,
+                                        reference=start.q, min_height=floor)
+            except PushRefused as refusal:
+                if refusal.kind != "ik":
+                    raise
+            else:
+                if np.max(np.abs(stage.q[0] - start.q)) <= CLEAR_START_MATCH:
+                    return [stage]
+        q_top = self.ik_point(CLEAR, top, seed=start.q, reference=start.q)
+        stage = self.joint_stage(CLEAR, start, q_top)
+        self.check_stage(stage, start.q, floor)
+        return [stage]
 
     def approach(self, start: MotionState, above: NDArray[np.float64],
-                 low: NDArray[np.float64]) -> list[_Stage]:
+                 low: NDArray[np.float64]) -> list[Stage]:
         """Transit (blended into the descend when its clearance allows) and descend."""
         cfg = self.cfg
         q_above = self.ik_point("transit", above)
@@ -391,8 +283,8 @@ class _Planner:
         assert failure is not None
         raise failure
 
-    def begin(self, start: MotionState, then: Callable[[MotionState], list[_Stage]]
-              ) -> list[_Stage]:
+    def begin(self, start: MotionState, then: Callable[[MotionState], list[Stage]]
+              ) -> list[Stage]:
         """The start stages and ``then(state)``: should a joint-space motion from rest dip
         below its clearance (it starts at the approach height, e.g. at a clear pose), the arm
         first rises straight up (:data:`CLEAR_EXTRA` above the approach height) and tries
@@ -406,14 +298,14 @@ class _Planner:
                 raise
             return rise + then(rise[-1].end)
 
-    def leave(self, lift_from: _Stage, view: View | None) -> list[_Stage]:
+    def leave(self, lift_from: Stage, view: View | None) -> list[Stage]:
         """Lift and withdraw to the first clear pose that passes every check (or park)."""
         cfg = self.cfg
         back, q_back = lift_from.tip[-1], lift_from.q[-1]
         top = np.array([back[0], back[1], cfg.approach_height + LIFT_EXTRA])
-        lifts: dict[bool, _Stage] = {}
+        lifts: dict[bool, Stage] = {}
 
-        def lift(blended: bool) -> _Stage:  # the lift is the same for every candidate
+        def lift(blended: bool) -> Stage:  # the lift is the same for every candidate
             if blended not in lifts:
                 lifts[blended] = self.line_stage("lift", q_back, back, top,
                                                  cfg.cartesian_speed,
@@ -457,8 +349,8 @@ def _as_start(arm: ArmKinematics, start: ArrayLike | MotionState) -> MotionState
     return state
 
 
-def _assemble(arm: ArmKinematics, cfg: MotionConfig, stages: list[_Stage],
-              lead_in: _Stage | None) -> tuple[dict[str, NDArray[np.float64]],
+def _assemble(arm: ArmKinematics, cfg: MotionConfig, stages: list[Stage],
+              lead_in: Stage | None) -> tuple[dict[str, NDArray[np.float64]],
                                                tuple[StageSpan, ...], dict[str, float]]:
     """Concatenate the stages: the first point (the start state) at ``start_delay`` (after a
     lead-in, if any), each later stage without its first sample (the previous stage's last).
@@ -483,7 +375,7 @@ def _assemble(arm: ArmKinematics, cfg: MotionConfig, stages: list[_Stage],
     return out, tuple(spans), starts
 
 
-def _plan(arm: ArmKinematics, cfg: MotionConfig, stages: list[_Stage], lead_in: _Stage | None,
+def _plan(arm: ArmKinematics, cfg: MotionConfig, stages: list[Stage], lead_in: Stage | None,
           contact: tuple[float, float], line: NDArray[np.float64], chain_name: str
           ) -> MotionPlan:
     out, spans, starts = _assemble(arm, cfg, stages, lead_in)
@@ -569,7 +461,7 @@ def plan_park(arm: ArmKinematics, config: MotionConfig, start: ArrayLike | Motio
     over the workspace); arguments and checks as :func:`plan_push`."""
     planner = _Planner(arm, config)
     state = _as_start(arm, start)
-    def park(begin: MotionState) -> list[_Stage]:
+    def park(begin: MotionState) -> list[Stage]:
         stage = planner.joint_stage(PARK, begin, np.array(config.park_positions, dtype=float))
         planner.check_stage(stage, begin.q, planner.clearance_floor(stage))
         return [stage]
@@ -581,7 +473,7 @@ def plan_park(arm: ArmKinematics, config: MotionConfig, start: ArrayLike | Motio
 
 
 def _lead_in(arm: ArmKinematics, previous: MotionPlan | None, first: float,
-             state: MotionState) -> _Stage | None:
+             state: MotionState) -> Stage | None:
     """The previous plan's points from ``first`` to the chain point, as a stage from 0."""
     if previous is None:
         return None
@@ -592,5 +484,5 @@ def _lead_in(arm: ArmKinematics, previous: MotionPlan | None, first: float,
         else np.array([first])
     states = [previous.state_at(float(t)) for t in times[:-1]] + [state]
     q = np.array([s.q for s in states])
-    return _Stage(previous.stage_at(until), times - first, q, np.array([s.qd for s in states]),
+    return Stage(previous.stage_at(until), times - first, q, np.array([s.qd for s in states]),
                   np.array([s.qdd for s in states]), arm.tip_positions(q))

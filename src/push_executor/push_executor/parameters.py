@@ -17,6 +17,7 @@ from rcl_interfaces.msg import ParameterType
 from push_core.rollout import PUSHER_RADIUS
 from push_executor.kinematics import DEFAULT_ACCELERATION, DEFAULT_JERK, ToolSpec
 from push_executor.motion_types import PANDA_PARK, PANDA_READY, PANDA_SIM_BASE_POSE, MotionConfig
+from push_executor.state_check import StateCheckConfig
 from push_ros.node import ParamSpec
 
 __all__ = ["NODE_NAME", "PARAMETERS", "YAML_HEADER", "ExecutorParams"]
@@ -106,7 +107,20 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               "stamps stop advancing, for this long, s of the steady clock.", (0.05, 60.0),
               read_only=True),
     ParamSpec("start_timeout", 5.0, "Stop when the motion has not started this long after the "
-              "trajectory was sent, s of the steady clock.", (0.1, 600.0), read_only=True),
+              "trajectory was sent, s of the controller's time (the joint-state stamps), or "
+              "when the stamps stand still this long (steady clock).", (0.1, 600.0),
+              read_only=True),
+    ParamSpec("state_margin", 0.05, "A measured joint outside its URDF position limits by "
+              "more than this refuses every push (kind state) until the joint state is "
+              "plausible again, rad (m for prismatic joints).", (0.0, 1.0), read_only=True),
+    ParamSpec("max_state_age", 2.0, "A push is refused (kind state) when the newest joint "
+              "state is stamped more than this before the node's clock, s.", (0.01, 3600.0),
+              read_only=True),
+    ParamSpec("max_trajectory_duration", 120.0, "Longest trajectory the executor sends; a "
+              "longer plan, or a posture from which a joint-space stage could take longer, is "
+              "refused before anything is published, s.", (1.0, 3600.0), read_only=True),
+    ParamSpec("max_trajectory_points", 20000, "Most points of a trajectory the executor "
+              "sends; a plan with more is refused.", (2, 1_000_000), read_only=True),
     ParamSpec("max_future_stamp", 10.0, "Joint states stamped more than this ahead of the "
               "node's clock are refused, s.", (0.0, 3600.0), read_only=True),
     ParamSpec("start_enabled", False, "Start enabled (moving the arm); false: dry run until "
@@ -137,6 +151,7 @@ class ExecutorParams:
     values: dict[str, Any]
     tool: ToolSpec
     motion: MotionConfig
+    checks: StateCheckConfig
     #: The ``clear.*`` parameters without the prefix.
     clear: dict[str, Any]
 
@@ -156,6 +171,11 @@ class ExecutorParams:
                 reference_positions=tuple(float(x) for x in v["reference_positions"]),
                 workspace=tuple(float(v[f"workspace.{k}"]) for k in ("x_min", "x_max", "y_min",
                                                                      "y_max")))
+            checks = StateCheckConfig(
+                state_margin=float(v["state_margin"]), state_timeout=float(v["state_timeout"]),
+                max_state_age=float(v["max_state_age"]),
+                max_duration=float(v["max_trajectory_duration"]),
+                max_points=int(v["max_trajectory_points"]))
         except (TypeError, ValueError) as exc:
             raise ValueError(f"parameter {exc}") from None
         if len(v["base_pose"]) != 4 or not all(math.isfinite(x) for x in v["base_pose"]):
@@ -164,7 +184,7 @@ class ExecutorParams:
             if not v[name] > 0:
                 raise ValueError(f"parameter {name}: must be > 0")
         clear = {k.removeprefix("clear."): v[k] for k in v if k.startswith("clear.")}
-        return cls(values=dict(v), tool=tool, motion=motion, clear=clear)
+        return cls(values=dict(v), tool=tool, motion=motion, checks=checks, clear=clear)
 
 
 #: The node's name: the top-level key of its parameter file.

@@ -8,10 +8,15 @@ near the work), watches it on ``/joint_states``, reports the executed contact se
 while the previous motion withdraws chains from its planned state. The arm parks at the end of
 an episode (``planner/status``), after ``~/cancel`` and on disable. The maths is the ROS-free
 core: :mod:`push_executor.kinematics`, :mod:`push_executor.motion`,
-:mod:`push_executor.clearance`, :mod:`push_executor.tracking`; camera, object and episode
-inputs: :mod:`push_executor.scene_inputs`; parameters: :mod:`push_executor.parameters`.
+:mod:`push_executor.clearance`, :mod:`push_executor.tracking`; the measured state before
+planning, the plan's bounds and the readiness on ``executor/status``:
+:mod:`push_executor.state_check`; camera, object and episode inputs:
+:mod:`push_executor.scene_inputs`; parameters: :mod:`push_executor.parameters`.
 
-Invariants: one motion at a time (a chained one replaces it from the chain point on); a push
+Invariants: an impossible or non-finite joint state is never the measured posture (refused
+with kind ``state``, never tracked or held); nothing is published for a plan beyond
+``max_trajectory_duration`` / ``max_trajectory_points``; one motion at a time (a chained one
+replaces it from the chain point on); a push
 ended by a stop before its contact segment was reported (watchdog, ``~/cancel``, disable: a
 one-point hold trajectory) is answered on ``pusher/refused`` so the planner re-plans at once;
 the watchdogs run on the steady clock; no exception leaves a callback; it never imports
@@ -24,6 +29,7 @@ docs/design/arm.md and docs/design/cycle.md.
 from __future__ import annotations
 
 import math
+import os
 import time
 from pathlib import Path as FilePath
 from typing import Any
@@ -43,11 +49,19 @@ from push_executor.kinematics import ArmKinematics
 from push_executor.motion import PushRefused, plan_park, plan_push
 from push_executor.parameters import NODE_NAME, PARAMETERS, ExecutorParams
 from push_executor.scene_inputs import SceneInputs
+from push_executor.state_check import (
+    StuckPosture,
+    check_before_planning,
+    check_plan,
+    nonfinite_joints,
+    posture_problem,
+    unavailable,
+)
 from push_executor.tracking import Event, Execution, MeasuredArm, PlanMaker, start_plan
 from push_ros.health import NodeHealth
 from push_ros.node import declare_config, run_node
 from push_ros.qos import JOINT_STATE_QOS, LATCHED_QOS, RELIABLE_QOS
-from push_ros.refusal import refusal_msg, stamp_key
+from push_ros.refusal import readiness_values, refusal_msg, stamp_key
 from push_ros.stamps import clock_seconds
 
 __all__ = ["PARAMETERS", "ExecutorParams", "PushExecutorNode", "main"]
@@ -78,6 +92,8 @@ class PushExecutorNode(Node):
         self._deferred: tuple[Path, float] | None = None  # a push waiting for the arm at rest
         self._park_pending, self._stopped, self._line_error_mm = "", False, math.nan
         self._plan_values: dict[str, str] = {}
+        self._stuck = StuckPosture()  # a posture it could not leave (push_executor.state_check)
+        self._session, self._readiness = f"{os.getpid()}-{time.time_ns()}", None
         self._pub_traj = self.create_publisher(JointTrajectory, p["controller_topic"],
                                                RELIABLE_QOS)
         self._pub_executed = self.create_publisher(Path, "pusher/executed", RELIABLE_QOS)
@@ -144,14 +160,26 @@ class PushExecutorNode(Node):
             stamp, q = m.joint_state_from_msg(msg, self._arm.joint_names,
                                             clock_seconds(self.get_clock()),
                                             self.params.values["max_future_stamp"])
-        except ValueError as exc:
-            self.health.refuse("/joint_states", str(exc), "invalid")
+        except ValueError as exc:  # non-finite chain positions: a posture, but an unknown one
+            problem = nonfinite_joints(self._arm.joint_names, msg.name, msg.position) \
+                if len(msg.name) <= m.MAX_JOINTS else ""
+            self.health.refuse("/joint_states", str(exc), "state" if problem else "invalid")
+            self.measured.problem = problem or self.measured.problem
+            return
+        problem = posture_problem(self._arm, q, self.params.checks.state_margin)
+        if problem:  # not a posture the arm can be in: the last plausible one is kept
+            self.measured.problem = problem
+            self.health.refuse("/joint_states", problem, "state")
             return
         steady = time.monotonic()
-        self.measured.update(stamp, q, steady, replace=self._run is None)
+        restarted = self.measured.update(stamp, q, steady, replace=self._run is None)
         self.health.count("joint_states")
+        if restarted:  # a restarted driver or simulator: the running plan's times are gone
+            self.health.log.warning("clock", f"joint-state stamps jumped back to {stamp:.3f} s: "
+                                    "the controller's clock restarted")
         if self._run is not None:
-            self._finish(self._run.on_state(stamp, q, steady))
+            self._finish(Event("restarted", "the controller's clock restarted") if restarted
+                         else self._run.on_state(stamp, q, steady))
         else:
             self._when_held(steady)
 
@@ -171,9 +199,12 @@ class PushExecutorNode(Node):
             return self._refuse(stamp, "invalid", "input", str(exc))
         if self._arm is None:
             return self._refuse(stamp, "no_model", "", "no robot description yet")
-        if self.measured.q is None or time.monotonic() - self.measured.steady > \
-                self.params.values["state_timeout"]:
-            return self._refuse(stamp, "no_state", "", "no recent joint state")
+        try:
+            check_before_planning(self._arm, self.measured, self.params.checks,
+                                  self.params.motion, time.monotonic(),
+                                  clock_seconds(self.get_clock()))
+        except PushRefused as refusal:
+            return self._refuse(stamp, refusal.kind, refusal.stage, refusal.reason)
         if self._run is None and self._enabled and not waited \
                 and not self.measured.held(time.monotonic()):
             self._deferred = (msg, time.monotonic())  # planned once the states show it held
@@ -185,6 +216,9 @@ class PushExecutorNode(Node):
                 self._arm, self.params.motion, approach, contact, end, start, view, lead,
                 first), stamp)
         except PushRefused as refusal:
+            if self._run is None:  # planned from the measured posture: can it be left?
+                refusal = self._stuck.classify(refusal, self._arm, self.measured.q,
+                                               self.params.motion)
             return self._refuse(stamp, refusal.kind, refusal.stage, refusal.reason)
         self._plan_values["clear_checked"] = str(getattr(view, "checked", 0))
         return self._publish_status()
@@ -197,6 +231,7 @@ class PushExecutorNode(Node):
         run = self._run if self._enabled or stamp is None else None  # a dry run: from here
         plan, t0, chained = start_plan(make, run, self.measured.q, self._now, p["start_delay"],
                                        self.params.motion.start_delay)
+        check_plan(plan, self.params.checks)
         self._pub_path.publish(m.path_msg(plan, p["world_frame"], self.get_clock().now().to_msg()))
         if not self._enabled and stamp is not None:
             raise PushRefused("disabled", "", "executor disabled (dry run): planned, not moved")
@@ -266,6 +301,16 @@ class PushExecutorNode(Node):
         self._when_held(time.monotonic())
         if self._run is not None:
             self._finish(self._run.on_timer(time.monotonic()))
+        if self._unavailable() != self._readiness:  # executor/status says when it changes
+            self._publish_status()
+
+    def _unavailable(self) -> tuple[str, str] | None:
+        """Why no push can be taken now (push_executor.state_check.unavailable), or None."""
+        return unavailable(model=self._arm is not None, enabled=self._enabled, arm=self._arm,
+                           measured=self.measured, stuck=self._stuck, config=self.params.checks,
+                           motion=self.params.motion, moving=self._run is not None,
+                           controller=self._pub_traj.get_subscription_count() > 0,
+                           steady=time.monotonic(), clock=clock_seconds(self.get_clock()))
 
     def _report(self, run: Execution) -> None:
         """Publish the run's measured contact segment (or answer its push with a fault)."""
@@ -338,7 +383,8 @@ class PushExecutorNode(Node):
     def _refuse(self, stamp: Any, kind: str, stage: str, reason: str) -> None:
         self.health.refuse("push", f"{kind} ({stage}): {reason}" if stage else reason, kind)
         self._pub_refused.publish(refusal_msg(self.get_fully_qualified_name(), stamp, kind,
-                                              reason, stage, "arm"))
+                                              reason, stage, "arm",
+                                              available=self._unavailable() is None))
         self._publish_status()
 
     def _publish_status(self) -> None:
@@ -349,8 +395,14 @@ class PushExecutorNode(Node):
         level = DiagnosticStatus.WARN if self._arm is None or self._stopped \
             else DiagnosticStatus.OK
         model = "no robot description" if self._arm is None else f"{len(self._joints)} joints"
+        readiness, self._readiness = self._readiness, self._unavailable()
+        if readiness != self._readiness:  # the log says why it cannot take a push, and since when
+            self.health.log.info("readiness", f"not ready: {': '.join(self._readiness)}"
+                                 if self._readiness else "ready for a push")
         extra = {"state": state, "model": model, "at_park": str(self._parked()).lower(),
-                 "contact_line_error_mm": f"{self._line_error_mm:.4f}", **self._plan_values}
+                 "contact_line_error_mm": f"{self._line_error_mm:.4f}", **self._plan_values,
+                 **readiness_values(run is None and self._readiness is None, self._readiness,
+                                    self._session)}
         self._pub_status.publish(self.health.status(level, f"{state}, {model}", extra))
         self.health.publish(level, f"{state}, {model}", extra)
 

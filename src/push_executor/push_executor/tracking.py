@@ -23,7 +23,14 @@ against the plan it replaced until its own first point:
 - ``stale``: no joint state for ``state_timeout`` s (steady), or, once the motion started, no
   *advancing* stamp for ``state_timeout`` s;
 - ``no_start``: the motion did not start (no stamp past ``t0`` and no joint moved by
-  :data:`START_MOTION`) within ``start_timeout`` s (steady).
+  :data:`START_MOTION`) within ``start_timeout`` s of the controller's time (the stamps
+  advanced that far past the newest one at sending), or the stamps did not advance at all for
+  ``start_timeout`` s (steady). A controller whose clock runs slowly (a simulator starved of
+  CPU) is not a fault: its stamps advance, and it starts when its time reaches ``t0``.
+
+All windows are judged on the joint states' stamps (the controller's time; simulated time in
+simulation), the steady clock only where nothing arrives or the stamps stand still, so CPU
+load, late or bursty delivery never read as a robot fault while a real delay still does.
 
 It keeps the samples around the contact segment (bounded: :data:`MAX_SAMPLES`), from which
 :meth:`Execution.contact_segment` gives the measured tool tip at the start and the end of the
@@ -44,9 +51,9 @@ from numpy.typing import ArrayLike, NDArray
 from push_executor.kinematics import ArmKinematics
 from push_executor.motion import MotionPlan, MotionState, PushRefused, chain_point
 
-__all__ = ["MAX_SAMPLES", "START_MOTION", "ContactSegment", "Event", "Execution", "MeasuredArm",
-           "StampClock", "expected_positions", "segment_distance", "start_plan",
-           "tracking_error"]
+__all__ = ["CLOCK_RESTART", "MAX_SAMPLES", "START_MOTION", "ContactSegment", "Event",
+           "Execution", "MeasuredArm", "StampClock", "expected_positions", "segment_distance",
+           "start_plan", "tracking_error"]
 
 #: Joint motion (rad) that shows a trajectory started.
 START_MOTION = 1e-3
@@ -67,6 +74,8 @@ MAX_SAMPLE_GAP = 0.2
 MAX_BRACKET = 0.6
 #: Samples this long (s) before and after the contact segment are kept too.
 SAMPLE_MARGIN = 0.5
+#: A joint state stamped this long (s) before the newest one comes from a restarted clock.
+CLOCK_RESTART = 2.0
 
 
 def expected_positions(plan: MotionPlan, elapsed: float) -> NDArray[np.float64]:
@@ -174,10 +183,10 @@ class Execution:
         self.tolerance = float(tracking_tolerance)
         self.state_timeout, self.start_timeout = float(state_timeout), float(start_timeout)
         self._previous = None if previous is None else (previous.plan, previous.t0)
-        self._start_steady = steady
         self._last_sample = steady
         self._last_advance = steady
         self._stamp = self._stamp0 = float(last_stamp)
+        self._sent_stamp = self._stamp0 if math.isfinite(self._stamp0) else None
         self.started = moving  # a chained motion starts on a moving arm
         self._checked = -math.inf  # stamp of the last tracking check
         #: Whether the contact segment has been reported (``executed``; a push plan only).
@@ -215,6 +224,8 @@ class Execution:
         ``executed`` (the first state at or after the contact segment's end, once) does not.
         """
         self._last_sample = steady
+        if self._sent_stamp is None:  # no state before the trajectory: count from this one
+            self._sent_stamp = float(stamp)
         if stamp > self._stamp:  # the stamps advance (also before the start: a queue)
             self._stamp = stamp
             self._last_advance = steady
@@ -253,9 +264,12 @@ class Execution:
         if self.started and steady - self._last_advance > self.state_timeout:
             return Event("stale", f"joint state stamps stopped advancing "
                          f"{steady - self._last_advance:.2f} s ago")
-        if not self.started and steady - self._start_steady > self.start_timeout:
+        if not self.started and (steady - self._last_advance > self.start_timeout
+                                 or (self._sent_stamp is not None
+                                     and self._stamp - self._sent_stamp > self.start_timeout)):
             return Event("no_start", f"the motion did not start within {self.start_timeout} s "
-                         "(controller inactive or not receiving?)")
+                         "of the controller's time, or its joint-state stamps stood still "
+                         "that long (controller inactive or not receiving?)")
         return None
 
     @property
@@ -351,22 +365,37 @@ class MeasuredArm:
     (s), the controller's time (:class:`StampClock`) and whether the arm is held: its last
     ``held_states`` postures within ``held`` rad of each other, or no state for ``quiet`` s
     (an arm moving streams its states; a resting simulator sends a few a second, fewer on a
-    loaded machine)."""
+    loaded machine).
+
+    ``problem`` is non-empty while the newest joint state was not a posture the arm can be in
+    (non-finite, outside the limits: :mod:`push_executor.state_check`); such a state never
+    becomes ``q`` (a stop holds the last plausible one), and the next plausible state that
+    becomes the newest clears it."""
 
     def __init__(self, held_states: int = 3, held: float = 1e-4, quiet: float = 0.5) -> None:
         self.q: NDArray[np.float64] | None = None
         self.stamp = self.steady = -math.inf
+        self.problem = ""
         self.clock = StampClock()
         self._recent: deque[NDArray[np.float64]] = deque(maxlen=held_states)
         self._held, self._quiet = float(held), float(quiet)
 
     def update(self, stamp: float, q: NDArray[np.float64], steady: float,
-               replace: bool = False) -> None:
-        """A joint state; it becomes the newest unless older than it (``replace``: anyway)."""
+               replace: bool = False) -> bool:
+        """A joint state; it becomes the newest unless older than it (``replace``: anyway).
+        Returns whether it comes from a restarted clock (stamped more than
+        :data:`CLOCK_RESTART` s before the newest: a restarted driver or simulator, whose
+        clock starts again): the old clock's stamps and rate are then forgotten."""
+        restarted = stamp < self.stamp - CLOCK_RESTART
+        if restarted:
+            self.stamp, self.clock = -math.inf, StampClock(self.clock.window)
+            self._recent.clear()
         if stamp >= self.stamp or replace:
             self.q, self.stamp, self.steady = q, float(stamp), float(steady)
+            self.problem = ""
             self._recent.append(q)
         self.clock.update(stamp, steady)
+        return restarted
 
     def moved(self) -> None:
         """The arm was sent moving: held again only once new states show it."""

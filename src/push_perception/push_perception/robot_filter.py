@@ -44,6 +44,10 @@ __all__ = ["JOINT_HISTORY", "JointStateBuffer", "RobotFilter", "RobotFilterConfi
 
 #: Joint states kept (2 s at 500 Hz).
 JOINT_HISTORY = 1000
+#: A joint state stamped this long (s) before the newest one comes from a restarted clock (a
+#: restarted simulator or driver starts near 0; the rule of
+#: ``push_core.episode.PREVIOUS_EPISODE_WINDOW``): the old clock's states are forgotten.
+CLOCK_RESTART = 2.0
 #: Most joints in one joint state.
 MAX_JOINTS = 256
 #: Joint speed below which a joint state shows the robot at rest, rad/s (m/s).
@@ -139,6 +143,8 @@ class JointStateBuffer:
             raise ValueError(f"{len(names)} names but {len(values)} positions")
         speed = np.asarray(velocities, dtype=np.float64).ravel()
         still = len(speed) == len(values) > 0 and bool(np.all(np.abs(speed) <= STILL_VELOCITY))
+        if self._stamps and stamp < self._stamps[-1] - CLOCK_RESTART:
+            self.clear()  # a restarted clock: the old one's states would pair with no frame
         i = bisect.bisect_right(self._stamps, stamp)
         self._stamps.insert(i, float(stamp))
         self._states.insert(i, (tuple(str(n) for n in names), values))

@@ -13,13 +13,13 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from push_core.episode import AFTER_GOAL
-from push_core.planner import PlannerConfig
+from push_core.episode import AFTER_GOAL, EpisodeEngine
+from push_core.planner import Planner, PlannerConfig
 from push_ros.interfaces import SIM_TIME
 from push_ros.node import ParamSpec
 
 __all__ = ["NODE_NAME", "PARAMETERS", "YAML_EXTRA", "YAML_HEADER", "YAML_NOTES",
-           "PlannerNodeParams", "load_learned_model"]
+           "PlannerNodeParams", "episode_parts", "load_learned_model"]
 
 #: The parameter table. Episode parameters are settable (applied on ``~/reset``); the
 #: structural ones are read-only.
@@ -76,6 +76,12 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec("push_timeout", 30.0, "Wall-clock seconds to wait for pusher/executed after "
               "publishing a push; then it counts as lost (still a step) and the node plans again "
               "from the newest estimate.", (0.1, 3600.0), read_only=True),
+    ParamSpec("robot_timeout", 300.0, "Longest wait, s of the steady clock, for a robot that "
+              "refused a push as not available (disabled for a dry run, no joint states, no "
+              "controller, an impossible posture: no other push avoids it): the episode waits "
+              "('robot unavailable: <kind>: <reason>', no step spent) until the executor says "
+              "on executor/status that it is ready again, then resumes from a frame taken since "
+              "the wait began; it fails with that reason after this long.", (0.1, 86400.0)),
     ParamSpec("max_future_stamp", 10.0, "Estimates and pusher/executed stamped more than this "
               "many seconds ahead of the node's clock are refused (one far-future stamp would "
               "make every later estimate look stale), s; not applied while a sim-time clock "
@@ -154,6 +160,8 @@ class PlannerNodeParams:
         ``resume`` | ``report`` (:data:`push_core.episode.AFTER_GOAL`).
     max_future_stamp : float
         s.
+    robot_timeout : float
+        s of the steady clock (``EpisodeEngine.robot_timeout``).
     """
 
     planner: PlannerConfig
@@ -163,6 +171,7 @@ class PlannerNodeParams:
     lrn_weights: str
     after_goal: str = "resume"
     max_future_stamp: float = 10.0
+    robot_timeout: float = 300.0
 
     def summary(self) -> str:
         """The settings a user reads in the log: method, k, seed, tolerances, max steps."""
@@ -201,7 +210,7 @@ class PlannerNodeParams:
         except ValueError as exc:
             field, _, rest = str(exc).partition(":")
             raise ValueError(f"parameter '{_FIELD_TO_PARAM.get(field, field)}':{rest}") from None
-        for name in ("max_steps", "push_speed", "push_timeout"):
+        for name in ("max_steps", "push_speed", "push_timeout", "robot_timeout"):
             if not values[name] > 0:
                 raise ValueError(f"parameter '{name}': must be > 0, got {values[name]!r}")
         after_goal = str(values["after_goal"]).strip()
@@ -216,7 +225,7 @@ class PlannerNodeParams:
                    push_speed=float(values["push_speed"]),
                    push_timeout=float(values["push_timeout"]),
                    lrn_weights=str(values["lrn_weights"]), after_goal=after_goal,
-                   max_future_stamp=future)
+                   max_future_stamp=future, robot_timeout=float(values["robot_timeout"]))
 
 
 def load_learned_model(weights: str) -> Any:
@@ -234,3 +243,21 @@ def load_learned_model(weights: str) -> Any:
         raise ValueError(f"parameter 'lrn_weights': cannot load {path!r}: {exc}") from None
 
 
+
+
+def episode_parts(params: PlannerNodeParams, model: Any = None,
+                  counts: dict[str, int] | None = None) -> tuple[Any, Planner, EpisodeEngine]:
+    """The learned model (``model``, or loaded when method ``lrn`` needs one), the planner and
+    a fresh episode engine (``counts``: the counters to carry on) of ``params``.
+
+    Raises
+    ------
+    ValueError
+        Naming the parameter (the learned model cannot be loaded).
+    """
+    if params.planner.method == "lrn" and model is None:
+        model = load_learned_model(params.lrn_weights)
+    planner = Planner(params.planner, affordance_model=model)
+    extra = {} if counts is None else {"counts": counts}
+    return model, planner, EpisodeEngine(planner, params.max_steps, after_goal=params.after_goal,
+                                         robot_timeout=params.robot_timeout, **extra)

@@ -1,6 +1,8 @@
 """The planner's own messages and reading rules: the ``planner/affordances`` MarkerArray (RViz
-view of a plan), the goal of ``goal_pose`` on the workspace (:func:`goal_from_msg`) and the end
-time of any ``pusher/executed`` (:func:`executed_end`).
+view of a plan), the goal of ``goal_pose`` on the workspace (:func:`goal_from_msg`), the end
+time of any ``pusher/executed`` (:func:`executed_end`), ``planner/status``'s message and values
+(:func:`status_message`, :func:`status_values`) and the log line of a push
+(:func:`push_log_text`).
 
 Every other message the planner reads or writes has its one codec in :mod:`push_ros`
 (``estimator/state``: :mod:`push_ros.state`; poses and goals: :mod:`push_ros.poses`;
@@ -10,6 +12,9 @@ Every other message the planner reads or writes has its one codec in :mod:`push_
 
 from __future__ import annotations
 
+import math
+from typing import Any
+
 import numpy as np
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point, PoseStamped
@@ -18,13 +23,15 @@ from numpy.typing import ArrayLike, NDArray
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
+from push_core.episode import EpisodeEngine
 from push_core.geometry import object_to_world
 from push_core.planner import Outline, PushPlan
 from push_ros.frames import WORLD_FRAME
 from push_ros.poses import check_frame, xytheta_from_pose
 from push_ros.stamps import seconds_from_stamp
 
-__all__ = ["GOAL_HINT", "affordance_markers", "executed_end", "goal_from_msg", "status_message"]
+__all__ = ["GOAL_HINT", "affordance_markers", "executed_end", "goal_from_msg", "goal_log_text",
+           "outline_text", "push_log_text", "status_message", "status_values"]
 
 
 #: What ``planner/status`` adds while no goal is set: where goals come from and how to send
@@ -43,6 +50,46 @@ def status_message(engine_text: str, note: str, has_goal: bool) -> str:
     (:data:`GOAL_HINT`)."""
     text = engine_text + (f" - {note}" if note else "")
     return text if has_goal else f"{text} on {GOAL_HINT}"
+
+
+def status_values(engine: EpisodeEngine, max_steps: int, after_goal: str,
+                  outline_stamp: float, goal_source: str) -> dict[str, Any]:
+    """``planner/status``'s values besides the health counters (docs/INTERFACES.md): the
+    episode's state, step, goal, the engine's counters, ``robot_unavailable`` (rule 9's
+    ``<kind>: <reason>`` while waiting for the robot, else empty)."""
+    counts = {k: v for k, v in engine.counts.items() if k != "left"}
+    return {
+        "state": engine.phase, "step": engine.steps, "max_steps": max_steps,
+        "goal": "" if engine.goal is None else " ".join(f"{v:.4f}" for v in engine.goal),
+        "orientation": "used" if engine.orientation_matters else "ignored", **counts,
+        "last_push_end": f"{engine.last_push_end:.6f}",
+        "outline_stamp": f"{outline_stamp:.6f}", "left_goal": engine.counts["left"],
+        "after_goal": after_goal, "goal_source": goal_source,
+        "robot_unavailable": engine.unavailable}
+
+
+def outline_text(outline: Outline) -> str:
+    """The log line of an outline taken."""
+    decimated = (f", decimated from {outline.source_points}"
+                 if outline.source_points > len(outline.points) else "")
+    return (f"outline with {len(outline.points)} points{decimated} "
+            f"({len(outline.polyline)}-vertex contact polyline)")
+
+
+def goal_log_text(goal: ArrayLike, source: str) -> str:
+    """The log line of a goal taken (x, y m, theta rad) from ``source`` (may be empty)."""
+    x, y, theta = (float(v) for v in goal)
+    return (f"new goal (x {x:.4f} m, y {y:.4f} m, theta {theta:.4f} rad)"
+            f"{f' from {source}' if source else ''}: new episode")
+
+
+def push_log_text(step: int, plan: PushPlan) -> str:
+    """The log line of a push sent."""
+    return (f"step {step}: push at outline point {plan.index}, "
+            f"{math.degrees(plan.angle):+.0f} deg, {1e3 * plan.length:.1f} mm, predicted score "
+            f"{plan.score:.1f} mm (now {plan.current_score:.1f}); approach "
+            f"{np.round(plan.approach, 4)}, contact {np.round(plan.contact, 4)}, end "
+            f"{np.round(plan.end, 4)} m")
 
 
 def _color(r: float, g: float, b: float, a: float = 1.0) -> ColorRGBA:

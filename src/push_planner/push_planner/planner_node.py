@@ -27,26 +27,26 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from nav_msgs.msg import Path
 from rclpy.clock import Clock, ClockType
-from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
-from push_core.episode import EpisodeEngine
 from push_core.estimator.pairing import Estimate, EstimatePairing
-from push_core.planner import Planner, PushPlan, check_state, prepare_outline
-from push_planner.config import NODE_NAME, PARAMETERS, PlannerNodeParams, load_learned_model
-from push_planner.conversions import affordance_markers, executed_end, goal_from_msg, status_message
+from push_core.planner import PushPlan, check_state, prepare_outline
+from push_planner import conversions as conv
+from push_planner import robot
+from push_planner.config import NODE_NAME, PARAMETERS, PlannerNodeParams, episode_parts
+from push_planner.conversions import affordance_markers, executed_end, goal_from_msg
 from push_ros.health import NodeHealth
-from push_ros.message_info import GoalSources, publishers_text
-from push_ros.node import declare_config, parameter_values, run_node
+from push_ros.message_info import GoalSources, publishers_text, subscribe_goals
+from push_ros.node import declare_config, on_clock_jump_back, parameter_values, run_node
 from push_ros.outline import outline_from_cloud
 from push_ros.paths import push_path
 from push_ros.poses import pose_with_covariance_from_msg
 from push_ros.qos import LATCHED_QOS, RELIABLE_QOS, latched_reader_qos
-from push_ros.refusal import MOVING_KINDS, read_refusal, stamp_key
+from push_ros.refusal import MOVING_KINDS, read_readiness, read_refusal, stamp_key
 from push_ros.stamps import check_not_ahead, clock_seconds, seconds_from_stamp
 from push_ros.state import state_from_array_msg
 
@@ -83,12 +83,9 @@ class PlannerNode(Node):
         self.health = NodeHealth(self, counters=COUNTERS, log_period=LOG_THROTTLE_S,
                                  on_error=self._on_callback_error)
         self.params = declare_config(self, PARAMETERS, PlannerNodeParams.from_values)
-        self._model = (load_learned_model(self.params.lrn_weights)
-                       if self.params.planner.method == "lrn" else None)
-        self._planner = Planner(self.params.planner, affordance_model=self._model)
         #: The closed-loop rules (push_core.episode): goal, outline, estimates, pushes.
-        self._engine = EpisodeEngine(self._planner, self.params.max_steps,
-                                     after_goal=self.params.after_goal)
+        self._model, self._planner, self._engine = episode_parts(self.params)
+        self._robot = robot.RobotLink()  # the executor's answers (push_planner.robot)
         self._pairing = EstimatePairing(PAIR_BUFFER)
         self._goals = GoalSources()
         #: Header stamp of the outline in use (its episode's reference frame), s.
@@ -110,25 +107,13 @@ class PlannerNode(Node):
                 (PoseWithCovarianceStamped, "estimator/object_pose", self._on_pose, estimates),
                 (PointCloud2, "perception/outline", self._on_outline, LATCHED_QOS),
                 (Path, "pusher/executed", self._on_executed, RELIABLE_QOS),
-                (DiagnosticStatus, "pusher/refused", self._on_refused, RELIABLE_QOS)):
+                (DiagnosticStatus, "pusher/refused", self._on_refused, RELIABLE_QOS),
+                (DiagnosticStatus, "executor/status", self._on_executor_status, LATCHED_QOS)):
             self.create_subscription(msg_type, topic, guard(callback), qos)
-        on_goal = guard(self._on_goal)
-
-        def on_goal_with_info(msg: PoseStamped, info: Any) -> None:  # 2 args: with MessageInfo
-            on_goal(msg, info)
-
-        # goal_pose twice: volatile (every publisher, RViz too) and transient local (a
-        # (re)started node gets a latched sender's last goal; a volatile writer cannot match it:
-        # that expected mismatch is logged at debug level only).
-        self.create_subscription(PoseStamped, "goal_pose", on_goal_with_info, RELIABLE_QOS)
-        self.create_subscription(
-            PoseStamped, "goal_pose", on_goal_with_info, LATCHED_QOS,
-            event_callbacks=SubscriptionEventCallbacks(
-                incompatible_qos=lambda event: self.get_logger().debug(
-                    "a volatile goal_pose publisher (e.g. RViz) does not match the latched "
-                    "goal reader; its goals arrive on the volatile one")))
+        subscribe_goals(self, guard(self._on_goal))  # volatile and latched readers
         self.create_service(Trigger, "~/reset", guard(self._on_reset))
         self.create_timer(DIAGNOSTICS_PERIOD_S, guard(self._on_timer), clock=self._steady)
+        self._jump = on_clock_jump_back(self, guard(self._on_clock_jump))  # restarted clock
         self.get_logger().info(f"planner ready: {self.params.summary()}")
         self._publish_status()
 
@@ -142,15 +127,6 @@ class PlannerNode(Node):
         """The note and level ``planner/status`` shows until the next one."""
         self._note = note
         self._level = level
-
-    def _info(self, kind: str, text: str) -> None:
-        """An info line, at most one of ``kind`` every ``LOG_THROTTLE_S``."""
-        log, suppressed = self.health.log.allow(kind)
-        if not log:
-            return
-        if suppressed:
-            text += f" ({suppressed} similar message(s) suppressed)"
-        self.get_logger().info(text)
 
     def _check_stamp(self, stamp: float) -> None:
         """``ValueError`` if ``stamp`` (s) is more than ``max_future_stamp`` ahead of the
@@ -171,23 +147,17 @@ class PlannerNode(Node):
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response
                   ) -> Trigger.Response:
+        outline = self._engine.outline
         try:
             params = PlannerNodeParams.from_values(parameter_values(self, PARAMETERS))
-            model = self._model
-            if params.planner.method == "lrn" and model is None:
-                model = load_learned_model(params.lrn_weights)
-            planner = Planner(params.planner, affordance_model=model)
+            self._model, self._planner, self._engine = episode_parts(params, self._model,
+                                                                     self._engine.counts)
         except ValueError as exc:
             response.success = False
             response.message = f"reset refused: {exc}"
             self.get_logger().error(response.message)
             return response
         self.params = params
-        self._model = model
-        self._planner = planner
-        outline = self._engine.outline
-        self._engine = EpisodeEngine(planner, params.max_steps, after_goal=params.after_goal,
-                                     counts=self._engine.counts)
         if outline is not None:
             self._engine.set_outline(outline)
         self._new_episode()
@@ -212,8 +182,7 @@ class PlannerNode(Node):
         switched = self._goals.take(self._engine.goal is not None and not self._engine.finished)
         self._engine.new_goal(goal)
         self._set_note("")
-        text = (f"new goal (x {goal[0]:.4f} m, y {goal[1]:.4f} m, theta {goal[2]:.4f} rad)"
-                f"{f' from {source}' if source else ''}: new episode")
+        text = conv.goal_log_text(goal, source)
         if switched:
             self.health.count("goal_switches")
             self._set_note(f"goal replaced by another publisher ({source or 'unknown'}; "
@@ -221,7 +190,7 @@ class PlannerNode(Node):
                            DiagnosticStatus.WARN)
             self.health.log.warning("goal_switch", f"{text}; {self._note}")
         else:
-            self._info("goal", text)
+            self.health.log.info("goal", text)
         self._try_plan()
         self._publish_status()
 
@@ -236,10 +205,7 @@ class PlannerNode(Node):
             return
         self._engine.set_outline(outline)  # also forgets the avoided points of another outline
         self._outline_stamp = stamp
-        decimated = (f", decimated from {outline.source_points}"
-                     if outline.source_points > len(outline.points) else "")
-        self._info("outline", f"outline with {len(outline.points)} points{decimated} "
-                   f"({len(outline.polyline)}-vertex contact polyline)")
+        self.health.log.info("outline", conv.outline_text(outline))
         self._try_plan()
         self._publish_status()
 
@@ -285,7 +251,7 @@ class PlannerNode(Node):
         self._try_plan()
         self._publish_status()
 
-    def _on_refused(self, msg: DiagnosticStatus) -> None:
+    def _on_refused(self, msg: DiagnosticStatus) -> None:  # noqa: RET503 - None either way
         try:
             refusal = read_refusal(msg)
         except ValueError as exc:
@@ -293,24 +259,50 @@ class PlannerNode(Node):
             return
         if not (self._engine.in_flight and refusal.push_stamp == self._push_key):
             self.health.count("refusals_ignored")
-            self._info("refusal_ignored", f"ignored a refusal of push {refusal.push_stamp} by "
-                       f"{refusal.who!r}: not the push in flight")
+            self.health.log.info("refusal_ignored", robot.ignored_refusal_text(refusal))
             self._publish_status()
             return
-        note = (f"push of step {self._engine.steps} refused by {refusal.who} ({refusal.kind}): "
-                f"{refusal.reason}")[:500]
+        note = robot.refusal_note(self._engine.steps, refusal)
         self.health.count("pushes_refused")
-        self.health.log.warning("push_refused", f"{note}; counted as a step, planning again")
+        waiting = self._robot.refused(self._engine, refusal, self._steady_s(),
+                                      clock_seconds(self.get_clock()))
+        self.health.log.warning("push_refused", f"{note}; {waiting or robot.REPLANNING}")
+        if waiting:  # rule 9: paused until the executor is ready again
+            self._push_key = ""
+            self._set_note(waiting, DiagnosticStatus.WARN)
+            return self._publish_status()
         self._lost(note, wait=refusal.kind in MOVING_KINDS)
 
+    def _on_executor_status(self, msg: DiagnosticStatus) -> None:
+        event = self._robot.status(self._engine, read_readiness(msg))
+        if event == robot.RESTARTED:
+            self.health.log.warning("executor_restart", event)
+            self._lost(event, wait=True)
+        elif event:  # RESUMED
+            self.health.log.info("robot_ready", event)
+            self._set_note("")
+            self._try_plan()
+            self._publish_status()
+
+    def _on_clock_jump(self, delta: float) -> None:
+        self._engine.clock_restarted()  # rule 10 of push_core.episode
+        self._robot.clock_restarted()
+        self._pairing.clear()
+        self._publish_status()
+
+    def _steady_s(self) -> float:
+        return self._steady.now().nanoseconds * 1e-9
+
     def _on_timer(self) -> None:
-        waited = self._steady.now().nanoseconds * 1e-9 - self._in_flight_since
-        if self._engine.in_flight and waited > self.params.push_timeout:
-            note = (f"push of step {self._engine.steps} not reported on pusher/executed within "
-                    f"{self.params.push_timeout} s; counted as a step; its contact region is "
-                    f"avoided until a push is executed")
+        if self._engine.in_flight and (self._steady_s() - self._in_flight_since
+                                       > self.params.push_timeout):
+            note = robot.timeout_note(self._engine.steps, self.params.push_timeout)
             self.get_logger().warning(note)
             self._lost(note, after=False)
+        if self._engine.robot_waited(self._steady_s()) is not None:  # rule 9's time-out
+            self._level = DiagnosticStatus.ERROR
+            self.get_logger().error(self._engine.status_text())
+            self._publish_status()
         self.health.publish(self._level, *self._status_text())
 
     def _lost(self, note: str, after: bool = True, wait: bool = False) -> None:
@@ -337,8 +329,7 @@ class PlannerNode(Node):
             self.get_logger().info(f"goal reached after {self._engine.steps} pushes")
         elif step.action == "left":
             self._set_note(f"{step.reason} (after_goal: report)", DiagnosticStatus.WARN)
-            self.get_logger().warning(f"object {step.reason}; reported only (after_goal: "
-                                      f"report)")
+            self.get_logger().warning(f"object {self._note}; reported only")
         elif step.action == "failed":
             self._level = DiagnosticStatus.ERROR
             self.get_logger().error(f"{self._engine.status_text()} ({self._engine.steps} "
@@ -362,40 +353,21 @@ class PlannerNode(Node):
         self._pub_push.publish(path)
         self._pub_markers.publish(affordance_markers(self._engine.outline, state[:3], plan,
                                                      now.to_msg()))
-        self._in_flight_since = self._steady.now().nanoseconds * 1e-9
-        self.get_logger().info(
-            f"step {self._engine.steps}: push at outline point {plan.index}, "
-            f"{math.degrees(plan.angle):+.0f} deg, {1e3 * plan.length:.1f} mm, predicted score "
-            f"{plan.score:.1f} mm (now {plan.current_score:.1f}); approach "
-            f"{np.round(plan.approach, 4)}, contact {np.round(plan.contact, 4)}, end "
-            f"{np.round(plan.end, 4)} m")
+        self._in_flight_since = self._steady_s()
+        self._robot.push_sent()
+        self.get_logger().info(conv.push_log_text(self._engine.steps, plan))
 
     # ---- status ------------------------------------------------------------------------------
     def _status_text(self) -> tuple[str, dict[str, object]]:
         """``planner/status``'s message and values besides the health counters."""
         engine = self._engine
-        message = status_message(engine.status_text(), self._note, engine.goal is not None)
-        counts = {k: v for k, v in engine.counts.items() if k != "left"}
-        goal = "" if engine.goal is None else " ".join(f"{v:.4f}" for v in engine.goal)
-        return message, {
-            "state": engine.phase,
-            "step": engine.steps,
-            "max_steps": self.params.max_steps,
-            "goal": goal,
-            "orientation": "used" if engine.orientation_matters else "ignored",
-            **counts,
-            "last_push_end": f"{engine.last_push_end:.6f}",
-            "outline_stamp": f"{self._outline_stamp:.6f}",
-            "left_goal": engine.counts["left"],
-            "after_goal": self.params.after_goal,
-            "goal_source": self._goals.source,
-        }
-
-    def _status(self) -> DiagnosticStatus:
-        return self.health.status(self._level, *self._status_text())
+        message = conv.status_message(engine.status_text(), self._note, engine.goal is not None)
+        return message, conv.status_values(engine, self.params.max_steps,
+                                           self.params.after_goal, self._outline_stamp,
+                                           self._goals.source)
 
     def _publish_status(self) -> None:
-        status = self._status()
+        status = self.health.status(self._level, *self._status_text())
         self._pub_status.publish(status)
         self.health.diagnostics.publisher.publish(self.health.diagnostics.array(status))
 

@@ -11,6 +11,9 @@ rclpy (Jazzy) hands a two-argument subscription callback a *message info*: a dic
   the sequence number (a goal whose number does not follow the previous ``goal_pose``
   message's comes from another, or a restarted, publisher). Never for an episode's first goal.
 
+- :func:`subscribe_goals`: the two ``goal_pose`` readers of a planner, both calling one
+  callback with the message info.
+
 Anything else (None, a dict without the entries, wrong types) is "unknown", never an error.
 """
 
@@ -19,7 +22,7 @@ from __future__ import annotations
 from collections import deque
 from typing import Any
 
-__all__ = ["GoalSources", "publisher_of", "publishers_text", "sample_key"]
+__all__ = ["GoalSources", "publisher_of", "publishers_text", "sample_key", "subscribe_goals"]
 
 
 def _int(value: Any) -> int | None:
@@ -124,3 +127,26 @@ def publishers_text(node: Any, topic: str) -> str:
     return ", ".join(f"{i.node_namespace.rstrip('/')}/{i.node_name} (gid "
                      f"{'.'.join(format(x, '02x') for x in i.endpoint_gid)})"
                      for i in infos) or "none"
+
+
+def subscribe_goals(node: Any, callback: Any, topic: str = "goal_pose") -> None:
+    """Take ``topic`` (geometry_msgs/PoseStamped) twice, both readers calling
+    ``callback(msg, info)`` (:class:`GoalSources` takes a sample once): reliable volatile (every
+    publisher, RViz's "2D Goal Pose" too) and reliable transient local (a (re)started node gets
+    a latched sender's last goal; a volatile writer cannot match it, an expected mismatch logged
+    at debug level only)."""
+    from geometry_msgs.msg import PoseStamped
+    from rclpy.event_handler import SubscriptionEventCallbacks
+
+    from push_ros.qos import LATCHED_QOS, RELIABLE_QOS
+
+    def with_info(msg: Any, info: Any) -> None:  # two arguments: rclpy adds the message info
+        callback(msg, info)
+
+    node.create_subscription(PoseStamped, topic, with_info, RELIABLE_QOS)
+    node.create_subscription(
+        PoseStamped, topic, with_info, LATCHED_QOS,
+        event_callbacks=SubscriptionEventCallbacks(
+            incompatible_qos=lambda event: node.get_logger().debug(
+                f"a volatile {topic} publisher (e.g. RViz) does not match the latched goal "
+                "reader; its goals arrive on the volatile one")))

@@ -15,7 +15,11 @@ rule (:func:`push_ros.dds.apply_default_profile`, so a node started by its conso
 ``ros2 run`` gets the same transports as through ``pushbot`` or the launch file; logged once),
 ``rclpy.init``, construct, spin; an invalid configuration (``ValueError`` or
 ``ParameterException`` from the constructor) logs a fatal ``invalid configuration: ...`` and
-exits with status 2;
+exits with status 2; ROS that cannot start (``rclpy.init`` or the node's creation failing in
+rcl, e.g. ``ROS_SECURITY_ENABLE=true`` with ``ROS_SECURITY_STRATEGY=Enforce`` and no keystore)
+is one line on stderr (:func:`ros_start_error`: rcl's error and the likely cause) and status 2;
+parameters given to the node that it does not declare (``-p kk:=3``, a misspelt name in a
+``--params-file``) are warned about with the closest declared name (:func:`unknown_parameters`);
 ``KeyboardInterrupt`` and ``ExternalShutdownException`` end the spin quietly; the node is
 destroyed and rclpy shut down in every case.
 
@@ -32,7 +36,10 @@ one (the nodes also count every event on ``/diagnostics``).
 
 from __future__ import annotations
 
+import difflib
 import math
+import os
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
@@ -47,8 +54,9 @@ from rcl_interfaces.msg import (
     SetParametersResult,
 )
 
-__all__ = ["ParamSpec", "ThrottledLog", "declare_config", "descriptor", "guarded",
-           "parameter_values", "parameter_yaml", "run_node", "spec_note"]
+__all__ = ["CLOCK_JUMP", "ParamSpec", "ThrottledLog", "declare_config", "descriptor", "guarded",
+           "on_clock_jump_back", "parameter_values", "parameter_yaml", "ros_start_error",
+           "run_node", "spec_note", "unknown_parameters"]
 
 T = TypeVar("T")
 
@@ -141,6 +149,11 @@ def declare_config(node: Any, specs: Sequence[ParamSpec], build: Callable[[dict[
                                   else ParameterType.PARAMETER_DOUBLE_ARRAY)
                    if spec.default is None else spec.default)
         node.declare_parameter(spec.name, default, descriptor(spec))
+    # What the node was started with (-p, --params-file) that it does not declare is ignored
+    # by rclpy without a word: say so, with the closest name.
+    for warning in unknown_parameters(getattr(node, "_parameter_overrides", {}),
+                                      (spec.name for spec in specs)):
+        node.get_logger().warning(warning)
     config = build(parameter_values(node, specs))
     names = {spec.name for spec in specs}
 
@@ -185,6 +198,13 @@ class ThrottledLog:
                 return False, 0
             self._state[kind] = (now, 0)
         return True, suppressed
+
+    def info(self, kind: str, message: str) -> bool:
+        """Log ``message`` at info level unless throttled; True if it was logged."""
+        text = self._text(kind, message)
+        if text is not None:
+            self.logger.info(text)
+        return text is not None
 
     def warning(self, kind: str, message: str) -> bool:
         """Log ``message`` as a warning unless throttled; True if it was logged."""
@@ -276,16 +296,25 @@ def run_node(factory: Callable[[], Any], name: str, args: list[str] | None = Non
     import rclpy
     from rclpy.exceptions import ParameterException
     from rclpy.executors import ExternalShutdownException
+    from rclpy.impl.implementation_singleton import rclpy_implementation
 
     from push_ros.dds import apply_default_profile, describe
 
     apply_default_profile()  # before rclpy.init: Fast DDS reads it when the participant is made
-    rclpy.init(args=args)
+    try:
+        rclpy.init(args=args)
+    except rclpy_implementation.RCLError as exc:
+        print(f"{name}: {ros_start_error(exc)}", file=sys.stderr)
+        raise SystemExit(2) from None
     rclpy.logging.get_logger(name).info(describe())
     try:
         node = factory()
     except (ValueError, ParameterException) as exc:
         rclpy.logging.get_logger(name).fatal(f"invalid configuration: {exc}")
+        rclpy.try_shutdown()
+        raise SystemExit(2) from None
+    except rclpy_implementation.RCLError as exc:
+        print(f"{name}: {ros_start_error(exc)}", file=sys.stderr)
         rclpy.try_shutdown()
         raise SystemExit(2) from None
     try:
@@ -295,6 +324,67 @@ def run_node(factory: Callable[[], Any], name: str, args: list[str] | None = Non
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
+
+
+def ros_start_error(exc: BaseException) -> str:
+    """One line for ROS that would not start (``rclpy.init`` or a node's creation failed in
+    rcl): rcl's first error line and the likely cause read from the environment."""
+    text = (str(exc).splitlines() or [type(exc).__name__])[0][:300]
+    if os.environ.get("ROS_SECURITY_ENABLE", "").strip().lower() == "true":
+        strategy = os.environ.get("ROS_SECURITY_STRATEGY", "") or "Permissive"
+        keystore = os.environ.get("ROS_SECURITY_KEYSTORE", "")
+        cause = (f"ROS_SECURITY_ENABLE=true, ROS_SECURITY_STRATEGY={strategy}, "
+                 + (f"keystore {keystore}" if keystore else "no ROS_SECURITY_KEYSTORE")
+                 + ": DDS-Security needs a keystore with this node's enclave and a Fast DDS "
+                 "built with security, which the pip install does not have; unset "
+                 "ROS_SECURITY_ENABLE, or see docs/SECURITY.md")
+    else:
+        cause = ("check ROS_DOMAIN_ID (0-232), RMW_IMPLEMENTATION and the DDS profile: "
+                 "pushbot doctor")
+    return f"cannot start ROS: {text} ({cause})"
+
+
+#: Parameters every rclpy node has without declaring them in its table.
+ROS_PARAMETERS = ("use_sim_time", "start_type_description_service")
+
+
+def unknown_parameters(given: Iterable[str], known: Iterable[str]) -> list[str]:
+    """A warning per parameter name in ``given`` (what the node was started with: ``-p``,
+    ``--params-file``) that is not in ``known`` (its table and :data:`ROS_PARAMETERS`),
+    with the closest known name when one is close (``difflib``, ratio 0.6)."""
+    names = sorted({*known, *ROS_PARAMETERS})
+    out = []
+    for name in sorted(set(given) - set(names)):
+        close = difflib.get_close_matches(name, names, n=1)
+        out.append(f"unknown parameter {name[:100]!r} ignored"
+                   + (f" (did you mean {close[0]!r}?)" if close else
+                      f" (not a parameter of this node; its parameters: "
+                      f"{', '.join(names)[:400]})"))
+    return out
+
+
+#: A node's clock jumping back by more than this (s) is a restarted time source (a restarted
+#: simulator starts near 0), not jitter: ``push_core.episode.PREVIOUS_EPISODE_WINDOW``.
+CLOCK_JUMP = 2.0
+
+
+def on_clock_jump_back(node: Any, callback: Callable[[float], None]) -> Any:
+    """Call ``callback(delta)`` (``delta`` < 0, s) when ``node``'s clock jumps back by more
+    than :data:`CLOCK_JUMP` (a restarted simulator): the stamps of the old clock then mean
+    nothing to the node's input rules. Returns the jump handle (keep it: the callback lives as
+    long as the handle), after logging the jump at warning level."""
+    from rclpy.clock import JumpThreshold
+    from rclpy.duration import Duration
+
+    def on_jump(jump: Any) -> None:
+        delta = jump.delta.nanoseconds * 1e-9
+        node.get_logger().warning(f"the clock jumped back by {-delta:.3f} s (a restarted "
+                                  "simulator?): the stamps of the old clock are forgotten")
+        callback(delta)
+
+    return node.get_clock().create_jump_callback(
+        JumpThreshold(min_forward=None, min_backward=Duration(seconds=-CLOCK_JUMP),
+                      on_clock_change=False), post_callback=on_jump)
 
 
 def _yaml_value(value: Any) -> str:

@@ -12,6 +12,8 @@ within 1 us of 2^31 s cannot round-trip through float seconds: the nearest doubl
 - Writing (:func:`stamp_from_seconds`): a time outside the rule raises ``ValueError``; with
   ``clamp=True`` a finite time is clamped into the range instead (publishing an estimate then
   never raises; NaN still raises, it is a bug).
+- A duration (``builtin_interfaces/Duration``, e.g. a trajectory point's ``time_from_start``) is
+  written by :func:`duration_from_seconds` (finite, >= 0).
 
 The clock rule, also stated once (:func:`clock_seconds`, :func:`check_not_ahead`): a node's
 clock is *not valid* while it is a sim-time clock that has not received ``/clock`` yet (it reads
@@ -27,9 +29,10 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from builtin_interfaces.msg import Time
+from builtin_interfaces.msg import Duration, Time
 
 __all__ = ["MAX_SECONDS", "MAX_STAMP_SECONDS", "check_not_ahead", "clock_seconds",
+           "duration_from_seconds",
            "episode_boundary", "seconds_from_stamp", "stamp_from_seconds"]
 
 _NS = 1_000_000_000
@@ -63,6 +66,16 @@ def stamp_from_seconds(seconds: float, *, clamp: bool = False) -> Time:
                          f"{seconds!r}")
     sec, nanosec = divmod(min(round(seconds * _NS), _MAX_NS), _NS)
     return Time(sec=int(sec), nanosec=int(nanosec))
+
+
+def duration_from_seconds(seconds: float) -> Duration:
+    """A ``builtin_interfaces/Duration`` of ``seconds`` (finite, in [0, MAX_STAMP_SECONDS]),
+    rounded down to the nanosecond; ``ValueError`` otherwise."""
+    if not (math.isfinite(seconds) and 0.0 <= seconds <= MAX_STAMP_SECONDS):
+        raise ValueError(f"duration: expected finite seconds in [0, {MAX_STAMP_SECONDS}], got "
+                         f"{seconds!r}")
+    sec = math.floor(seconds)
+    return Duration(sec=int(sec), nanosec=min(int(round((seconds - sec) * 1e9)), 999_999_999))
 
 
 def seconds_from_stamp(stamp: Time) -> float:

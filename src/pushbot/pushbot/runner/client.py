@@ -71,6 +71,16 @@ class Recorded:
     camera_matrix: np.ndarray | None = None
     t_world_camera: np.ndarray | None = None
 
+    def forget_stamps(self) -> None:
+        """Forget what is matched by stamps (ground truth, estimates, the COM, executed pushes,
+        tool tips, outline stamps, joint states) and the newest ``/clock``: after the
+        simulator's clock restarted, the old clock's stamps would match a later episode's by
+        mistake (and its time would start the next episode's robot time)."""
+        for items in (self.true, self.est, self.com, self.executed, self.tool_tip,
+                      self.outline_stamps, self.joint_states):
+            items.clear()
+        self.clock = -float("inf")
+
 
 class GraphClient:
     """The client node (module docstring).
@@ -178,6 +188,10 @@ class GraphClient:
             from std_srvs.srv import SetBool
 
             sub(JointState, "/joint_states", self._on_joint_state, reliable)
+            from trajectory_msgs.msg import JointTrajectory
+
+            self._pub_trajectory = node.create_publisher(  # a foreign commander (faults)
+                JointTrajectory, ARM_TRAJECTORY_TOPIC, reliable)
             self._executor_enable = node.create_client(SetBool, f"/{EXECUTOR_NODE}/enable")
             self._executor_cancel = node.create_client(Trigger, f"/{EXECUTOR_NODE}/cancel")
         self._set_params = {n: node.create_client(SetParameters, f"/{n}/set_parameters")
@@ -239,6 +253,7 @@ class GraphClient:
     def _on_status(self, msg: Any) -> None:
         values = {kv.key: kv.value for kv in msg.values}
         values["_message"] = msg.message
+        values["_wall"] = f"{time.monotonic():.6f}"  # when it arrived here
         self.rec.status.append(values)
 
     def _on_tool_tip(self, msg: Any) -> None:
@@ -450,6 +465,21 @@ class GraphClient:
 
         self._pub_knock.publish(pose_stamped_msg(np.asarray(delta, dtype=float),
                                                  stamp_from_seconds(0.0)))
+
+    def publish_trajectory(self, names: list[str], positions: list[float], seconds: float
+                           ) -> None:
+        """Send a one-point ``JointTrajectory`` to ``positions`` in ``seconds`` on the arm's
+        controller topic, as another node commanding the arm would (``robot`` arm)."""
+        from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+        from push_ros.stamps import duration_from_seconds, stamp_from_seconds
+
+        point = JointTrajectoryPoint(positions=[float(v) for v in positions],
+                                     velocities=[0.0] * len(positions),
+                                     time_from_start=duration_from_seconds(seconds))
+        msg = JointTrajectory(joint_names=list(names), points=[point])
+        msg.header.stamp = stamp_from_seconds(0.0)  # start now
+        self._pub_trajectory.publish(msg)
 
     def publish_push(self, points: np.ndarray) -> None:
         """Send a push (approach, contact, end: (3, 2) m in ``world``) on ``planner/push``, as

@@ -135,8 +135,14 @@ def run_demo(args: argparse.Namespace) -> int:
             return status
         print()
     from pushbot.ros2cli.discovery import sigterm_as_keyboard_interrupt
+    from pushbot.runner.domain import claim_domain
     from pushbot.runner.episode import GraphError, GraphRunner
     from pushbot.runner.graph_nodes import graph_node_names
+
+    claim, refusal = claim_domain("demo")  # one graph per ROS domain
+    if claim is None:
+        print(refusal, file=sys.stderr)
+        return 1
 
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
@@ -146,7 +152,7 @@ def run_demo(args: argparse.Namespace) -> int:
           flush=True)
     bag_dir = out / "episode_bag"
     try:
-        with sigterm_as_keyboard_interrupt(), GraphRunner(
+        with claim, sigterm_as_keyboard_interrupt(), GraphRunner(
                 log_dir=out / "graph_logs", node_args=_bridge_args(args),
                 robot=args.robot) as graph:
             t_ready = time.monotonic()

@@ -78,11 +78,15 @@ from pushbot.runner.graph_record import (
     same_goal,
     status_seconds,
 )
-from pushbot.runner.protocol import Trial, planner_episode_params
+from pushbot.runner.protocol import (
+    Trial,
+    bridge_scene_params,
+    check_graph_trial,
+    planner_episode_params,
+)
 from pushbot.runner.scenario import Episode
 
-__all__ = ["NODES", "GraphError", "GraphNodes", "GraphRunner", "Recorded", "check_trial",
-           "run_graph_trials"]
+__all__ = ["NODES", "GraphError", "GraphNodes", "GraphRunner", "Recorded", "run_graph_trials"]
 
 #: Seconds from the scene reset to the first estimate (segmentation of the first frame), and
 #: how often the episode set-up is repeated when none arrives.
@@ -211,6 +215,15 @@ class GraphRunner:
         """Whether the client's fault publishers (second goal sender, knock) are matched."""
         return self._client().matched()
 
+    def foreign_trajectory(self, names: list[str], positions: list[float], seconds: float
+                           ) -> None:
+        """Command the arm to ``positions`` in ``seconds`` as another client (``robot`` arm)."""
+        self._client().publish_trajectory(names, positions, seconds)
+
+    def executor_enable(self, enable: bool) -> str:
+        """``/push_executor_node/enable`` (``robot`` arm); its message."""
+        return self._client().executor_enable(enable)
+
     def _planner_estimates(self) -> int:
         return self._client().planner_estimates()
 
@@ -246,7 +259,7 @@ class GraphRunner:
         the record then also has its fields (``fault``, ``fault_injected``, ``pushes_sent``,
         ``goal_switches``, ``left_goal``, ...) and is scored against the episode's last goal.
         """
-        check_trial(trial)
+        check_graph_trial(trial)
         scenario, fault = fault is not None, fault if fault is not None else Fault()
         t_start = time.perf_counter()
         rec = new_record(trial.as_dict(), step_latency_ms=[], engine="graph")
@@ -263,13 +276,24 @@ class GraphRunner:
         n_push, n_exec, n_status = (len(self.rec.pushes), len(self.rec.executed),
                                     len(self.rec.status))
         t_goal = self.rec.clock  # the simulated time when the goal goes out
+        fault.before_goal(self)
         goal_text = self._client().publish_goal(goal)
         episode = Episode(trial, n_push, n_exec, n_status, np.asarray(goal, dtype=float),
                           np.asarray(trial.goal_offset(), dtype=float), goal_text)
-        status = self._wait_end(episode, fault)
+        try:
+            status = self._wait_end(episode, fault)
+        finally:
+            fault.after_episode(self)
         self._wait_recorded(status, n_push, n_exec)
         pushes = self.rec.pushes[n_push:]
-        executed = [e for e in self.rec.executed[n_exec:] if e[1] >= first_stamp]
+        # A restarted simulator's clock starts again near 0: (wall time, index of the first
+        # ground truth and estimate of the new clock); later pushes are matched from there.
+        restart = episode.notes.get("clock_restart")
+        executed = [e for e in self.rec.executed[n_exec:]
+                    if e[1] >= first_stamp or (restart and e[0] >= restart[0])]
+
+        def since(e: tuple[float, float, float], which: int) -> int:
+            return restart[which] if restart and e[0] >= restart[0] else 0
         rec["steps"] = int(status.get("step", len(pushes)))
         rec["refused"] = max(0, rec["steps"] - len(executed))
         rec["reason"] = end_reason(status["_message"])
@@ -279,18 +303,21 @@ class GraphRunner:
                       "sim/object_pose after the last push")
         rec["pushes"] = [p.tolist() for _, p in pushes]
         rec["poses_true"] = [pose0_true.tolist()] + [
-            self._true_after(t1).tolist() for _, _, t1 in executed]
+            self._true_after(e[2], since(e, 1)).tolist() for e in executed]
         rec["poses_est"] = [first_est.tolist()] + [
-            self._est_after(t1, first_est).tolist() for _, _, t1 in executed]
+            self._est_after(e[2], first_est, since(e, 2)).tolist() for e in executed]
         # Stamps of the camera frames the estimates came from (before the first push, after each).
         rec["frame_stamps"] = [first_stamp] + [
-            next((st for st, _ in self.rec.est if st >= t1), t1) for _, _, t1 in executed]
+            next((st for st, _ in self.rec.est[since(e, 2):] if st >= e[2]), e[2])
+            for e in executed]
         rec["step_latency_ms"] = latencies(executed, pushes)
         rec.update(graph_robot_times(t_goal, first_stamp, self.rec.push_stamps[n_push:],
                                      rec["frame_stamps"][-1] if executed else None))
         if self.robot == "arm":
-            rec["contact_line_error_mm"] = self._line_errors(executed, pushes)
-        end_true = self._true_after(executed[-1][2]) if executed else pose0_true
+            rec["contact_line_error_mm"] = self._line_errors(executed, pushes,
+                                                             restart[0] if restart else -math.inf)
+        end_true = (self._true_after(executed[-1][2], since(executed[-1], 1)) if executed
+                    else pose0_true)
         from push_core.episode import end_score
         from push_core.objects import load_object
         from push_core.symmetry import symmetry_order_of_polygon
@@ -308,6 +335,8 @@ class GraphRunner:
                                    else self._c_true_episode.tolist())
         rec["com_est"] = self.rec.com[-1][1].tolist() if self.rec.com else None
         rec["wall_s"] = time.perf_counter() - t_start
+        if restart:  # later episodes are matched on the new clock only
+            self.rec.forget_stamps()
         if self.robot == "arm":
             self._wait_arm_parked()
         return rec
@@ -325,12 +354,15 @@ class GraphRunner:
         self.wait(parked, STEP_TIMEOUT, "the arm parked after the episode (executor/status)")
 
     def _line_errors(self, executed: list[tuple[float, float, float]],
-                     pushes: list[tuple[float, np.ndarray]]) -> list[float]:
+                     pushes: list[tuple[float, np.ndarray]], since: float = -math.inf
+                     ) -> list[float]:
         """Per executed arm push: the true tool tip's largest distance from the commanded
-        contact segment (``sim/tool_tip`` vs ``planner/push``), mm (:func:`line_deviation`)."""
+        contact segment (``sim/tool_tip`` vs ``planner/push``), mm (:func:`line_deviation`).
+        Waited for from wall time ``since`` on (a simulator killed during a run never sent
+        that run's)."""
         def runs_in() -> bool:  # sim/tool_tip goes out before the run's camera frame
             return all(any(st[0] <= t0 and st[-1] >= t1 for _, st, _ in self.rec.tool_tip
-                           if len(st)) for _, t0, t1 in executed)
+                           if len(st)) for wall, t0, t1 in executed if wall >= since)
 
         self.wait(runs_in, STEP_TIMEOUT, "sim/tool_tip of every executed push")
         errors = []
@@ -350,17 +382,8 @@ class GraphRunner:
                                              "after_goal": "report", **fault.planner_params()})
         self.reset("planner_node")  # drop the old goal before the scene changes under it
         self.set_parameters("ekf_node", {"relearn.enabled": trial.relearn})  # at its reset
-        world = trial.world_kwargs()
-        x, y, theta = world["object_pose"]
-        com = world.get("com_offset")
-        self.set_parameters("sim_bridge_node", {
-            "object": str(world["object"]), "initial_pose.x": float(x),
-            "initial_pose.y": float(y), "initial_pose.theta": math.remainder(theta, 2 * math.pi),
-            "use_com_offset": com is not None,
-            "com_offset": [0.0, 0.0] if com is None else [float(v) for v in com],
-            "seed": int(world["seed"]), "randomize": bool(world["randomize"]),
-            "support_cell": float(world["support_cell"]), **NO_BRIDGE_FAULTS,
-            **fault.bridge_params(trial)})
+        self.set_parameters("sim_bridge_node", {**bridge_scene_params(trial),
+                                                **NO_BRIDGE_FAULTS, **fault.bridge_params(trial)})
         message = self._reset_simulator()
         match = _COM_RE.search(message)
         self._com_true = (np.array([float(match.group(1)), float(match.group(2))])
@@ -430,12 +453,14 @@ class GraphRunner:
 
         return self.wait(at, STEP_TIMEOUT, f"sim/object_pose stamped {stamp:.3f} s")
 
-    def _true_after(self, stamp: float) -> np.ndarray:
-        return next((p for s, p in self.rec.true if s >= stamp), self.rec.true[-1][1])
+    def _true_after(self, stamp: float, start: int = 0) -> np.ndarray:
+        """The first ground truth at or after ``stamp`` (from entry ``start`` on)."""
+        return next((p for s, p in self.rec.true[start:] if s >= stamp), self.rec.true[-1][1])
 
-    def _est_after(self, stamp: float, default: np.ndarray) -> np.ndarray:
-        """The last estimate of the frame after the push that ended at ``stamp``."""
-        later = [(s, p) for s, p in self.rec.est if s >= stamp]
+    def _est_after(self, stamp: float, default: np.ndarray, start: int = 0) -> np.ndarray:
+        """The last estimate of the frame after the push that ended at ``stamp`` (from entry
+        ``start`` on)."""
+        later = [(s, p) for s, p in self.rec.est[start:] if s >= stamp]
         if not later:
             return default
         first = later[0][0]
@@ -455,7 +480,7 @@ class GraphRunner:
             key = (len(self.rec.pushes), len(self.rec.executed), len(mine))
             if key != progress[0]:
                 progress[0], progress[1] = key, time.monotonic()
-            end = next((s for i, s in reversed(mine) if s.get("state") in ("reached", "failed")
+            end = next((s for i, s in reversed(mine) if s.get("state") in fault.end_states
                         and fault.accepts_end(self, i)), None)
             if end is not None:
                 return end
@@ -506,20 +531,6 @@ class GraphRunner:
         return float(math.hypot(*(self.rec.com[-1][1] - c_true)))
 
 
-def check_trial(trial: Trial) -> None:
-    """``ValueError`` for trials the graph cannot run (module docstring)."""
-    if not isinstance(trial, Trial):
-        raise ValueError(f"expected a pushbot.runner.protocol.Trial, "
-                         f"got {type(trial).__name__}")
-    if trial.state != "filter":
-        raise ValueError(f"the graph estimates the state from images: state must be 'filter', "
-                         f"got {trial.state!r}")
-    if trial.method == "pushnet":
-        raise ValueError("the graph has no Push-Net node: method 'pushnet' runs in-process only")
-    if not getattr(trial, "estimate_com", True):
-        raise ValueError("estimate_com=False (COM pinned) is not available in the graph")
-
-
 def run_graph_trials(trials: list[Trial], *, out_dir: Path | str | None = None,
                      progress: bool = True, robot: str = "pusher",
                      node_exe: Path | None = None,
@@ -531,7 +542,7 @@ def run_graph_trials(trials: list[Trial], *, out_dir: Path | str | None = None,
     Parameters
     ----------
     trials : list of Trial
-        ``state="filter"`` trials (see :func:`check_trial`).
+        ``state="filter"`` trials (see :func:`pushbot.runner.protocol.check_graph_trial`).
     out_dir : path, optional
         The node logs go to ``out_dir/graph_logs``; default: a temporary directory.
     progress : bool
@@ -555,7 +566,7 @@ def run_graph_trials(trials: list[Trial], *, out_dir: Path | str | None = None,
         ``reason``; the graph is then restarted for the next trial.
     """
     for trial in trials:
-        check_trial(trial)
+        check_graph_trial(trial)
     log_dir = Path(out_dir) / "graph_logs" if out_dir is not None else None
     records: list[dict[str, Any]] = []
     with sigterm_as_keyboard_interrupt(), GraphRunner(log_dir=log_dir, robot=robot,

@@ -61,6 +61,8 @@ class Fault:
     """No fault (the base of the scenarios); see the module docstring."""
 
     name = "none"
+    #: ``planner/status`` states that end the episode (when :meth:`accepts_end` agrees).
+    end_states: tuple[str, ...] = ("reached", "failed")
 
     def __init__(self) -> None:
         self.injected = False
@@ -74,8 +76,14 @@ class Fault:
         """Extra ``planner_node`` episode parameters."""
         return {}
 
+    def before_goal(self, runner: FaultTarget) -> None:
+        """Act before the episode's goal is sent (e.g. disable the executor)."""
+
     def poll(self, runner: FaultTarget, episode: Episode) -> None:
         """Inject the fault when its moment has come (called on every spin of the wait)."""
+
+    def after_episode(self, runner: FaultTarget) -> None:
+        """Undo what the fault left behind once the episode ended (or failed)."""
 
     def accepts_end(self, runner: FaultTarget, index: int) -> bool:
         """Whether the end status at ``runner.rec.status[index]`` ends the episode."""

@@ -15,10 +15,14 @@ a line whenever it changes (step, state, and the distance and yaw left from the 
 ``estimator/object_pose``), until the status shows this goal ``goal reached`` (exit 0), or
 ``failed``, a refusal of the goal (e.g. off the workspace) or ``--timeout`` (exit 1; the goal
 stays with the planner, and the message says how to drop it). A new goal from another client
-ends the wait with exit 1 too.
+ends the wait with exit 1 too. While the robot is not available (``robot unavailable: <kind>:
+<reason>``: no joint states, no controller, ...) the planner waits without spending steps and
+so does ``--wait``; the executor disabled for a dry run (kind ``disabled``) is the dry run's
+expected end: the push was planned (``executor/path``), nothing moved, no step spent; ``--wait``
+says so and exits 3 (the goal stays with the planner and runs once the executor is enabled).
 
 Exit codes: 0 sent (reached with ``--wait``), 1 no planner, refused, failed or timed out, 2 bad
-input (non-finite numbers, empty frame).
+input (non-finite numbers, empty frame), 3 a dry run (``--wait``: the executor is disabled).
 """
 
 from __future__ import annotations
@@ -43,6 +47,13 @@ LATE_SUBSCRIBER_WAIT = 5.0
 """Seconds, after ``LINGER``, that ``goal`` waits at most for the subscribers of ``goal_pose``
 the graph knows of (one that found the topic during the linger) to match its publisher and
 acknowledge the latched goal; a subscriber whose QoS never matches costs this bound."""
+EXIT_DRY_RUN = 3
+"""Exit status of ``--wait`` when the executor is disabled (a dry run: planned, not moved)."""
+DRY_RUN = ("dry run: the executor is disabled, so the push was planned (executor/path) and "
+           "nothing moved, no step spent; the goal stays with the planner and runs once the "
+           "executor is enabled: pushbot service call /push_executor_node/enable "
+           "std_srvs/srv/SetBool '{data: true}'")
+"""What ``--wait`` says at the end of a dry run."""
 PLANNER_TIMEOUT = 20.0
 """Longest wait for planner_node (its goal subscription and latched status), seconds: enough
 for a graph that ``pushbot up`` is still starting (the nodes import torch)."""
@@ -59,8 +70,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="frame of the goal position (default: %(default)s; planner_node "
                              "takes world)")
     parser.add_argument("--wait", action="store_true",
-                        help="follow planner/status until the goal is reached (exit 0) or "
-                             "failed (exit 1)")
+                        help="follow planner/status until the goal is reached (exit 0), "
+                             "failed (exit 1) or planned in a dry run (the executor disabled: "
+                             "exit 3)")
     parser.add_argument("--linger", type=float, default=LINGER,
                         help="seconds the latched goal stays available after it was sent "
                              "(without --wait): a recorder or viewer that discovers the topic "
@@ -205,6 +217,10 @@ def _send(args: argparse.Namespace, goal: tuple[float, float, float]) -> int:
             state = values.get("state")
             if state == "reached":
                 return 0
+            if state == "unavailable" and values.get("robot_unavailable", "").startswith(
+                    "disabled:"):
+                print(f"pushbot goal: {DRY_RUN}", file=sys.stderr)
+                return EXIT_DRY_RUN
             if state == "failed":
                 print(f"pushbot goal: {status.message}", file=sys.stderr)
                 return 1

@@ -55,6 +55,10 @@ ARM_PUSH_TIMEOUT = 60.0
 #: trajectory start stay within its tracking window (unpaced, the simulator ran ~50x real time
 #: and the executor's clock lagged its joint states by over 10 s of sim time).
 ARM_REAL_TIME_FACTOR = 5.0
+#: planner_node's ``robot_timeout`` in protocol graphs of the arm: an episode whose robot stays
+#: unavailable (a posture the executor cannot leave, a driver that never comes back) fails
+#: after this long (wall s), within the runner's STEP_TIMEOUT of no progress.
+ARM_ROBOT_TIMEOUT = 60.0
 #: The simulated arm's ``/joint_states`` rate in protocol graphs, Hz of sim time
 #: (``arm.joint_state_rate``; 250 a second of wall time at ARM_REAL_TIME_FACTOR): at 100 Hz
 #: (500 a second) the Python readers -- the executor, perception's self-filter, this client --
@@ -130,6 +134,8 @@ class GraphNodes:
                 # reports it if the object leaves the region afterwards, it pushes no more.
                 timeout = ARM_PUSH_TIMEOUT if self.robot == "arm" else PUSH_TIMEOUT
                 params += ["-p", f"push_timeout:={timeout}", "-p", "after_goal:=report"]
+                if self.robot == "arm":
+                    params += ["-p", f"robot_timeout:={ARM_ROBOT_TIMEOUT}"]
             if name == "sim_bridge_node":
                 params += ["-p", f"robot:={self.robot}"]
                 if self.robot == "arm":
@@ -153,13 +159,29 @@ class GraphNodes:
         """SIGKILL the process group of node ``name`` (a crash: no clean shutdown), wait for
         it, and start the node again with its start-up parameters plus ``extra``
         (``name:=value``; e.g. the episode's parameters, as a launch file's YAML would give)."""
-        proc = self.procs[name]
+        self.kill(name)
+        self._start_one(name, extra)
+
+    def kill(self, name: str) -> None:
+        """SIGKILL the process group of node ``name`` and wait for it; :meth:`restart` starts
+        it again (:meth:`check_alive` does not report it meanwhile)."""
+        proc = self.procs.pop(name)
         try:
             os.killpg(proc.pid, signal.SIGKILL)
         except ProcessLookupError:
             pass
         proc.wait(timeout=30.0)
+
+    def restart(self, name: str, extra: Sequence[str] = ()) -> None:
+        """Start node ``name`` again (after :meth:`kill`) with ``extra`` parameters more."""
         self._start_one(name, extra)
+
+    def signal(self, name: str, sig: int) -> None:
+        """Send ``sig`` to the process group of node ``name`` (SIGSTOP / SIGCONT: a hang)."""
+        try:
+            os.killpg(self.procs[name].pid, sig)
+        except ProcessLookupError:
+            pass
 
     def log_tail(self, name: str, chars: int = 1500) -> str:
         try:

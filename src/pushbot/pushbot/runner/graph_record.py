@@ -63,6 +63,10 @@ def end_reason(message: str) -> str:
         return "max steps"
     if message.startswith("failed: no feasible push"):
         return "no feasible push"
+    if message.startswith("failed: robot unavailable"):
+        return "robot unavailable"
+    if message.startswith("robot unavailable: "):  # an episode that ended waiting (dry run)
+        return message.split(" - ")[0]
     return message
 
 

@@ -52,6 +52,8 @@ __all__ = [
     "STATE_SOURCES",
     "TASKS",
     "Trial",
+    "bridge_scene_params",
+    "check_graph_trial",
     "make_trials",
     "planner_episode_params",
 ]
@@ -288,3 +290,33 @@ def planner_episode_params(trial: Trial) -> dict[str, Any]:
             "max_steps": int(trial.max_steps), "seed": int(kw["seed"]),
             "lookahead.horizon": int(kw["horizon"]),
             "avoid_contradicted": bool(kw["avoid_contradicted"])}
+
+
+def bridge_scene_params(trial: Trial) -> dict[str, Any]:
+    """``sim_bridge_node``'s scene parameters of ``trial`` (object, initial pose, COM, seed,
+    randomisation, support), set before every graph episode (also the start-up parameters of a
+    simulator restarted mid-episode)."""
+    world = trial.world_kwargs()
+    x, y, theta = world["object_pose"]
+    com = world.get("com_offset")
+    return {"object": str(world["object"]), "initial_pose.x": float(x),
+            "initial_pose.y": float(y), "initial_pose.theta": math.remainder(theta, 2 * math.pi),
+            "use_com_offset": com is not None,
+            "com_offset": [0.0, 0.0] if com is None else [float(v) for v in com],
+            "seed": int(world["seed"]), "randomize": bool(world["randomize"]),
+            "support_cell": float(world["support_cell"])}
+
+
+def check_graph_trial(trial: Trial) -> None:
+    """``ValueError`` for trials the ROS graph cannot run (:mod:`pushbot.runner.episode`): it
+    estimates the state from images, has no Push-Net node and no COM pinning."""
+    if not isinstance(trial, Trial):
+        raise ValueError(f"expected a pushbot.runner.protocol.Trial, "
+                         f"got {type(trial).__name__}")
+    if trial.state != "filter":
+        raise ValueError(f"the graph estimates the state from images: state must be 'filter', "
+                         f"got {trial.state!r}")
+    if trial.method == "pushnet":
+        raise ValueError("the graph has no Push-Net node: method 'pushnet' runs in-process only")
+    if not getattr(trial, "estimate_com", True):
+        raise ValueError("estimate_com=False (COM pinned) is not available in the graph")

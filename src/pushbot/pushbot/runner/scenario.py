@@ -74,3 +74,13 @@ class FaultTarget(Protocol):
 
     def client_matched(self) -> bool:
         """Whether the client's fault publishers are matched."""
+
+    def reset(self, node_name: str) -> str:
+        """Call ``/<node_name>/reset``; its message (``GraphError`` when refused)."""
+
+    def foreign_trajectory(self, names: list[str], positions: list[float], seconds: float
+                           ) -> None:
+        """Command the arm to ``positions`` in ``seconds`` as another client (``robot`` arm)."""
+
+    def executor_enable(self, enable: bool) -> str:
+        """``/push_executor_node/enable`` (``robot`` arm); its message."""

@@ -15,12 +15,15 @@ install; ``--params-dir DIR`` replaces those of the packages that have a file th
 
 The processes are started and stopped by ``pushbot.runner.graph_nodes.GraphNodes`` (the one
 launcher: ``pushbot run <node> --ros-args ...`` each in its own process group, a parent-death
-signal, the project's DDS profile); their output goes to ``<log dir>/<node>.log`` and is echoed here
+signal, the project's DDS profile) once the domain is claimed (:mod:`pushbot.runner.domain`: a
+domain where a pushbot graph already runs is refused with one line naming a free one, exit
+1); their output goes to ``<log dir>/<node>.log`` and is echoed here
 with a ``[<node>]`` prefix on every line. Ctrl-C or SIGTERM stops every node (SIGINT, then SIGTERM,
 then SIGKILL after a grace period) and exits 0. If a node exits on its own, the others are
 stopped and ``pushbot up`` exits 1 naming it.
 
-Exit codes: 0 stopped by Ctrl-C/SIGTERM, 1 a node died, 2 bad arguments.
+Exit codes: 0 stopped by Ctrl-C/SIGTERM, 1 a node died or a graph already runs on the
+domain, 2 bad arguments.
 """
 
 from __future__ import annotations
@@ -195,11 +198,18 @@ def run_up(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     if args.params_dir is not None:
         _report_params_dir(args.params_dir, args.sim, args.robot)
+    from pushbot.runner.domain import claim_domain
+
+    claim, refusal = claim_domain("up")  # one graph per ROS domain
+    if claim is None:
+        print(refusal, file=sys.stderr)
+        return 1
     log_dir = args.log_dir or default_log_dir()
     nodes = GraphNodes(log_dir, ros_args=node_args)
     follower = LogFollower(log_dir, list(node_args), sys.stdout)
     # SIGINT reaches us even from a background job: pushbot.cli.main takes it for every command.
-    return _supervise(nodes, follower, log_dir)
+    with claim:
+        return _supervise(nodes, follower, log_dir)
 
 
 def _supervise(nodes: GraphNodes, follower: LogFollower, log_dir: Path) -> int:
