@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from push_executor.kinematics import ArmKinematics, ToolSpec
-from push_executor.motion import MotionPlan, StageSpan
+from push_executor.motion import MotionPlan, MotionState, StageSpan
 from push_executor.tracking import (
     START_MOTION,
     Execution,
@@ -20,6 +20,7 @@ from push_executor.tracking import (
     StampClock,
     expected_positions,
     segment_distance,
+    stopping_point,
     tracking_error,
 )
 
@@ -338,3 +339,43 @@ def test_real_faults_under_the_same_load_still_stop_the_arm() -> None:
     fast = [(0.0, 1.0), (0.5, 5.0)]
     assert run_under_load(fast) == ["executed", "done"]
     assert run_under_load(fast, lost=(-0.1, 0.6)) == ["executed", "no contact sample"]
+
+
+def test_a_stop_decelerates_uniformly_at_the_slowest_joints_limit() -> None:
+    """From v = (1, -0.2) rad/s at a = 5 rad/s^2: joint 1 needs 1/5 = 0.2 s, so both stop over
+    T = 0.2 s, at q + v T / 2 = (0.1, 0.48); the controller's cubic from (q, v) to rest there
+    is q + v T (u - u^2 / 2) (u = s / T): uniform deceleration, 0.375 v T at u = 1/2."""
+    state = MotionState(np.array([0.0, 0.5]), np.array([1.0, -0.2]), np.zeros(2))
+    q_stop, seconds = stopping_point(state, 5.0, 0.05)
+    assert seconds == pytest.approx(0.2)
+    np.testing.assert_allclose(q_stop, [0.1, 0.48], atol=1e-12)
+    stop = MotionPlan(joint_names=("j1", "j2"), times=np.array([1.0, 1.2]),
+                      positions=np.array([state.q, q_stop]),
+                      velocities=np.array([state.qd, [0.0, 0.0]]),
+                      accelerations=np.zeros((2, 2)), tip=np.zeros((2, 3)),
+                      stages=(StageSpan("stop", 1.0, 1.2),), contact_start=math.nan,
+                      contact_end=math.nan, line=np.full((2, 3), math.nan))
+    np.testing.assert_allclose(expected_positions(stop, 1.1), [0.075, 0.485], atol=1e-12)
+    # slow: the shortest stop (a one-point trajectory's time) sets T
+    slow = MotionState(np.zeros(2), np.array([0.1, 0.0]), np.zeros(2))
+    q_stop, seconds = stopping_point(slow, [5.0, 5.0], 0.05)
+    assert seconds == 0.05 and q_stop.tolist() == pytest.approx([0.0025, 0.0])
+    at_rest = MotionState.at_rest([0.3, 0.4])
+    assert stopping_point(at_rest, 5.0, 0.05)[0].tolist() == [0.3, 0.4]
+    with pytest.raises(ValueError):
+        stopping_point(state, 0.0, 0.05)
+
+
+def test_stopping_a_run_decelerates_from_its_commanded_state_unless_the_arm_is_off_it() -> None:
+    """The straight plan at 101.5 s (t0 = 100 s): joint 1 at 0.5 rad moving at 1 rad/s, so at
+    5 rad/s^2 the stop takes 0.2 s and ends at 0.6 rad; an arm measured 0.1 rad off the plan
+    (tolerance 0.05) is not where its plan is: no decelerating stop."""
+    arm = ArmKinematics(PLANAR, "base", ToolSpec("flange", 0.0, 0.1), acceleration_limits=5.0)
+    run = execution()
+    q_stop, seconds = run.stop(101.5, np.array([0.49, 0.5]), arm, 0.05)
+    assert seconds == pytest.approx(0.2)
+    np.testing.assert_allclose(q_stop, [0.6, 0.5], atol=1e-12)
+    assert run.stop(101.5, np.array([0.4, 0.5]), arm, 0.05) is None
+    # after the end the plan is at rest: the shortest stop at the last point
+    q_stop, seconds = run.stop(103.0, np.array([1.0, 0.5]), arm, 0.05)
+    assert seconds == 0.05 and q_stop.tolist() == [1.0, 0.5]

@@ -9,8 +9,10 @@ push_executor_node) over DDS on simulated time; no mocks. One graph serves the m
 - a dry run (``~/enable`` false) plans, publishes the tool path and refuses the push with kind
   ``disabled`` on ``pusher/refused``; nothing moves (sim time stands still, the joints and the
   object stay);
-- ``~/cancel`` holds the arm within 0.1 s of sim time (the simulator paced to real time,
-  ``arm.real_time_factor`` 1, as a real controller runs), then the arm parks.
+- ``~/cancel`` stops the arm at its acceleration limits: held (``HELD_STATES`` joint states
+  slower than ``HELD``) within the stop's planned time ``stop_s`` plus ``SETTLE`` s of sim
+  time after the executor's hold (the simulator paced to real time, ``arm.real_time_factor``
+  1, as a real controller runs), where the stop found it; then the arm parks.
 """
 
 from __future__ import annotations
@@ -30,8 +32,13 @@ pytestmark = [pytest.mark.ros, pytest.mark.graph, pytest.mark.slow]
 #: A push far from the object at the origin (approach, contact, end; world, m): the executor
 #: does not know the object, the arm moves all the same.
 FAR_PUSH = np.array([[0.15, -0.22], [0.15, -0.20], [0.15, -0.15]])
-#: Joint speed below which the arm counts as held, rad/s.
-HELD = 0.01
+#: Joint speed below which the arm counts as held, rad/s, and in how many consecutive joint
+#: states (push_executor's ``MeasuredArm`` rule: 3 states at 100 Hz of sim time).
+HELD, HELD_STATES = 0.01, 3
+#: Sim time the stop may take beyond its planned deceleration: the hold's way to the simulator
+#: (real time at real_time_factor 1), the joints' settling under their position control and
+#: one joint state period at the protocol graphs' 50 Hz, s.
+SETTLE = 0.05
 
 
 @pytest.fixture(scope="module")
@@ -104,35 +111,50 @@ def test_a_dry_run_plans_and_refuses_and_moves_nothing(graph: GraphRunner) -> No
         client.executor_enable(True)
 
 
-def test_cancel_holds_the_arm_within_a_tenth_of_a_second(graph: GraphRunner) -> None:
+def test_cancel_stops_the_arm_at_its_acceleration_limits_then_parks(graph: GraphRunner) -> None:
     client = graph._client()
     graph.set_parameters("sim_bridge_node", {"arm.real_time_factor": 1.0})
     _reset_when_idle(graph)
     try:
         n_status = len(graph.rec.executor_status)
         _start_moving(graph, client)
-        t_cancel = graph.rec.joint_states[-1][0]  # sim time at the cancel, at least
+        t_before = graph.rec.joint_states[-1][0]
         client.executor_cancel()
+        # The latency counts from the executor's hold (executor/status stop_time: the
+        # controller's time when it sent the hold), not from this client's request: with the
+        # simulator paced to real time, a loaded machine's service latency would count as
+        # robot time.
+        stopped = graph.wait(lambda: next((s for s in graph.rec.executor_status[n_status:]
+                                           if s.get("state") == "stopped"
+                                           and float(s.get("stop_time", "-inf")) >= t_before),
+                                          None),
+                             30.0, "executor/status 'stopped' after ~/cancel")
+        t_stop, stop_s = float(stopped["stop_time"]), float(stopped["stop_s"])
+        # at most the Panda's fastest joint limit (2.61 rad/s) at the executor's default
+        # acceleration limit (7.5 rad/s^2): 0.35 s
+        assert 0.05 <= stop_s <= 0.35, stop_s
 
-        def watched() -> bool:
-            # half a second of sim time after the cancel, or the simulator idle again (its
-            # run ended: idle joint states repeat one stamp)
-            stamps = [t for t, _, _ in list(graph.rec.joint_states)[-3:]]
-            return bool(stamps) and (stamps[-1] >= t_cancel + 0.5
-                                     or (len(stamps) == 3 and len(set(stamps)) == 1
-                                         and stamps[-1] > t_cancel))
+        def held_at() -> tuple[float, np.ndarray] | None:
+            # Held: HELD_STATES consecutive joint states after the stop, every joint slower
+            # than HELD, their postures within 1e-4 rad (the executor's own rule before it
+            # parks; the park that follows may start right after them).
+            after = [(t, q, v) for t, q, v in list(graph.rec.joint_states) if t >= t_stop]
+            for i in range(len(after) - HELD_STATES + 1):
+                run = after[i:i + HELD_STATES]
+                qs = np.array([q for _, q, _ in run])
+                if all(np.max(np.abs(v)) < HELD for _, _, v in run) \
+                        and float(np.ptp(qs, axis=0).max()) <= 1e-4:
+                    return run[0][0], run[0][1]
+            return None
 
-        graph.wait(watched, 60.0, "the arm's motion after ~/cancel")
-        after = [(t, float(np.max(np.abs(v)))) for t, _, v in list(graph.rec.joint_states)
-                 if t > t_cancel]
-        # held: the first 0.1 s of sim time in which every joint is slower than HELD (the
-        # park motion that follows the hold comes later)
-        t_held = next(t for t, _ in after
-                      if any(u >= t + 0.1 for u, _ in after)
-                      and all(v < HELD for u, v in after if t <= u <= t + 0.1))
-        assert t_held - t_cancel <= 0.1, (t_cancel, t_held)
-        states = [s["state"] for s in graph.rec.executor_status[n_status:]]
-        assert "stopped" in states, states
+        t_held, q_held = graph.wait(held_at, 60.0, "the arm held after ~/cancel")
+        trace = [(round(t - t_stop, 3), round(float(np.max(np.abs(v))), 4))
+                 for t, _, v in list(graph.rec.joint_states) if t_stop - 0.05 <= t <= t_held]
+        assert t_held - t_stop <= stop_s + SETTLE, (t_stop, stop_s, t_held, trace)
+        # held where the stop found it (it decelerates from there, within the executor's
+        # tracking tolerance): the arm neither runs on along its plan nor jumps back
+        q_stop = next(q for t, q, _ in reversed(list(graph.rec.joint_states)) if t <= t_stop)
+        assert float(np.max(np.abs(q_held - q_stop))) <= 0.05, q_held - q_stop
         # then the arm parks (the next frame must not show it over the object; cancelled
         # that early it may still be within a hundredth of a radian of the park posture)
         graph.wait(lambda: graph.rec.executor_status[-1].get("at_park") == "true"
@@ -151,6 +173,11 @@ def _start_moving(graph: GraphRunner, client, attempts: int = 3) -> None:
     times, and the refusals are reported if the arm never moved."""
     refused = []
     for _ in range(attempts):
+        # the executor says when it can take a push (its model and a joint state arrived, the
+        # arm held): a graph just started or a simulator just reset may not be there yet
+        graph.wait(lambda: graph.rec.executor_status
+                   and graph.rec.executor_status[-1].get("ready") == "true", 60.0,
+                   "executor/status ready")
         n, n_refusals = len(graph.rec.joint_states), len(graph.rec.refusals)
         client.publish_push(FAR_PUSH)
 

@@ -84,12 +84,14 @@ def trajectory_msg(plan: MotionPlan, joints: Sequence[str], start: float) -> Joi
     return msg
 
 
-def hold_msg(joints: Sequence[str], positions: dict[str, float]) -> JointTrajectory:
-    """Hold ``positions`` (joint name -> rad) of ``joints`` from now on."""
+def hold_msg(joints: Sequence[str], positions: dict[str, float],
+             seconds: float = HOLD_TIME) -> JointTrajectory:
+    """Hold ``positions`` (joint name -> rad) of ``joints``, at rest ``seconds`` from now on
+    (the controller interpolates from its state on receipt)."""
     msg = JointTrajectory(joint_names=list(joints))
     msg.points = [JointTrajectoryPoint(positions=[float(positions[j]) for j in joints],
                                        velocities=[0.0] * len(joints),
-                                       time_from_start=duration_msg(HOLD_TIME))]
+                                       time_from_start=duration_msg(seconds))]
     return msg
 
 

@@ -57,7 +57,13 @@ from push_executor.state_check import (
     posture_problem,
     unavailable,
 )
-from push_executor.tracking import Event, Execution, MeasuredArm, PlanMaker, start_plan
+from push_executor.tracking import (
+    Event,
+    Execution,
+    MeasuredArm,
+    PlanMaker,
+    start_plan,
+)
 from push_ros.health import NodeHealth
 from push_ros.node import declare_config, run_node
 from push_ros.qos import JOINT_STATE_QOS, LATCHED_QOS, RELIABLE_QOS
@@ -91,6 +97,7 @@ class PushExecutorNode(Node):
         self._push_stamp: Any = None
         self._deferred: tuple[Path, float] | None = None  # a push waiting for the arm at rest
         self._park_pending, self._stopped, self._line_error_mm = "", False, math.nan
+        self._stop_values: dict[str, str] = {}
         self._plan_values: dict[str, str] = {}
         self._stuck = StuckPosture()  # a posture it could not leave (push_executor.state_check)
         self._session, self._readiness = f"{os.getpid()}-{time.time_ns()}", None
@@ -342,13 +349,26 @@ class PushExecutorNode(Node):
         self._publish_status()
         return None
 
-    def _stop(self, reason: str) -> bool:
-        """Send the one-point hold trajectory at the measured posture; False without one."""
+    def _stop(self, reason: str, run: Execution | None = None) -> bool:
+        """Send the one-point hold trajectory; False without a measured posture. Stopping a
+        ``run`` that tracks its plan (``~/cancel``, disable; the measured posture within the
+        tracking tolerance of the commanded one) decelerates from the commanded state now to
+        rest at the joints' acceleration limits (:meth:`Execution.stop`); any other stop (a
+        fault: the plan may not be where the arm is) holds the measured posture."""
         if self.measured.q is None or self._arm is None:
             return False
-        self._pub_traj.publish(m.hold_msg(self._joints, dict(zip(self._arm.joint_names,
-                                                                self.measured.q,
-                                                                strict=True))))
+        try:
+            stop_time = self._now()
+        except PushRefused:
+            stop_time = self.measured.stamp
+        names, q, seconds = self._arm.joint_names, self.measured.q, m.HOLD_TIME
+        stop = None if run is None else run.stop(stop_time, self.measured.q, self._arm,
+                                                 m.HOLD_TIME)
+        if stop is not None:
+            names, (q, seconds) = run.plan.joint_names, stop
+        self._pub_traj.publish(m.hold_msg(self._joints, dict(zip(names, q, strict=True)),
+                                          seconds))
+        self._stop_values = {"stop_time": f"{stop_time:.6f}", "stop_s": f"{seconds:.3f}"}
         self._stopped = True
         self.measured.moved()
         self.health.count("stopped")
@@ -358,7 +378,7 @@ class PushExecutorNode(Node):
     def _on_cancel(self, request: Trigger.Request, response: Trigger.Response
                    ) -> Trigger.Response:
         run, self._run = self._run, None
-        response.success = self._stop("~/cancel")
+        response.success = self._stop("~/cancel", run)
         if run is not None and not run.reported:
             self._refuse(self._push_stamp, "cancelled", run.plan.stage_at(
                 run.elapsed(self.measured.stamp)), "cancelled by ~/cancel")
@@ -401,6 +421,7 @@ class PushExecutorNode(Node):
                                  if self._readiness else "ready for a push")
         extra = {"state": state, "model": model, "at_park": str(self._parked()).lower(),
                  "contact_line_error_mm": f"{self._line_error_mm:.4f}", **self._plan_values,
+                 **self._stop_values,
                  **readiness_values(run is None and self._readiness is None, self._readiness,
                                     self._session)}
         self._pub_status.publish(self.health.status(level, f"{state}, {model}", extra))

@@ -53,7 +53,7 @@ from push_executor.motion import MotionPlan, MotionState, PushRefused, chain_poi
 
 __all__ = ["CLOCK_RESTART", "MAX_SAMPLES", "START_MOTION", "ContactSegment", "Event",
            "Execution", "MeasuredArm", "StampClock", "expected_positions", "segment_distance",
-           "start_plan", "tracking_error"]
+           "start_plan", "stopping_point", "tracking_error"]
 
 #: Joint motion (rad) that shows a trajectory started.
 START_MOTION = 1e-3
@@ -199,6 +199,28 @@ class Execution:
     def elapsed(self, stamp: float) -> float:
         """Seconds of the plan at a joint state stamped ``stamp``."""
         return float(stamp) - self.t0
+
+    def commanded(self, elapsed: float) -> MotionState:
+        """The commanded state at plan time ``elapsed`` (the replaced plan's before this one's
+        first point)."""
+        if self._previous is not None and elapsed < self.plan.times[0]:
+            plan, t0 = self._previous
+            return plan.state_at(elapsed + self.t0 - t0)
+        return self.plan.state_at(elapsed)
+
+    def stop(self, stamp: float, measured: NDArray[np.float64], arm: ArmKinematics,
+             min_time: float) -> tuple[NDArray[np.float64], float] | None:
+        """The decelerating stop (:func:`stopping_point` at ``arm``'s acceleration limits,
+        inside its position limits) from the commanded state at the controller's time
+        ``stamp`` (s), or None when the ``measured`` posture (chain order, rad) is off the
+        commanded one by more than the tracking tolerance: the arm is not where its plan is
+        (hold the measured posture instead)."""
+        commanded = self.commanded(self.elapsed(stamp))
+        if float(np.max(np.abs(commanded.q - np.asarray(measured, dtype=float)))) \
+                > self.tolerance:
+            return None
+        q, seconds = stopping_point(commanded, arm.acceleration_limits, min_time)
+        return np.clip(q, arm.lower, arm.upper), seconds
 
     def expected(self, elapsed: ArrayLike) -> NDArray[np.float64]:
         """Planned positions (T, n) at plan times ``elapsed`` (T,) (the replaced plan's before
@@ -466,3 +488,37 @@ def start_plan(make: PlanMaker, running: Execution | None, q: NDArray[np.float64
         extra = 2.0 * (done - began)
     raise PushRefused("busy", previous.stage_at(first), "the arm passed the chain point while "
                       "the motion was planned")
+
+
+def stopping_point(state: MotionState, max_acceleration: ArrayLike, min_time: float
+                   ) -> tuple[NDArray[np.float64], float]:
+    """Where and when a stop from the moving ``state`` ends: every joint decelerates uniformly
+    to rest over the same ``T = max(min_time, max_j |v_j| / a_j)`` (the joint slowest to stop
+    at its acceleration limit sets it; the others decelerate less), so the hold point is
+    ``q + v T / 2``: the point a controller's cubic from ``(q, v)`` to rest at it over ``T``
+    reaches at uniform deceleration (ros2_controllers' decelerate-to-hold on cancel, one point).
+    The state's acceleration is not carried over.
+
+    Parameters
+    ----------
+    state : MotionState
+        Positions (rad) and velocities (rad/s) at the stop.
+    max_acceleration : float or (n,) array_like
+        Joint acceleration limits, rad/s^2 (> 0).
+    min_time : float
+        Shortest stop, s (> 0): a one-point trajectory's ``time_from_start``.
+
+    Returns
+    -------
+    q_stop : (n,) ndarray
+        The hold positions, rad.
+    seconds : float
+        ``T``, s.
+    """
+    q = np.asarray(state.q, dtype=float)
+    v = np.asarray(state.qd, dtype=float)
+    a = np.broadcast_to(np.asarray(max_acceleration, dtype=float), v.shape)
+    if not (np.all(a > 0.0) and min_time > 0.0):
+        raise ValueError(f"acceleration limits and min_time must be > 0, got {a}, {min_time}")
+    seconds = max(float(min_time), float(np.max(np.abs(v) / a)))
+    return q + 0.5 * seconds * v, seconds
