@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from push_core.episode import ORIENTATION_IGNORED, EpisodeEngine, end_score, true_errors
+from push_core.episode import ORIENTATION_IGNORED, EpisodeEngine
 from push_core.objects import load_object
 from push_core.planner import AVOID_RADIUS, Planner, PlannerConfig, prepare_outline
 
@@ -106,19 +106,6 @@ def test_bad_events_name_themselves() -> None:
         EpisodeEngine(Planner(), 0)
 
 
-def test_end_score_counts_orientation_modulo_symmetry_and_not_for_a_disc() -> None:
-    hexagon, disc = load_object("hex").polyline(), load_object("ellip1").polyline()
-    goal = np.array([0.1, 0.0, 0.0])
-    # hex (order 6): 61 deg off is 1 deg off
-    xy, th = true_errors(np.array([0.1, 0.002, math.radians(61.0)]), goal, 6)
-    assert xy == pytest.approx(0.002) and th == pytest.approx(math.radians(1.0))
-    s = end_score(hexagon, [0.1, 0.0, math.radians(8.0)], goal, (0.0075, math.radians(5.0)))
-    assert not s["success"] and not s["orientation_ignored"]
-    s = end_score(disc, [0.1, 0.0, math.radians(80.0)], goal, (0.0075, math.radians(5.0)))
-    assert s["success"] and s["orientation_ignored"]
-    assert s["end_error_theta"] == pytest.approx(math.radians(90.0 - 80.0))  # order 12
-
-
 def reached_engine(after_goal: str = "resume", max_steps: int = 30) -> EpisodeEngine:
     e = EpisodeEngine(Planner(PlannerConfig(k=1, seed=3)), max_steps, after_goal=after_goal)
     e.set_outline(prepare_outline(*SPEC.outline(0.002)))
@@ -205,15 +192,3 @@ def test_precedes_episode_window() -> None:
     assert not precedes_episode(10.5, 10.0)  # the camera's next frame
     assert not precedes_episode(0.1, 10.0)  # a restarted clock (simulator restarted)
     assert not precedes_episode(1.0, -float("inf"))  # no boundary before the first reset
-
-
-def test_robot_times() -> None:
-    from push_core.episode import robot_times
-
-    times = robot_times(10.0, [10.5, 14.0, 18.5], 23.0)
-    assert times == {"robot_time_s": 13.0, "cycle_s": [3.5, 4.5]}
-    assert robot_times(4.0, [], 4.0) == {"robot_time_s": 0.0, "cycle_s": []}
-    for args in ((10.0, [9.0], 20.0), (10.0, [12.0, 11.0], 20.0), (10.0, [12.0], 11.0),
-                 (math.nan, [], 1.0)):
-        with pytest.raises(ValueError, match="in order"):
-            robot_times(*args)

@@ -35,10 +35,12 @@ FAR_PUSH = np.array([[0.15, -0.22], [0.15, -0.20], [0.15, -0.15]])
 #: Joint speed below which the arm counts as held, rad/s, and in how many consecutive joint
 #: states (push_executor's ``MeasuredArm`` rule: 3 states at 100 Hz of sim time).
 HELD, HELD_STATES = 0.01, 3
-#: Sim time the stop may take beyond its planned deceleration: the hold's way to the simulator
-#: (real time at real_time_factor 1), the joints' settling under their position control and
-#: one joint state period at the protocol graphs' 50 Hz, s.
-SETTLE = 0.05
+#: Sim time the stop may take beyond its planned deceleration, s: the hold's way to the
+#: simulator and the executor's estimate of the controller's time (its newest joint state
+#: carried forward: a few joint-state periods behind when the machine is loaded; real time at
+#: real_time_factor 1), the joints' settling under their position control, one joint state
+#: period at the protocol graphs' 50 Hz.
+SETTLE = 0.1
 
 
 @pytest.fixture(scope="module")
@@ -118,7 +120,7 @@ def test_cancel_stops_the_arm_at_its_acceleration_limits_then_parks(graph: Graph
     try:
         n_status = len(graph.rec.executor_status)
         _start_moving(graph, client)
-        t_before = graph.rec.joint_states[-1][0]
+        stops = int(graph.rec.executor_status[-1].get("stopped", "0"))
         client.executor_cancel()
         # The latency counts from the executor's hold (executor/status stop_time: the
         # controller's time when it sent the hold), not from this client's request: with the
@@ -126,8 +128,7 @@ def test_cancel_stops_the_arm_at_its_acceleration_limits_then_parks(graph: Graph
         # robot time.
         stopped = graph.wait(lambda: next((s for s in graph.rec.executor_status[n_status:]
                                            if s.get("state") == "stopped"
-                                           and float(s.get("stop_time", "-inf")) >= t_before),
-                                          None),
+                                           and int(s.get("stopped", "0")) > stops), None),
                              30.0, "executor/status 'stopped' after ~/cancel")
         t_stop, stop_s = float(stopped["stop_time"]), float(stopped["stop_s"])
         # at most the Panda's fastest joint limit (2.61 rad/s) at the executor's default

@@ -56,7 +56,7 @@ def test_a_planner_started_after_the_estimate_still_gets_it(
                         timeout=TIMEOUT, executor=executor)
         points, normals = load_object("rect1").outline(0.004)
         outline.publish(outline_cloud_msg(points, normals, stamp_from_seconds(0.0)))
-        assert wait_for(lambda: ekf.filter is not None, timeout=TIMEOUT, executor=executor)
+        assert wait_for(lambda: ekf._ekf is not None, timeout=TIMEOUT, executor=executor)
         observation.publish(pose_with_covariance_msg((0.01, -0.02, 0.1), np.diag(
             [1e-6, 1e-6, 1e-4]), stamp_from_seconds(1.0)))
         assert wait_for(lambda: estimates, timeout=TIMEOUT, executor=executor), \

@@ -24,8 +24,9 @@ from typing import Any
 
 import yaml
 
-DEFAULT_MAX_ARRAY = 32
-"""Arrays longer than this are summarised instead of printed in full."""
+DEFAULT_MAX_ARRAY = 128
+"""Arrays longer than this are summarised instead of printed in full (ros2 topic echo's
+``--truncate-length`` default: a node's DiagnosticStatus key-values print in full)."""
 
 _SUMMARY_HEAD = 8
 
