@@ -129,8 +129,11 @@ def has_continuous_symmetry(points: ArrayLike,
     """
     if not tolerance > 0.0:
         raise ValueError(f"tolerance must be > 0, got {tolerance!r}")
-    mismatch = rotation_mismatch(points, np.radians(np.array(TEST_ANGLES_DEG)))
-    return bool(np.max(mismatch) <= tolerance)
+    angles = np.radians(np.array(TEST_ANGLES_DEG))
+    # An outline without the symmetry already fails at the first test angle: it alone is
+    # checked first (the same answer at a twenty-fourth of the cost for most outlines).
+    return all(float(np.max(rotation_mismatch(points, batch))) <= tolerance
+               for batch in (angles[:1], angles[1:]))
 
 
 def symmetry_order_of_polygon(vertices: ArrayLike, tolerance: float = 1e-3,
