@@ -34,6 +34,7 @@ card next to the weights (``models/segmentation.md``) and docs/results/bench_per
 from __future__ import annotations
 
 import copy
+import pickle
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -383,7 +384,7 @@ def load_net(path: Path) -> SegmentationNet:
     try:
         state = torch.load(path, map_location="cpu", weights_only=True)
         net.load_state_dict(state["state_dict"] if "state_dict" in state else state)
-    except (RuntimeError, KeyError, OSError, TypeError) as exc:
+    except (RuntimeError, KeyError, OSError, TypeError, pickle.UnpicklingError) as exc:
         raise ValueError(f"{path}: not a segmentation network checkpoint ({exc})") from None
     return net.eval()
 

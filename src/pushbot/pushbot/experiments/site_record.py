@@ -139,7 +139,8 @@ def _frame_arrays(node: Any, rgb_msg: Any, depth_msg: Any, info: Any
 
 
 def record(out: Path, frames: int, scenes: int, rule: LabelRule, sim: bool, seed: int,
-           timeout: float, overwrite: bool = False) -> dict[str, Any]:
+           timeout: float, overwrite: bool = False,
+           objects: tuple[str, ...] = ()) -> dict[str, Any]:
     """Record ``frames`` labelled frames over ``scenes`` scenes (module docstring).
 
     Returns
@@ -169,7 +170,8 @@ def record(out: Path, frames: int, scenes: int, rule: LabelRule, sim: bool, seed
               "info": "camera/color/camera_info"}
     labeller = SiteLabeller(rule)
     writer = SiteWriter(out, rule, {"topics": topics, "sim": sim, "seed": seed,
-                                    "frames": frames, "scenes": scenes}, overwrite)
+                                    "frames": frames, "scenes": scenes,
+                                    "objects": list(objects)}, overwrite)
     refused: dict[str, int] = {}
     rclpy.init()
     node = rclpy.create_node("pushbot_data_record")
@@ -212,8 +214,9 @@ def record(out: Path, frames: int, scenes: int, rule: LabelRule, sim: bool, seed
             raise TimeoutError(f"{what}: no answer within {timeout:.0f} s")
         return future.result()
 
-    def next_scene() -> None:
-        pose = {"initial_pose.x": float(rng.uniform(-0.15, 0.15)),
+    def next_scene(scene: int) -> None:
+        pose: dict[str, Any] = {"object": objects[scene % len(objects)]} if objects else {}
+        pose |= {"initial_pose.x": float(rng.uniform(-0.15, 0.15)),
                 "initial_pose.y": float(rng.uniform(-0.2, 0.2)),
                 "initial_pose.theta": float(rng.uniform(-math.pi, math.pi)),
                 "seed": int(rng.integers(2**31 - 1))}
@@ -229,8 +232,8 @@ def record(out: Path, frames: int, scenes: int, rule: LabelRule, sim: bool, seed
 
     try:
         for scene in range(scenes):
-            if sim and scene > 0:
-                next_scene()
+            if sim and (scene > 0 or objects):
+                next_scene(scene)
             goal = min(frames, (scene + 1) * per_scene)
             last, progress = time.monotonic(), writer.frames + writer.pending
             while writer.frames + writer.pending < goal:
@@ -267,6 +270,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="ask the graph's simulator for each new scene (a random object "
                              "pose and seed, then /sim_bridge_node/reset)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the --sim scenes")
+    parser.add_argument("--objects", nargs="+", default=[],
+                        help="with --sim: the objects of the scenes, in turn (default: the "
+                             "simulator's object)")
     parser.add_argument("--window", type=int, default=d.window,
                         help=f"frames of a resting scene per label (default {d.window})")
     parser.add_argument("--min-iou", type=float, default=d.min_iou,
@@ -292,8 +298,10 @@ def run(args: argparse.Namespace) -> int:
     if not (math.isfinite(args.timeout) and args.timeout > 0):
         raise ValueError(f"--timeout {args.timeout}: expected a positive number of seconds")
     rule = LabelRule(min_iou=args.min_iou, max_plane_rms=args.max_plane_rms, window=args.window)
+    if args.objects and not args.sim:
+        raise ValueError("--objects needs --sim (a real scene's objects are placed by hand)")
     meta = record(args.out, args.frames, args.scenes, rule, args.sim, args.seed, args.timeout,
-                  args.overwrite)
+                  args.overwrite, tuple(args.objects))
     dropped = ", ".join(f"{k} {meta['dropped'].get(k, 0)}" for k in DROP_REASONS)
     print(f"wrote {meta['frames']} labelled frames in {meta['shards']} shard(s) to {args.out}; "
           f"dropped: {dropped}; refused messages: {meta['refused'] or 'none'}")
