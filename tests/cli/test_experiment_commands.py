@@ -187,4 +187,4 @@ def test_help_of_train_shows_its_default_output_folder(capsys) -> None:
         cli.main(["train", "segmentation", "--help"])
     text = " ".join(capsys.readouterr().out.split())
     assert "(default: out/train/segmentation/segmentation.pt)" in text
-    assert "--steps STEPS optimiser steps (default: 3000)" in text
+    assert "--steps STEPS optimiser steps (default 3000; 300 with --init)" in text

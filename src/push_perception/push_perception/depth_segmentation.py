@@ -102,10 +102,17 @@ class DepthSegmenter:
     Parameters
     ----------
     config : DepthSegmentationConfig, optional
+
+    Attributes
+    ----------
+    last_plane_rms : float
+        RMS vertical distance of the last frame's plane inliers from the fitted table plane, m (NaN
+        when no plane was fitted): how flat and how well calibrated the table looked.
     """
 
     def __init__(self, config: DepthSegmentationConfig | None = None) -> None:
         self.config = DepthSegmentationConfig() if config is None else config
+        self.last_plane_rms = float("nan")
         self._key: tuple[bytes, bytes, tuple[int, int]] | None = None
         self._rays: NDArray[np.float64] | None = None  # (H, W, 3) world ray per unit depth
 
@@ -143,11 +150,15 @@ class DepthSegmenter:
             table = inside & (np.abs(points[..., 2]) < cfg.plane_band)
         sample = points[table][::7]
         plane = _fit_plane(sample)
+        self.last_plane_rms = float("nan")
         if plane is None:
             return empty
         residual = sample[:, 2] - sample[:, :2] @ plane[:2] - plane[2]
         keep = np.abs(residual) < max(3.0 * float(np.std(residual)), 1e-4)
         plane = _fit_plane(sample[keep]) if np.count_nonzero(keep) >= 3 else plane
+        inliers = sample[keep] if np.count_nonzero(keep) >= 3 else sample
+        self.last_plane_rms = float(np.sqrt(np.mean(
+            (inliers[:, 2] - inliers[:, :2] @ plane[:2] - plane[2]) ** 2)))
         normal = np.array([-plane[0], -plane[1], 1.0])
         height = (points[..., 2] - points[..., :2] @ plane[:2] - plane[2]) / np.linalg.norm(normal)
         height = np.where(valid, height, np.nan).astype(np.float32)

@@ -34,6 +34,7 @@ card next to the weights (``models/segmentation.md``) and docs/results/bench_per
 from __future__ import annotations
 
 import copy
+import pickle
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -58,6 +59,7 @@ __all__ = [
     "Segmenter",
     "coarse_factor",
     "crop_grid",
+    "load_net",
     "normalise_inputs",
 ]
 
@@ -298,15 +300,7 @@ class Segmenter:
         if path is None or str(path) == "":
             ref = resources.files("push_perception").joinpath("models", DEFAULT_WEIGHTS)
             path = Path(str(ref))
-        path = Path(path)
-        if not path.is_file():
-            raise ValueError(f"segmentation weights {path} do not exist")
-        net = SegmentationNet()
-        try:
-            state = torch.load(path, map_location="cpu", weights_only=True)
-            net.load_state_dict(state["state_dict"] if "state_dict" in state else state)
-        except (RuntimeError, KeyError, OSError, TypeError) as exc:
-            raise ValueError(f"{path}: not a segmentation network checkpoint ({exc})") from None
+        net = load_net(Path(path))
         return cls(net, **kwargs)
 
     def __call__(self, rgb: NDArray[np.uint8], depth: NDArray[np.floating],
@@ -373,6 +367,26 @@ class Segmenter:
         mask[v0:v1, u0:u1] = piece
         confidence = float(np.mean(1.0 / (1.0 + np.exp(-fine[piece])))) if piece.any() else 0.0
         return Segmentation(mask, box, cells, confidence)
+
+
+def load_net(path: Path) -> SegmentationNet:
+    """The :class:`SegmentationNet` of a weights file (a ``state_dict`` or a checkpoint of
+    ``pushbot train segmentation``), in eval mode.
+
+    Raises
+    ------
+    ValueError
+        If the file does not exist or does not hold a SegmentationNet state dict.
+    """
+    if not path.is_file():
+        raise ValueError(f"segmentation weights {path} do not exist")
+    net = SegmentationNet()
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=True)
+        net.load_state_dict(state["state_dict"] if "state_dict" in state else state)
+    except (RuntimeError, KeyError, OSError, TypeError, pickle.UnpicklingError) as exc:
+        raise ValueError(f"{path}: not a segmentation network checkpoint ({exc})") from None
+    return net.eval()
 
 
 def _largest_piece(mask: NDArray[np.uint8], robot: NDArray[np.bool_] | None,

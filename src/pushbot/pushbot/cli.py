@@ -138,6 +138,9 @@ TARGETS: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
         "affordances": ("pushbot.experiments.affordance_data",
                         "pybullet pushes: 20 contact points x 10 representative pushes per "
                         "object sample (learned affordances)"),
+        "record": ("pushbot.experiments.site_record",
+                   "record a site's frames from live camera topics, labelled by the depth "
+                   "segmentation and checked across frames (site adaptation)"),
     }),
     "train": ("train learned models", {
         "segmentation": ("pushbot.experiments.perception_training",

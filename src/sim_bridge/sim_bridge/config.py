@@ -63,6 +63,11 @@ class WorldConfig:
         RealSense-like depth noise and dropouts.
     randomize_appearance : bool
         Random colours, lighting and colour noise (perception training).
+    look : str
+        ``"default"`` (the training appearance: plain, or random with ``randomize_appearance``)
+        or ``"site"``: a look the segmentation network never saw, drawn from ``seed``
+        (textured table, metallic object, coloured light, strong shadows;
+        :mod:`sim_bridge.site_look`); ``randomize_appearance`` is then ignored.
     randomize_camera : bool
         Random jitter of the camera pose (perception training).
     workspace : ((xmin, xmax), (ymin, ymax))
@@ -104,6 +109,7 @@ class WorldConfig:
     camera: CameraConfig = field(default_factory=CameraConfig)
     depth_noise: bool = False
     randomize_appearance: bool = False
+    look: str = "default"
     randomize_camera: bool = False
     workspace: tuple[tuple[float, float], tuple[float, float]] = ((-0.25, 0.25), (-0.3, 0.3))
     max_push_length: float = 0.2
@@ -116,6 +122,8 @@ class WorldConfig:
     support_cell: float = 0.0
 
     def __post_init__(self) -> None:
+        if self.look not in ("default", "site"):
+            raise ValueError(f"look: expected 'default' or 'site', got {self.look!r}")
         if self.robot not in ("pusher", "arm"):
             raise ValueError(f"robot: expected 'pusher' or 'arm', got {self.robot!r}")
         for name, size in (("arm_base_pose", 4), ("arm_park", 7)):

@@ -76,6 +76,11 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               "(NaN)."),
     ParamSpec("randomize_appearance", False, "Randomise lighting, table and object colours "
               "from the seed."),
+    ParamSpec("appearance.look", "default", "default (the training appearance; random with "
+              "randomize_appearance) or site: a look the segmentation network never saw, drawn "
+              "from the seed (textured table, metallic or camouflaged object, coloured light, "
+              "strong shadows; docs/design/site-adaptation.md).",
+              constraints="default or site"),
     ParamSpec("randomize_camera", False, "Jitter the camera pose from the seed (the published "
               "extrinsics are the true, jittered pose)."),
     ParamSpec("idle_frame_rate", 2.0, "Rate of camera frames while the world rests, Hz (wall "
@@ -195,6 +200,8 @@ class SimBridgeParams:
         px.
     camera_profile : str
         ``camera.profile`` (:mod:`sim_bridge.camera_profiles`).
+    look : str
+        ``appearance.look``: ``default`` or ``site`` (``WorldConfig.look``).
     idle_frame_rate, clock_rate, idle_clock_rate : float
         Hz of wall time.
     push_speed : float
@@ -240,6 +247,7 @@ class SimBridgeParams:
     pusher_radius: float
     support_cell: float = 0.0
     camera_profile: str = "default"
+    look: str = "default"
     faults: FaultConfig = FaultConfig()
     monitor: MonitorConfig | None = None
     robot: str = "pusher"
@@ -308,6 +316,7 @@ class SimBridgeParams:
             camera_profile=profile(str(values.get("camera.profile", "default"))).name,
             randomize_appearance=bool(values["randomize_appearance"]),
             randomize_camera=bool(values["randomize_camera"]),
+            look=_look(values.get("appearance.look", "default")),
             idle_frame_rate=float(values["idle_frame_rate"]),
             clock_rate=float(values["clock_rate"]),
             idle_clock_rate=float(values["idle_clock_rate"]),
@@ -358,6 +367,7 @@ class SimBridgeParams:
             depth_noise=self.depth_noise and self.camera_profile == "default",
             randomize_appearance=self.randomize_appearance,
             randomize_camera=self.randomize_camera,
+            look=self.look,
             robot=self.robot,
             arm_base_pose=self.arm_base_pose,
             arm_park=self.arm_park,
@@ -410,6 +420,14 @@ def check_object_parameter(name: str) -> None:
     if info.st_size > MAX_SPEC_BYTES:
         raise ValueError(f"parameter 'object' = {shown}: {info.st_size} bytes, larger than "
                          f"an object specification file may be ({MAX_SPEC_BYTES} bytes)")
+
+
+def _look(value: object) -> str:
+    look = str(value)
+    if look not in ("default", "site"):
+        raise ValueError(f"parameter 'appearance.look' must be 'default' or 'site', got "
+                         f"{look[:40]!r}")
+    return look
 
 
 def _spec_default_if_negative(value: float) -> float | None:

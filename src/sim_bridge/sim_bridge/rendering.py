@@ -93,6 +93,11 @@ class Appearance:
     specular: float = 0.1
     shadow: bool = False
     rgb_noise: float = 0.0  # grey levels (sigma)
+    table_texture: str = ""  # "" (plain table_rgb) or a kind of sim_bridge.site_look
+    texture_seed: int = 0  # seed of the procedural table texture
+    object_specular: float = 0.4  # the object material's specular colour (grey level)
+    object_textured: bool = False  # the object wears the table's texture (camouflage)
+    texture_shift: tuple[float, float] = (0.0, 0.0)  # of the object's texture coordinates
 
 
 @dataclass(frozen=True)

@@ -60,6 +60,7 @@ from push_core.objects import ObjectSpec, load_object
 from push_core.shapes import Ellipse, Polygon
 from sim_bridge.config import WorldConfig
 from sim_bridge.rendering import Appearance
+from sim_bridge.site_look import load_texture
 
 __all__ = [
     "COLLISION_TOLERANCE",
@@ -110,6 +111,8 @@ _MIN_CELL_AREA = 1e-6
 INITIAL_SETTLE_STEPS = 24
 
 _TABLE_HALF_SIZE = 0.75
+#: Side of the table slab's top face, m (a texture spans it once).
+TABLE_SIDE = 2 * _TABLE_HALF_SIZE
 _PUSHER_RGB = (0.15, 0.15, 0.17)
 
 
@@ -160,10 +163,13 @@ def build_scene(client: BulletClient, cfg: WorldConfig, spec: ObjectSpec,
                                rgbaColor=[*look.table_rgb, 1.0],
                                specularColor=[0.05, 0.05, 0.05])
     table = c.createMultiBody(0.0, plane, slab, [0.0, 0.0, 0.0])
+    texture = load_texture(c, look) if look.table_texture else -1
+    if texture >= 0:  # the site look's procedural table (sim_bridge.site_look)
+        c.changeVisualShape(table, -1, textureUniqueId=texture)
     c.changeDynamics(table, -1, lateralFriction=spec.friction_table,
                      spinningFriction=0.0, rollingFriction=0.0, restitution=0.0)
 
-    body, inertial_offset = _create_object(c, cfg, spec, look)
+    body, inertial_offset = _create_object(c, cfg, spec, look, texture)
 
     if cfg.robot == "arm":  # the rod on the arm is the pusher (sim_bridge.arm_robot)
         return Scene(table=table, object=body, pusher=-1, drive=-1,
@@ -185,9 +191,11 @@ def build_scene(client: BulletClient, cfg: WorldConfig, spec: ObjectSpec,
                  inertial_offset=inertial_offset)
 
 
-def _create_object(c: BulletClient, cfg: WorldConfig, spec: ObjectSpec,
-                   look: Appearance) -> tuple[int, NDArray[np.float64]]:
-    """The object body at ``cfg.object_pose`` and its inertial offset (3,)."""
+def _create_object(c: BulletClient, cfg: WorldConfig, spec: ObjectSpec, look: Appearance,
+                   texture: int = -1) -> tuple[int, NDArray[np.float64]]:
+    """The object body at ``cfg.object_pose`` and its inertial offset (3,); with a
+    ``texture`` (pybullet id) and ``look.object_textured``, the object wears the table's
+    texture at the table's scale (tinted by its colour), shifted by ``look.texture_shift``."""
     t = spec.thickness
     tmp = Path(tempfile.mkdtemp(prefix="pushbot_sim_"))
     try:
@@ -195,9 +203,13 @@ def _create_object(c: BulletClient, cfg: WorldConfig, spec: ObjectSpec,
         obj_text, (verts, normals, indices) = _object_geometry(spec.shape, t, cfg.support_cell)
         obj_file.write_text(obj_text)
         col = c.createCollisionShape(p.GEOM_MESH, fileName=str(obj_file))
+        textured = texture >= 0 and look.object_textured
+        uvs = {"uvs": [[x / TABLE_SIDE + 0.5 + look.texture_shift[0],
+                        y / TABLE_SIDE + 0.5 + look.texture_shift[1]] for x, y, _ in verts]
+               } if textured else {}
         vis = c.createVisualShape(p.GEOM_MESH, vertices=verts, normals=normals,
                                   indices=indices, rgbaColor=[*look.object_rgb, 1.0],
-                                  specularColor=[0.4, 0.4, 0.4])
+                                  specularColor=[look.object_specular] * 3, **uvs)
         x, y, theta = cfg.object_pose
         body = c.createMultiBody(
             spec.mass, col, vis, [x, y, OBJECT_MARGIN], yaw_quaternion(theta),
@@ -206,6 +218,8 @@ def _create_object(c: BulletClient, cfg: WorldConfig, spec: ObjectSpec,
         shutil.rmtree(tmp, ignore_errors=True)
     if body < 0:
         raise RuntimeError("pybullet could not create the object body")
+    if textured:
+        c.changeVisualShape(body, -1, textureUniqueId=texture)
     inertial_offset = np.array([spec.com[0], spec.com[1], t / 2.0])
     c.changeDynamics(body, -1, lateralFriction=1.0, spinningFriction=0.0,
                      rollingFriction=0.0, restitution=0.0, linearDamping=0.0,

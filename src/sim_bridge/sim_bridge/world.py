@@ -44,7 +44,8 @@ Randomisation (``WorldConfig.randomize``; explicit overrides always win)
 Drawn from independent streams of ``numpy.random.SeedSequence(seed)`` (physics, appearance,
 camera, sensor noise), so switching one kind of randomisation on does not change the others:
 mass, COM and frictions (:mod:`sim_bridge.scene`, ``randomize``); colours, lighting and colour
-noise (:mod:`sim_bridge.rendering`, ``randomize_appearance``); the camera pose jitters by
+noise (:mod:`sim_bridge.rendering`, ``randomize_appearance``; or the unseen site look of
+:mod:`sim_bridge.site_look`, ``look``); the camera pose jitters by
 ``CameraConfig.jitter_position`` / ``jitter_angle_deg`` (standard deviations; ``randomize_camera``;
 ``T_world_camera`` reports the jittered, true pose); depth noise and dropouts (``depth_noise``),
 fresh per frame. ``reset`` with the same config reproduces everything exactly.
@@ -116,6 +117,7 @@ from sim_bridge.scene import (
     park_position,
     simulated_spec,
 )
+from sim_bridge.site_look import site_appearance
 
 __all__ = [
     "APPROACH_MARGIN",
@@ -211,7 +213,10 @@ class PushWorld:
         rng_phys, rng_look, rng_cam, rng_noise, rng_still = (
             np.random.default_rng(s) for s in streams)
         spec = simulated_spec(cfg, rng_phys)
-        look = random_appearance(rng_look) if cfg.randomize_appearance else Appearance()
+        if cfg.look == "site":
+            look = site_appearance(rng_look)
+        else:
+            look = random_appearance(rng_look) if cfg.randomize_appearance else Appearance()
         t_cam = look_at_pose(cfg.camera)
         if cfg.randomize_camera:
             t_cam = jittered(t_cam, cfg.camera, rng_cam)

@@ -85,6 +85,10 @@ class EvalConfig:
         Segmentation weights ("" = bundled).
     threads : int
         torch intra-op threads.
+    look : str
+        ``"default"`` (the protocol above) or ``"site"``: every episode in the simulator's
+        site look (``WorldConfig.look``: textured table, metallic object, coloured light,
+        strong shadows), randomised episodes still with camera jitter and depth noise.
     """
 
     objects: tuple[str, ...] = TEST_OBJECTS
@@ -93,6 +97,7 @@ class EvalConfig:
     seed: int = 0
     weights: str = ""
     threads: int = 1
+    look: str = "default"
 
 
 @dataclass
@@ -150,7 +155,7 @@ def evaluate(cfg: EvalConfig, progress: bool = True) -> _Rows:
                          rng.uniform(-math.pi, math.pi))
                 wcfg = WorldConfig(object=obj, object_pose=start, randomize=True,
                                    seed=int(rng.integers(2**31 - 1)),
-                                   randomize_appearance=randomised,
+                                   randomize_appearance=randomised, look=cfg.look,
                                    randomize_camera=randomised, depth_noise=randomised)
                 if world is None:
                     world = PushWorld(wcfg)

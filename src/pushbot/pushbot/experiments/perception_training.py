@@ -76,6 +76,9 @@ class TrainConfig:
         torch intra-op threads.
     val_shards : int
         Number of final shards held out for validation.
+    init : str
+        ``""`` (random initialisation), ``"bundled"`` (fine-tune the bundled weights) or the
+        path of a checkpoint to start from.
     """
 
     steps: int = 3000
@@ -85,6 +88,11 @@ class TrainConfig:
     seed: int = 0
     threads: int = 1
     val_shards: int = 1
+    init: str = ""
+
+
+#: The schedule of a fine-tuning run (``--init``) where the options do not say otherwise.
+FINE_TUNE = TrainConfig(steps=300, lr=1e-3)
 
 
 # --------------------------------------------------------------------------------------------
@@ -106,6 +114,14 @@ def _check_shards(data: Path, cfg: TrainConfig) -> list[Path]:
                          "validation): regenerate it with `pushbot data perception` (2 frames "
                          "or more, without a --shard-size as large as --n)")
     return shards
+
+
+def initial_net(init: str) -> Any:
+    """The :class:`~push_perception.model.SegmentationNet` of ``init`` (``"bundled"`` or a
+    checkpoint path) in training mode; ``ValueError`` when it cannot be read."""
+    from push_perception.model import load_net
+
+    return load_net(installed_weights() if init == "bundled" else Path(init)).train()
 
 
 def installed_weights() -> Path:
@@ -208,6 +224,8 @@ def train(data: Path, cfg: TrainConfig, progress: bool = True) -> tuple[Any, dic
     n = len(arrays["small_rgb"])
     rng = np.random.default_rng(cfg.seed)
     net = SegmentationNet()
+    if cfg.init:
+        net = initial_net(cfg.init)
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     sched = torch.optim.lr_scheduler.LambdaLR(
         opt, lambda k: 0.01 + 0.99 * 0.5 * (1 + math.cos(math.pi * min(k, cfg.steps) / cfg.steps)))
@@ -350,6 +368,8 @@ def model_card(report: dict[str, Any], weights: Path) -> str:
     data_cfg = report.get("data_meta", {}).get("config", {})
     objects = ", ".join(report.get("data_meta", {}).get("training_objects", []))
     size_kb = weights.stat().st_size / 1024 if weights.exists() else float("nan")
+    if report.get("data_meta", {}).get("kind") == "site":
+        return _site_card(report, weights, size_kb)
     return f"""# Segmentation CNN (`{weights.name}`)
 
 Two-stage encoder-decoder on RGB + height above the table (`push_perception.model`): a coarse
@@ -400,6 +420,50 @@ a real camera, textured objects or clutter need new data (and probably fine-tuni
 """
 
 
+def _site_card(report: dict[str, Any], weights: Path, size_kb: float) -> str:
+    """Model card of a network fine-tuned on ``pushbot data record`` site frames."""
+    cfg, v, meta = report["train_config"], report["validation"], report["data_meta"]
+    dropped = ", ".join(f"{k} {n}" for k, n in meta.get("dropped", {}).items())
+    rule = meta.get("rule", {})
+    return f"""# Segmentation CNN adapted to a site (`{weights.name}`)
+
+The two-stage network of `push_perception.model` ({report["parameters"]} parameters,
+{size_kb:.0f} KB), fine-tuned from `{cfg["init"]}` on frames recorded at the site. Load it
+with segmentation_node's parameter `weights:={weights}`; the bundled default is unchanged.
+Design: docs/design/site-adaptation.md.
+
+## Data
+
+- recorded by `pushbot data record` into {report["data"]}: {meta.get("frames", "?")} frames
+  kept in {meta.get("shards", "?")} shard(s) (one per scene); labels from the depth
+  segmentation, kept when consecutive frames agree (IoU >= {rule.get("min_iou", "?")}, table
+  plane RMS <= {rule.get("max_plane_rms", "?")} m, windows of {rule.get("window", "?")} frames,
+  label from their median depth); dropped: {dropped or "none"};
+- training frames: {report["train_frames"]}; validation: the held-out scene shard(s)
+  {", ".join(report["val_shards"])} (scenes never trained on).
+
+## Training
+
+- command: `{report["command"]}`
+- seed {cfg["seed"]}, {cfg["steps"]} steps of {cfg["batch"]} frames from `{cfg["init"]}`, Adam
+  (lr {cfg["lr"]}, cosine decay, weight decay {cfg["weight_decay"]}), {cfg["threads"]} torch
+  thread(s), CPU; {report["train_minutes"]} min on {report.get("machine", "?")}
+  ({report["date"]}), after {report.get("prepare_minutes", "?")} min preparing.
+
+## Metrics
+
+Held-out site scenes, against their depth labels (a site has no other truth): mask IoU median
+{v["iou_median"]:.4f}, mean {v["iou_mean"]:.4f}, 10th percentile {v["iou_p10"]:.4f} over
+{v["frames"]} frames. Against the simulator's truth on held-out objects:
+docs/results/site_adaptation.md.
+
+## Limits
+
+Learns what the depth labels say: where the depth segmentation is wrong at the site (objects
+thinner than its height threshold, holes in the depth of the object), so is the label.
+"""
+
+
 # --------------------------------------------------------------------------------------------
 # Command line: pushbot train segmentation
 # --------------------------------------------------------------------------------------------
@@ -415,9 +479,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     where.add_argument("--install", action="store_true",
                        help="write the weights, report and card over the bundled ones "
                             "(push_perception/models/segmentation.*), which the node loads")
-    parser.add_argument("--steps", type=int, default=d.steps, help="optimiser steps")
+    parser.add_argument("--init", default="",
+                        help="start from these weights instead of a random initialisation: "
+                             "`bundled` (fine-tune the bundled network, e.g. on `pushbot data "
+                             "record` site frames) or a checkpoint path; not with --install")
+    parser.add_argument("--steps", type=int, default=None,
+                        help=f"optimiser steps (default {d.steps}; {FINE_TUNE.steps} with "
+                             "--init)")
     parser.add_argument("--batch", type=int, default=d.batch, help="frames per step")
-    parser.add_argument("--lr", type=float, default=d.lr, help="peak learning rate")
+    parser.add_argument("--lr", type=float, default=None,
+                        help=f"peak learning rate (default {d.lr}; {FINE_TUNE.lr} with --init)")
+    parser.add_argument("--val-shards", type=int, default=d.val_shards,
+                        help=f"final shards held out for validation (default {d.val_shards}; "
+                             "a site data set has one shard per scene)")
     parser.add_argument("--seed", type=int, default=d.seed, help="seed")
     parser.add_argument("--threads", type=int, default=d.threads,
                         help="torch threads (1: the machine is shared)")
@@ -435,8 +509,20 @@ def run(args: argparse.Namespace) -> int:
     """
     import sys
 
-    cfg = TrainConfig(steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed,
-                      threads=args.threads)
+    init = getattr(args, "init", "")
+    if init and args.install:
+        raise ValueError("--init with --install: a fine-tuned network is written to --out and "
+                         "loaded through segmentation_node's weights parameter; the bundled "
+                         "weights are only replaced by a training from scratch")
+    base = FINE_TUNE if init else TrainConfig()
+    cfg = TrainConfig(steps=base.steps if args.steps is None else args.steps, batch=args.batch,
+                      lr=base.lr if args.lr is None else args.lr, seed=args.seed,
+                      threads=args.threads, val_shards=getattr(args, "val_shards", 1),
+                      init=init)
+    if cfg.val_shards < 1:
+        raise ValueError(f"--val-shards {cfg.val_shards}: expected an integer >= 1")
+    if init:
+        initial_net(init)  # an unreadable --init fails before the data are prepared
     for name in ("steps", "batch", "threads"):
         if getattr(cfg, name) < 1:
             raise ValueError(f"--{name} {getattr(cfg, name)}: expected an integer >= 1")
