@@ -17,6 +17,7 @@ from push_core.calibration import (
     solve_eye_to_hand,
 )
 from push_core.calibration.handeye import rotation_spread_deg
+from push_core.calibration.poses import board_facing_poses, camera_guess
 
 K = np.array([[615.0, 0.0, 319.5], [0.0, 615.0, 239.5], [0.0, 0.0, 1.0]])
 SIZE = (640, 480)
@@ -168,3 +169,25 @@ def test_the_board_image_is_detected_at_its_printed_corners() -> None:
     np.testing.assert_allclose(pixels, expected, atol=0.1)
     none_ids, none_px = detect_board(BOARD, np.full((100, 100, 3), 128, np.uint8))
     assert none_ids.size == 0 and none_px.shape == (0, 2)
+
+
+def test_generated_poses_show_the_board_and_spread_over_three_axes() -> None:
+    poses = board_facing_poses(CAMERA, MOUNT, BOARD.corners.mean(axis=0), K, SIZE, 15, seed=0)
+    centres = []
+    for tool in poses:
+        board = np.linalg.inv(CAMERA) @ tool @ MOUNT
+        c = board[:3, :3] @ BOARD.corners.mean(axis=0) + board[:3, 3]
+        centres.append(K @ (c / c[2]))
+        # The board faces the camera: its z within the tilt (20 deg and a third) of the axis.
+        assert np.degrees(np.arccos(board[2, 2])) < 20.0 * (1 + np.sqrt(2) / 3) + 1e-9
+    uv = np.array(centres)[:, :2]
+    assert np.all((uv >= 0.25 * np.array(SIZE)) & (uv <= 0.75 * np.array(SIZE)))
+    spread = rotation_spread_deg(np.stack([t[:3, :3] for t in poses]))
+    assert spread[2] > SolveConfig().min_spread_deg
+
+
+def test_the_camera_guess_of_one_exact_view_is_the_camera() -> None:
+    (view,) = _views(1, 8)
+    camera_board = np.linalg.inv(CAMERA) @ view.tool_pose @ MOUNT
+    np.testing.assert_allclose(camera_guess(view.tool_pose, MOUNT, camera_board), CAMERA,
+                               atol=1e-12)

@@ -2,9 +2,10 @@
 
 ROS-free. With ``WorldConfig.calibration_board`` the arm's URDF gains a visual-only fixed link
 ``calibration_board`` on the flange ``panda_link8``: a thin plate textured with the ChArUco
-board of :class:`push_core.calibration.BoardSpec` (its printed face towards the arm's side of
-the flange: up when the rod points down), centred :data:`BOARD_OFFSET` off the flange axis
-so the arm's last links, above the flange, do not hide it from a camera on that side. It has
+board of :class:`push_core.calibration.BoardSpec`, its printed face on the rod's side (down
+while the rod points down, so it never shows while pushing), centred :data:`BOARD_OFFSET` off
+the flange axis so the rod does not cross it. To show it, the arm points the tool at the
+camera, the arm behind the board, where it hides nothing. It has
 no collision geometry: it touches nothing and the robot filter of perception does not mask it.
 The camera's calibration does not need to know where the board sits on the tool (it solves
 for it); this module's :func:`board_mount` is the truth the tests compare with.
@@ -49,11 +50,10 @@ TEXELS_PER_SQUARE = 128
 
 def board_mount(spec: BoardSpec) -> NDArray[np.float64]:
     """``T_flange_board`` (4, 4): the board frame (:mod:`push_core.calibration.charuco`) in
-    the flange frame: the board's axes are the flange's, so a viewer looking along the
-    flange's z (from the arm's side: from above when the rod points down) sees the printed
-    face."""
+    the flange frame: the board's z is the flange's -z (and its y the flange's -y), so a
+    viewer looking against the flange's z, from the rod's side, sees the printed face."""
     w, h = spec.size
-    rot = np.eye(3)
+    rot = np.diag([1.0, -1.0, -1.0])
     t = np.eye(4)
     t[:3, :3] = rot
     t[:3, 3] = np.asarray(BOARD_OFFSET) - rot @ np.array([w / 2, h / 2, 0.0])
@@ -61,7 +61,7 @@ def board_mount(spec: BoardSpec) -> NDArray[np.float64]:
 
 
 def _cache(spec: BoardSpec) -> tuple[Path, Path]:
-    key = hashlib.sha1(f"{spec!r} {BOARD_OFFSET} {TEXELS_PER_SQUARE} 2".encode()).hexdigest()[:12]
+    key = hashlib.sha1(f"{spec!r} {BOARD_OFFSET} {TEXELS_PER_SQUARE} 3".encode()).hexdigest()[:12]
     folder = Path(tempfile.gettempdir()) / f"pushbot-board-{os.getuid()}-{key}"
     mesh, texture = folder / "board.obj", folder / "board.png"
     if not (mesh.is_file() and texture.is_file()):
@@ -71,10 +71,11 @@ def _cache(spec: BoardSpec) -> tuple[Path, Path]:
                                                  (0, spec.size[1])]]).T
         # Texture v runs up the image (OBJ convention): board y = 0 is the image's top row.
         uv = [(0, 1), (1, 1), (1, 0), (0, 0)]
+        normal = board_mount(spec)[:3, :3] @ np.array([0.0, 0.0, -1.0])  # towards the viewer
         lines = [f"v {x:.9f} {y:.9f} {z:.9f}" for x, y, z in corners[:3].T]
         # Counter-clockwise seen from the printed side (the renderer culls back faces).
-        lines += [f"vt {u} {v}" for u, v in uv] + ["vn 0 0 -1", "f 1/1/1 3/3/1 2/2/1",
-                                                   "f 1/1/1 4/4/1 3/3/1"]
+        lines += [f"vt {u} {v}" for u, v in uv] + ["vn {:g} {:g} {:g}".format(*normal),
+                                                   "f 1/1/1 3/3/1 2/2/1", "f 1/1/1 4/4/1 3/3/1"]
         tmp = folder / f"board.{os.getpid()}.tmp"
         tmp.write_text("\n".join(lines) + "\n")
         os.replace(tmp, mesh)
