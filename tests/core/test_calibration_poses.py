@@ -10,22 +10,16 @@ from push_core.calibration.charuco import BoardSpec
 from push_core.calibration.handeye import SolveConfig, rotation_spread_deg
 from push_core.calibration.poses import board_facing_poses, camera_guess
 
-K = np.array([[615.0, 0.0, 319.5], [0.0, 615.0, 239.5], [0.0, 0.0, 1.0]])
+K = np.array([[500.0, 0.0, 330.0], [0.0, 510.0, 250.0], [0.0, 0.0, 1.0]])
 SIZE = (640, 480)
 BOARD = BoardSpec()
-
-
-def _pose(rotation: np.ndarray, translation) -> np.ndarray:
-    t = np.eye(4)
-    t[:3, :3] = rotation
-    t[:3, 3] = translation
-    return t
-
-
-CAMERA = _pose(Rotation.from_euler("xyz", [-145.0, 0.0, 90.0], degrees=True).as_matrix(),
-               [0.49, 0.0, 0.66])
-MOUNT = _pose(Rotation.from_euler("xyz", [10.0, -5.0, 30.0], degrees=True).as_matrix(),
-              [0.06, -0.02, 0.04])
+#: A camera on the table's left, looking down at 50 degrees; a board on the tool's rod side.
+CAMERA = np.eye(4)
+CAMERA[:3, :3] = Rotation.from_euler("xyz", [-140.0, 0.0, 180.0], degrees=True).as_matrix()
+CAMERA[:3, 3] = (0.0, 0.55, 0.6)
+MOUNT = np.eye(4)
+MOUNT[:3, :3] = np.diag([1.0, -1.0, -1.0])
+MOUNT[:3, 3] = (0.025, 0.075, 0.005)
 
 
 def test_generated_poses_show_the_board_and_spread_over_three_axes() -> None:
@@ -44,7 +38,8 @@ def test_generated_poses_show_the_board_and_spread_over_three_axes() -> None:
 
 
 def test_the_camera_guess_of_one_exact_view_is_the_camera() -> None:
-    tool = _pose(Rotation.from_euler("xyz", [170.0, -40.0, 5.0], degrees=True).as_matrix(),
-                 [0.1, -0.05, 0.3])
+    tool = np.eye(4)
+    tool[:3, :3] = Rotation.from_euler("xyz", [170.0, -40.0, 5.0], degrees=True).as_matrix()
+    tool[:3, 3] = (0.1, -0.05, 0.3)
     camera_board = np.linalg.inv(CAMERA) @ tool @ MOUNT
     np.testing.assert_allclose(camera_guess(tool, MOUNT, camera_board), CAMERA, atol=1e-12)
