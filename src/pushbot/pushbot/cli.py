@@ -117,6 +117,9 @@ COMMANDS: dict[str, tuple[str, str, str, dict[str, str]]] = {
                 "list and call services (like `ros2 service`)", {}),
     "goal": ("pushbot.runner.goal", "run_goal",
              "send a goal pose to planner_node; --wait follows it to the end", {}),
+    "calibrate": ("pushbot.runner.calibrate", "run_calibrate",
+                  "the camera's pose in world from the arm showing it a board (--serve: "
+                  "publish it)", {}),
     "bag": ("pushbot.ros2cli.bag", "run_bag",
             "record, inspect and play rosbag2 (MCAP) folders (like `ros2 bag`)", {}),
     "replay": ("pushbot.experiments.replay", "run_replay",
