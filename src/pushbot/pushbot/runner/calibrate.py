@@ -21,7 +21,6 @@ status 3) and the previous file is kept. The arm goes back to its park posture a
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
 from pathlib import Path
@@ -35,7 +34,7 @@ __all__ = ["add_arguments", "read_extrinsics", "run_calibrate", "static_transfor
 
 #: Exit status of a refused calibration (the previous one kept).
 EXIT_REFUSED = 3
-DEFAULT_OUT = Path(os.path.expanduser("~/.config/pushbot/camera_extrinsics.yaml"))
+DEFAULT_OUT = Path("~/.config/pushbot/camera_extrinsics.yaml")
 #: The node whose parameters the executor's model and limits are read from.
 EXECUTOR = "/push_executor_node"
 
@@ -126,6 +125,7 @@ def static_transform_line(t: NDArray[np.float64], frame_id: str, child_frame_id:
 def run_calibrate(args: argparse.Namespace) -> int:
     from pushbot.ros2cli.discovery import cli_node, sigterm_as_keyboard_interrupt
 
+    args.out = args.out.expanduser()
     if args.serve:
         t, frame_id, child = read_extrinsics(args.out)
         with sigterm_as_keyboard_interrupt(), cli_node("calibrate") as (node, executor):
@@ -167,9 +167,9 @@ def _setup(args: argparse.Namespace, robot: Any) -> Any:
     elif args.out.is_file():
         guess = read_extrinsics(args.out)[0]
     else:
-        from sim_bridge.params import DEFAULT_CAMERA_POSE
+        from sim_bridge.camera import CameraConfig, look_at_pose
 
-        guess = _pose_matrix(DEFAULT_CAMERA_POSE)
+        guess = look_at_pose(CameraConfig())
     if args.mount is not None:
         mount = _pose_matrix(args.mount)
     else:

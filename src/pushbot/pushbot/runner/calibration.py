@@ -54,7 +54,8 @@ __all__ = ["MAX_POSES", "ROBOT_KINDS", "CalibrationOutcome", "CalibrationRobot",
 
 #: Most poses moved to in one calibration (the first view's tries included).
 MAX_POSES = 20
-#: Untilted first-view poses tried before giving up on seeing the board.
+#: Untilted first-view poses moved to (of four times as many made) before giving up on seeing
+#: the board.
 FIRST_TRIES = 3
 #: Refusal kinds of a move that no other pose avoids: the calibration stops.
 ROBOT_KINDS = ("disabled", "no_state", "no_controller", "no_model", "state", "timeout",
@@ -213,8 +214,10 @@ def run_calibration(robot: CalibrationRobot, arm: ArmKinematics, setup: Calibrat
     session = _Session(robot, arm, s, motion, log)
     centre = s.board.corners.mean(axis=0)
     guess = None
-    for tool in board_facing_poses(s.camera, s.mount, centre, s.k, s.size, FIRST_TRIES,
+    for tool in board_facing_poses(s.camera, s.mount, centre, s.k, s.size, 4 * FIRST_TRIES,
                                    seed=s.seed, tilt_deg=0.0):
+        if session.moved >= FIRST_TRIES:
+            break
         view = session.visit(tool)
         if view is not None:
             board = pnp_pose(s.board, view.ids, view.pixels, s.k, s.d)
@@ -222,8 +225,8 @@ def run_calibration(robot: CalibrationRobot, arm: ArmKinematics, setup: Calibrat
                 guess = camera_guess(view.tool_pose, s.mount, board)
                 break
     if guess is None:
-        raise CalibrationRefused("board", f"the board was not seen from any of the first "
-                                 f"{FIRST_TRIES} poses made for the camera's guessed pose "
+        raise CalibrationRefused("board", f"the board was not seen from the first poses "
+                                 "made for the camera's guessed pose "
                                  f"({session.moved} reached; dropped: "
                                  f"{'; '.join(session.dropped)[:200] or 'none'})")
     wanted = min(s.poses, MAX_POSES - session.moved)
