@@ -158,6 +158,9 @@ TARGETS: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
         "push": ("pushbot.experiments.evaluate",
                  "the closed-loop experiments of the source in-process (success, steps, end "
                  "error; Figs. 5.5-5.7, Tables 5.1-5.2; --ray, --graph)"),
+        "calibrate": ("pushbot.experiments.calibration_evaluation",
+                      "pushbot calibrate on the simulator against the placed camera's truth, "
+                      "and paired pushing episodes on the calibrated vs the true extrinsics"),
         "pusht": ("pushbot.experiments.pusht",
                   "the planner on gym-pusht Push-T next to Diffusion Policy"),
     }),
