@@ -84,10 +84,11 @@ def render(figures: dict[str, Any]) -> str:
         "the default viewpoint, the designed mounting the simulated one 1 cm and 2 degrees "
         "off. Errors against the placed camera (the simulator's truth). Moves are planned and "
         "checked by the executor's joint-goal planner and set in the world; robot time is the "
-        "planned motion time plus 0.1 s per view (the graph's latencies are not in it).", "", *rows, ""]
+        "planned motion time plus 0.1 s per view (the graph's latencies are not in it).", "",
+        *rows, ""]
     if episodes:
-        lines += [f"Paired pushing episodes (`{cfg['object']}`, `filter` state source, at most "
-                  f"{cfg['max_steps']} pushes, the same scene and goal on both sides): "
+        lines += [f"Paired pushing episodes (`{cfg['object']}`, `filter` state source, at "
+                  f"most {cfg['max_steps']} pushes, the same scene and goal on both sides): "
                   f"{s['success_true']}/{len(episodes)} reached the goal with the true "
                   f"extrinsics, {s['success_calibrated']}/{len(episodes)} with the noisy "
                   f"calibration's; {s['discordant']} pairs disagree.", ""]
