@@ -35,6 +35,9 @@ __all__ = ["GOAL", "PoseIkResult", "goal_positions", "plan_joint_goal", "pose_ik
 
 #: Name of the joint-space stage to a goal.
 GOAL = "goal"
+#: :func:`pose_ik` gives up on a seed whose error did not fall below this fraction of what it
+#: was this many iterations before (converging damped least squares shrinks it far faster).
+STALL_RATIO, STALL_ITERATIONS = 0.5, 50
 
 
 def goal_positions(names: Sequence[str], positions: Sequence[float],
@@ -125,8 +128,9 @@ def pose_ik(arm: ArmKinematics, target: ArrayLike, seeds: Sequence[ArrayLike],
 
     Damped least squares on the 6-D error ``log6(current^-1 target)`` in the flange frame, the
     redundancy pulled toward ``reference`` in the task's null space, the joints clipped to
-    their limits less ``margin`` each step; tried from each seed in turn, the first converged
-    result (else the best) returned: check its errors.
+    their limits less ``margin`` each step; tried from each seed in turn (a stalled one given
+    up, :data:`STALL_RATIO`), the first converged result (else the best) returned: check its
+    errors.
 
     Parameters
     ----------
@@ -161,11 +165,17 @@ def pose_ik(arm: ArmKinematics, target: ArrayLike, seeds: Sequence[ArrayLike],
     best: PoseIkResult | None = None
     for seed in seeds:
         q = np.clip(arm.check_q(seed, "seed"), lower, upper)
-        for _ in range(max_iterations):
+        checkpoint = math.inf
+        for it in range(max_iterations):
             pin.framesForwardKinematics(model, data, q)
             error = pin.log6(data.oMf[frame].actInv(goal)).vector
             if np.max(np.abs(error)) < tolerance:
                 break
+            if it % STALL_ITERATIONS == 0:  # stalled (out of reach, at a limit): next seed
+                norm = float(np.linalg.norm(error))
+                if norm > STALL_RATIO * checkpoint:
+                    break
+                checkpoint = norm
             j = pin.computeFrameJacobian(model, data, q, frame, pin.ReferenceFrame.LOCAL)
             jjt = j @ j.T
             step = j.T @ np.linalg.solve(jjt + damping * eye6, error)

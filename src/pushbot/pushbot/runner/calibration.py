@@ -62,6 +62,10 @@ ROBOT_KINDS = ("disabled", "no_state", "no_controller", "no_model", "state", "ti
                "cancelled", "fault")
 #: Inverse kinematics tolerance (m, rad) for a generated pose to count as reachable.
 IK_TOLERANCE = 1e-6
+#: Random start postures (seeded, within the limits) the inverse kinematics tries after the
+#: measured and the reference posture, and its iterations per start: from those two alone, a
+#: pose facing a camera moved a few centimetres often stalls at a joint limit.
+IK_RESTARTS, IK_ITERATIONS = 8, 1000
 
 
 class CalibrationRobot(Protocol):
@@ -145,6 +149,10 @@ class _Session:
                  motion: MotionConfig, log: Callable[[str], None]) -> None:
         self.robot, self.arm, self.setup, self.motion, self.log = robot, arm, setup, motion, log
         self.reference = np.array(motion.reference_positions, dtype=float)
+        rng = np.random.default_rng(setup.seed)
+        margin = motion.limit_margin + 0.05
+        self.restarts = [rng.uniform(arm.lower + margin, arm.upper - margin)
+                         for _ in range(IK_RESTARTS)]
         self.views: list[View] = []
         self.moved = 0
         self.dropped: list[str] = []
@@ -152,8 +160,8 @@ class _Session:
     def posture(self, tool: NDArray[np.float64]) -> NDArray[np.float64] | str:
         """The checked posture for the flange pose ``tool``, or why there is none."""
         current = self.robot.joints()
-        ik = pose_ik(self.arm, tool, [current, self.reference], self.reference,
-                     margin=self.motion.limit_margin)
+        ik = pose_ik(self.arm, tool, [current, self.reference, *self.restarts], self.reference,
+                     margin=self.motion.limit_margin, max_iterations=IK_ITERATIONS)
         if not ik.within(IK_TOLERANCE):
             return (f"ik: no posture ({ik.position_error * 1e3:.1f} mm, "
                     f"{np.degrees(ik.rotation_error):.1f} deg off)")
