@@ -34,7 +34,7 @@ from numpy.typing import ArrayLike, NDArray
 from push_core.calibration import BoardSpec
 from push_core.geometry import matrix_from_quaternion
 
-__all__ = ["BOARD_JOINT", "BOARD_LINK", "BOARD_OFFSET", "add_board", "board_mount",
+__all__ = ["BOARD_JOINT", "BOARD_LINK", "BOARD_MASS", "BOARD_OFFSET", "add_board", "board_mount",
            "camera_pose_matrix", "texture_board"]
 
 #: Name of the board's fixed link and joint in the URDF.
@@ -43,6 +43,8 @@ BOARD_JOINT = "calibration_board_joint"
 #: Centre of the plate in the flange frame, m: off the axis along flange x (the plate starts
 #: 2.5 cm from the rod), 5 mm down the flange's z, the rod's side of the flange.
 BOARD_OFFSET = (0.10, 0.0, 0.005)
+#: Mass of the plate, kg (a 15 cm square of 3 mm aluminium composite).
+BOARD_MASS = 0.1
 #: Texture pixels per board square (a 30 mm square: 0.23 mm per texel, far below a camera
 #: pixel at 0.5 m, so the texture's own sampling does not move the corners).
 TEXELS_PER_SQUARE = 128
@@ -85,9 +87,17 @@ def _cache(spec: BoardSpec) -> tuple[Path, Path]:
 
 
 def add_board(urdf: str, spec: BoardSpec) -> str:
-    """``urdf`` (the arm's) with the board's visual-only link fixed on ``panda_link8``."""
+    """``urdf`` (the arm's) with the board's visual-only link fixed on ``panda_link8``, of
+    :data:`BOARD_MASS` at its centre (without an inertial pybullet gives a link 1 kg, which
+    the simulated wrist could not track the executor's joint-space moves with)."""
     mesh, _ = _cache(spec)
+    x, y, z = BOARD_OFFSET
     link = f"""  <link name="{BOARD_LINK}">
+    <inertial>
+      <origin rpy="0 0 0" xyz="{x} {y} {z}"/>
+      <mass value="{BOARD_MASS}"/>
+      <inertia ixx="1e-4" ixy="0" ixz="0" iyy="1e-4" iyz="0" izz="2e-4"/>
+    </inertial>
     <visual>
       <origin rpy="0 0 0" xyz="0 0 0"/>
       <geometry><mesh filename="{mesh}"/></geometry>

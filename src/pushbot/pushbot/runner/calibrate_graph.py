@@ -203,9 +203,14 @@ class GraphRobot:
         return self._frame
 
     def park(self) -> None:
-        """Back to the executor's park posture (best effort: a refusal is only printed)."""
+        """Back to the executor's park posture (best effort: once more after a stop on the
+        way; a refusal is only printed)."""
         if not self._moved:  # nothing moved (a dry run, a refused first pose)
             return
-        kind, reason = self.move(np.array(self.params.motion.park_positions, dtype=float))
+        park = np.array(self.params.motion.park_positions, dtype=float)
+        kind, reason = self.move(park)
+        if kind == "fault":  # stopped on the way (a tracking deviation): again from there
+            print(f"pushbot calibrate: parking stopped ({reason}); parking again")
+            kind, reason = self.move(park)
         if kind:
             print(f"pushbot calibrate: the arm did not park ({kind}): {reason}")
