@@ -6,8 +6,10 @@ near the work), watches it on ``/joint_states``, reports the executed contact se
 ``pusher/executed`` from forward kinematics of the *measured* joints as soon as it has ended
 (the arm is still withdrawing), or refuses the push on ``pusher/refused``. A push that arrives
 while the previous motion withdraws chains from its planned state. The arm parks at the end of
-an episode (``planner/status``), after ``~/cancel`` and on disable. The maths is the ROS-free
-core: :mod:`push_executor.kinematics`, :mod:`push_executor.motion`,
+an episode (``planner/status``), after ``~/cancel`` and on disable. A posture on
+``executor/joint_goal`` (a calibration view) is planned and checked like a park
+(:mod:`push_executor.joint_goal`) and answered once on ``executor/goal_result``. The maths is
+the ROS-free core: :mod:`push_executor.kinematics`, :mod:`push_executor.motion`,
 :mod:`push_executor.clearance`, :mod:`push_executor.tracking`; the measured state before
 planning, the plan's bounds and the readiness on ``executor/status``:
 :mod:`push_executor.state_check`; camera, object and episode inputs:
