@@ -36,7 +36,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import format_section, update_section  # noqa: E402
 
 from pushbot.experiments.evaluate import EvalOptions, build_trials  # noqa: E402
-from pushbot.experiments.pusht_adapter import wilson_interval  # noqa: E402
+from pushbot.experiments.pusht.adapter import wilson_interval  # noqa: E402
 from pushbot.runner.episode import GraphRunner, run_graph_trials  # noqa: E402
 from pushbot.runner.protocol import Trial  # noqa: E402
 

@@ -27,7 +27,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import format_section, update_section  # noqa: E402
 
-from pushbot.experiments.pusht_adapter import evaluate  # noqa: E402
+from pushbot.experiments.pusht.adapter import evaluate  # noqa: E402
 
 #: LeRobot's Diffusion Policy on gym-pusht (its model card): 500 episodes.
 DIFFUSION_POLICY = {"success_rate": 0.638, "avg_max_reward": 0.959}
@@ -83,8 +83,8 @@ def fidelity_errors(trials: int, seed: int, two_faces: bool) -> dict[bool, list]
 
     from push_core.rollout import rollout_push
     from push_core.transit import point_polygon_distance
-    from pushbot.experiments.pusht_adapter import PushTRunner
-    from pushbot.experiments.pusht_world import tee_body
+    from pushbot.experiments.pusht.adapter import PushTRunner
+    from pushbot.experiments.pusht.world import tee_body
 
     r = PushTRunner("state")
     ring = tee_body(r.env)[0]
@@ -230,12 +230,12 @@ def main() -> int:
         "(coverage > 0.95). Success with its 95 % Wilson interval; avg max reward = mean over "
         "episodes of max clip(coverage / 0.95, 0, 1) (LeRobot's metric); steps = control steps "
         "until success or 300; planning = one `Planner.plan` + transit path. Adapter, frames "
-        "and units: `pushbot.experiments.pusht_adapter`, `pushbot.experiments.pusht_world`; "
+        "and units: `pushbot.experiments.pusht.adapter`, `pushbot.experiments.pusht.world`; "
         "per-episode records in "
         f"`{args.out}/<obs>[-estimated]/results.json`.",
         "",
         "Object model `env`: the T read from the env's body. `estimated` ("
-        "`pushbot eval pusht --object-model estimated`, `pushbot.experiments.pusht_estimated`): "
+        "`pushbot eval pusht --object-model estimated`, `pushbot.experiments.pusht.estimated`): "
         "the T unknown; its outline from the episode's first 96 x 96 image (the perception "
         "core's mask -> footprint step on the block-colour mask, then every polygon vertex "
         "fitted sub-pixel by least squares through a model of the renderer: the 512 x 512 "
@@ -248,7 +248,7 @@ def main() -> int:
         "pose from the image (pixels) or the state's block pose through the perceived frame "
         "(state); from pixels the goal is the "
         "green goal region fitted with the perceived outline. The env's bodies and shapes are "
-        "sealed (`pusht_guard.SealedEnv`: any read from outside the env raises); the true T is "
+        "sealed (`pusht.guard.SealedEnv`: any read from outside the env raises); the true T is "
         "read from a second env for the error columns only. Outline error = mean distance "
         "between the perceived and the true outline / largest (Hausdorff), mean over episodes; "
         "COM error = distance of the filter's COM from the true centre of gravity at the prior "

@@ -7,6 +7,7 @@ message objects built by hypothesis strategies, no DDS, 2,000 messages per topic
 - ``planner/push``: NaN / inf / huge coordinates, 0-50 poses, other frames, bad stamps;
 - ``/joint_states``: wrong sizes, mismatched name / position lengths, NaN / inf, repeated and
   unknown names, huge arrays, bad and future stamps -- while idle and while a push is running;
+- ``executor/joint_goal``: the joint states' shapes and values as goals (each answered once);
 - ``/robot_description``: garbage XML, truncated and mutated URDFs, other robots, a 10 MB
   string;
 - the clear pose's inputs and the episode's state (a second node with the simulator's URDF, so
@@ -361,6 +362,33 @@ def test_fuzz_pushes(probe: Probe) -> None:
 
     run()
     assert not probe.trajectories  # disabled: nothing ever sent
+
+
+def _kind(answer: Any) -> str:
+    """The ``kind`` of an answer (its stamp may be the hostile goal's, not a readable one)."""
+    return {kv.key: kv.value for kv in answer.values}["kind"]
+
+
+def test_fuzz_joint_goals(probe: Probe) -> None:
+    """Hostile goals on ``executor/joint_goal`` (the joint-state shapes, far positions): each is
+    answered once on ``executor/goal_result``; disabled, nothing is sent."""
+    probe.trajectories.clear()
+    answers: list[Any] = []
+    probe.node._pub_goal.publish = answers.append
+
+    @settings(FUZZ, max_examples=N_FUZZ // 4)
+    @given(joint_states())
+    def run(msg: JointState) -> None:
+        probe.send("joint_states", valid_state())
+        before = len(answers)
+        probe.send("executor/joint_goal", msg)
+        assert len(answers) == before + 1
+        assert _kind(answers[-1]) != "reached"
+
+    run()
+    assert not probe.trajectories
+    kinds = {_kind(a) for a in answers}
+    assert {"invalid", "disabled"} <= kinds, kinds
 
 
 def assert_second_round_bounded(round_trip: Callable[[], None]) -> None:

@@ -15,14 +15,14 @@ import pytest
 
 pytest.importorskip("gym_pusht")
 
-from pushbot.experiments import pusht_adapter as P  # noqa: E402
-from pushbot.experiments import pusht_world as W  # noqa: E402
+from pushbot.experiments.pusht import adapter as P  # noqa: E402
+from pushbot.experiments.pusht import world as W  # noqa: E402
 
 ADAPTER_FILES = [Path(P.__file__),
-                 Path(P.__file__).with_name("pusht_vision.py"),
-                 Path(P.__file__).with_name("pusht_estimated.py"),
-                 Path(P.__file__).with_name("pusht_guard.py"),
-                 Path(P.__file__).with_name("pusht.py"),
+                 Path(P.__file__).with_name("vision.py"),
+                 Path(P.__file__).with_name("estimated.py"),
+                 Path(P.__file__).with_name("guard.py"),
+                 Path(P.__file__).with_name("cli.py"),
                  Path(W.__file__)]
 
 

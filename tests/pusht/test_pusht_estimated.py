@@ -15,11 +15,11 @@ pytest.importorskip("gym_pusht")
 
 import gymnasium as gym  # noqa: E402
 
-from pushbot.experiments import pusht_adapter as P  # noqa: E402
-from pushbot.experiments import pusht_estimated as E  # noqa: E402
-from pushbot.experiments import pusht_world as W  # noqa: E402
-from pushbot.experiments.pusht_guard import EnvInternalsAccess, Sealed, SealedEnv  # noqa: E402
-from pushbot.experiments.pusht_vision import fit_outline  # noqa: E402
+from pushbot.experiments.pusht import adapter as P  # noqa: E402
+from pushbot.experiments.pusht import estimated as E  # noqa: E402
+from pushbot.experiments.pusht import world as W  # noqa: E402
+from pushbot.experiments.pusht.guard import EnvInternalsAccess, Sealed, SealedEnv  # noqa: E402
+from pushbot.experiments.pusht.vision import fit_outline  # noqa: E402
 
 #: Stated tolerance of the perceived outline against the true T (env units = mm) on the seeds
 #: below: the mean distance between the two outlines and the largest (Hausdorff). Over the

@@ -264,6 +264,16 @@ class ArmKinematics:
         t = self.data.oMf[self.model.getFrameId(frame)].translation
         return self._rotation @ t + self._world_model[:3, 3]
 
+    def frame_pose(self, q: ArrayLike, frame: str) -> NDArray[np.float64]:
+        """Pose (4, 4) of a URDF link or frame of the reduced model in ``world``, m."""
+        self._update(self.check_q(q))
+        return self._world_model @ self.data.oMf[self.model.getFrameId(frame)].homogeneous
+
+    @property
+    def world_model(self) -> NDArray[np.float64]:
+        """``T_world_model`` (4, 4): the pinocchio model's origin in ``world``, m."""
+        return self._world_model.copy()
+
     def task_jacobian(self, q: ArrayLike) -> NDArray[np.float64]:
         """(5, n) Jacobian of the pushing task in ``world``: tip velocity (3 rows) and the
         tool axis' angular velocity about world x and y (2 rows)."""

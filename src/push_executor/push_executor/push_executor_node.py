@@ -6,8 +6,10 @@ near the work), watches it on ``/joint_states``, reports the executed contact se
 ``pusher/executed`` from forward kinematics of the *measured* joints as soon as it has ended
 (the arm is still withdrawing), or refuses the push on ``pusher/refused``. A push that arrives
 while the previous motion withdraws chains from its planned state. The arm parks at the end of
-an episode (``planner/status``), after ``~/cancel`` and on disable. The maths is the ROS-free
-core: :mod:`push_executor.kinematics`, :mod:`push_executor.motion`,
+an episode (``planner/status``), after ``~/cancel`` and on disable. A posture on
+``executor/joint_goal`` (a calibration view) is planned and checked like a park
+(:mod:`push_executor.joint_goal`) and answered once on ``executor/goal_result``. The maths is
+the ROS-free core: :mod:`push_executor.kinematics`, :mod:`push_executor.motion`,
 :mod:`push_executor.clearance`, :mod:`push_executor.tracking`; the measured state before
 planning, the plan's bounds and the readiness on ``executor/status``:
 :mod:`push_executor.state_check`; camera, object and episode inputs:
@@ -45,6 +47,7 @@ from trajectory_msgs.msg import JointTrajectory
 
 from push_executor import messages as m
 from push_executor.clearance import robot_mask_factory
+from push_executor.joint_goal import GOAL, goal_positions, plan_joint_goal
 from push_executor.kinematics import ArmKinematics
 from push_executor.motion import PushRefused, plan_park, plan_push
 from push_executor.parameters import NODE_NAME, PARAMETERS, ExecutorParams
@@ -77,7 +80,8 @@ WATCHDOG_PERIOD, DIAGNOSTICS_PERIOD = 0.05, 1.0
 #: The arm is parked within this of ``park_positions`` (every joint), rad; held (a pending park
 #: may start) when its last ``HELD_STATES`` joint states lie within ``HELD`` rad of each other.
 PARKED, HELD, HELD_STATES = 0.01, 1e-4, 3
-COUNTERS = ("pushes", "executed", "chained", "stopped", "parks", "models", "joint_states")
+COUNTERS = ("pushes", "executed", "chained", "stopped", "parks", "goals", "models",
+            "joint_states")
 
 
 class PushExecutorNode(Node):
@@ -109,9 +113,14 @@ class PushExecutorNode(Node):
         self._pub_path = self.create_publisher(Path, "executor/path", LATCHED_QOS)
         self._pub_status = self.create_publisher(DiagnosticStatus, "executor/status",
                                                  LATCHED_QOS)
+        self._pub_goal = self.create_publisher(DiagnosticStatus, "executor/goal_result",
+                                               RELIABLE_QOS)
+        self._goal_stamp: Any = None  # the joint goal the running motion goes to
         self.create_subscription(Path, "planner/push", guard(self._on_push), RELIABLE_QOS)
         self.create_subscription(JointState, "/joint_states", guard(self._on_joint_state),
                                  JOINT_STATE_QOS)
+        self.create_subscription(JointState, "executor/joint_goal", guard(self._on_joint_goal),
+                                 RELIABLE_QOS)
         self.scene = SceneInputs(self, guard, lambda what, why: self.health.refuse(
             what, why, "invalid"), self.params.clear, lambda: self._request_park("episode over"))
         if p["robot_description_file"]:
@@ -230,6 +239,40 @@ class PushExecutorNode(Node):
         self._plan_values["clear_checked"] = str(getattr(view, "checked", 0))
         return self._publish_status()
 
+    def _on_joint_goal(self, msg: JointState) -> None:
+        """Move to the goal posture (push_executor.joint_goal), answered on
+        ``executor/goal_result``: ``reached``, or a refusal kind (``disabled``: planned,
+        its path published, nothing moved)."""
+        stamp = msg.header.stamp
+        self.health.count("goals")
+        try:
+            if self._run is not None:
+                raise PushRefused("busy", "", "the arm is moving")
+            if self._arm is None:
+                raise PushRefused("no_model", "", "no robot description yet")
+            goal = goal_positions(msg.name, msg.position, self._arm.joint_names)
+            check_before_planning(self._arm, self.measured, self.params.checks,
+                                  self.params.motion, time.monotonic(),
+                                  clock_seconds(self.get_clock()))
+            if not self.measured.held(time.monotonic()):
+                raise PushRefused("settling", "", "the arm is still moving")
+            self._plan_values = {"goal": stamp_key(stamp)}
+            self._start(lambda start, lead, first: plan_joint_goal(
+                self._arm, self.params.motion, goal, start, lead, first), stamp)
+        except PushRefused as refusal:
+            return self._answer_goal(stamp, refusal.kind, refusal.stage, refusal.reason)
+        self._goal_stamp = stamp
+        return self._publish_status()
+
+    def _answer_goal(self, stamp: Any, kind: str, stage: str, reason: str) -> None:
+        if kind != "reached":
+            self.health.refuse("joint goal", f"{kind} ({stage}): {reason}" if stage else reason,
+                               kind)
+        msg = refusal_msg(self.get_fully_qualified_name(), stamp, kind, reason, stage, "arm")
+        if kind == "reached":
+            msg.level = DiagnosticStatus.OK
+        self._pub_goal.publish(msg)
+
     # ---- execution ---------------------------------------------------------------------------
     def _start(self, make: PlanMaker, stamp: Any) -> None:
         """Plan (from the measured state, or chained from the running plan) and send; raises
@@ -339,6 +382,11 @@ class PushExecutorNode(Node):
         if event.kind == "executed":
             return self._publish_status()
         self._run = None
+        if run.plan.final == GOAL and self._goal_stamp is not None:
+            self._answer_goal(self._goal_stamp, "reached" if event.kind == "done" else "fault",
+                              GOAL, "at the goal" if event.kind == "done"
+                              else f"stopped ({event.kind}): {event.reason}")
+            self._goal_stamp = None
         if event.kind != "done":
             self._stop(f"{event.kind}: {event.reason}")
             if not run.reported:
@@ -382,6 +430,9 @@ class PushExecutorNode(Node):
         if run is not None and not run.reported:
             self._refuse(self._push_stamp, "cancelled", run.plan.stage_at(
                 run.elapsed(self.measured.stamp)), "cancelled by ~/cancel")
+        if run is not None and run.plan.final == GOAL and self._goal_stamp is not None:
+            self._answer_goal(self._goal_stamp, "cancelled", GOAL, "cancelled by ~/cancel")
+            self._goal_stamp = None
         response.message = "holding, then parking" if response.success \
             else "no joint state: nothing to hold"
         self._park_pending = "~/cancel" if response.success else ""
@@ -392,7 +443,8 @@ class PushExecutorNode(Node):
                    ) -> SetBool.Response:
         was, self._enabled = self._enabled, bool(request.data)
         if not self._enabled and was:
-            if self._run is not None and self._run.plan.is_push:
+            if self._run is not None and (self._run.plan.is_push
+                                          or self._run.plan.final == GOAL):
                 self._on_cancel(Trigger.Request(), Trigger.Response())
             self._request_park("disabled")
         response.success, response.message = True, "enabled" if self._enabled else "disabled"
@@ -410,6 +462,7 @@ class PushExecutorNode(Node):
     def _publish_status(self) -> None:
         run = self._run
         state = ("disabled" if not self._enabled and run is None
+                 else "goal" if run is not None and run.plan.final == GOAL
                  else "parking" if run is not None and not run.plan.is_push
                  else "moving" if run is not None else "stopped" if self._stopped else "idle")
         level = DiagnosticStatus.WARN if self._arm is None or self._stopped \

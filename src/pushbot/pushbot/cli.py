@@ -117,6 +117,9 @@ COMMANDS: dict[str, tuple[str, str, str, dict[str, str]]] = {
                 "list and call services (like `ros2 service`)", {}),
     "goal": ("pushbot.runner.goal", "run_goal",
              "send a goal pose to planner_node; --wait follows it to the end", {}),
+    "calibrate": ("pushbot.runner.calibrate", "run_calibrate",
+                  "the camera's pose in world from the arm showing it a board (--serve: "
+                  "publish it)", {}),
     "bag": ("pushbot.ros2cli.bag", "run_bag",
             "record, inspect and play rosbag2 (MCAP) folders (like `ros2 bag`)", {}),
     "replay": ("pushbot.experiments.replay", "run_replay",
@@ -158,7 +161,10 @@ TARGETS: dict[str, tuple[str, dict[str, tuple[str, str]]]] = {
         "push": ("pushbot.experiments.evaluate",
                  "the closed-loop experiments of the source in-process (success, steps, end "
                  "error; Figs. 5.5-5.7, Tables 5.1-5.2; --ray, --graph)"),
-        "pusht": ("pushbot.experiments.pusht",
+        "calibrate": ("pushbot.experiments.calibration_evaluation",
+                      "pushbot calibrate on the simulator against the placed camera's truth, "
+                      "and paired pushing episodes on the calibrated vs the true extrinsics"),
+        "pusht": ("pushbot.experiments.pusht.cli",
                   "the planner on gym-pusht Push-T next to Diffusion Policy"),
     }),
 }

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from push_core.geometry import check_quaternion
 from sim_bridge.arm_robot import DEFAULT_BASE_POSE, DEFAULT_PARK
 from sim_bridge.camera import CameraConfig
 
@@ -94,6 +95,12 @@ class WorldConfig:
         corners (bullet's contact manifold); > 0: the pieces cut into grid cells of this size,
         m, in :data:`SUPPORT_CELL_RANGE`, so the table supports the whole footprint
         (:func:`sim_bridge.scene.support_cells`).
+    camera_pose : (7,) tuple or None
+        The camera's optical frame in ``world`` (x, y, z, qx, qy, qz, qw; m, unit
+        quaternion), replacing ``camera``'s look-at viewpoint; None keeps it.
+    calibration_board : bool
+        Arm mode: the ChArUco calibration board on the tool
+        (:mod:`sim_bridge.calibration_board`).
     """
 
     object: str | Path = "rect1"
@@ -120,6 +127,8 @@ class WorldConfig:
     arm_base_pose: tuple[float, float, float, float] = DEFAULT_BASE_POSE
     arm_park: tuple[float, ...] = DEFAULT_PARK
     support_cell: float = 0.0
+    camera_pose: tuple[float, ...] | None = None
+    calibration_board: bool = False
 
     def __post_init__(self) -> None:
         if self.look not in ("default", "site"):
@@ -172,6 +181,12 @@ class WorldConfig:
                              f"the workspace {self.workspace}")
         if not isinstance(self.camera, CameraConfig):
             raise ValueError(f"camera: expected a CameraConfig, got {type(self.camera).__name__}")
+        if self.camera_pose is not None:
+            pose = finite_vector("camera_pose", self.camera_pose, 7)
+            pose[3:] = check_quaternion(pose[3:])
+            object.__setattr__(self, "camera_pose", tuple(float(v) for v in pose))
+        if self.calibration_board and self.robot != "arm":
+            raise ValueError("calibration_board: the board is carried by the arm (robot 'arm')")
         if not isinstance(self.object, str | Path):
             raise ValueError(f"object: expected a library name or a path, got {self.object!r}")
 

@@ -16,9 +16,11 @@ from typing import Any
 
 import numpy as np
 
+from push_core.geometry import quaternion_from_matrix
 from push_core.objects import library_names, load_object
 from push_ros.node import ParamSpec
 from sim_bridge.arm_robot import DEFAULT_BASE_POSE, DEFAULT_PARK
+from sim_bridge.camera import look_at_pose
 from sim_bridge.camera_profiles import profile
 from sim_bridge.config import SUPPORT_CELL_RANGE
 from sim_bridge.faults import FaultConfig
@@ -27,6 +29,10 @@ from sim_bridge.world import CameraConfig, MonitorConfig, WorldConfig
 __all__ = ["NODE_NAME", "PARAMETERS", "YAML_EXTRA", "YAML_HEADER", "YAML_NOTES", "FaultConfig",
            "SimBridgeParams", "check_object_parameter"]
 
+#: (x, y, z, qx, qy, qz, qw) of the default viewpoint's optical frame in world.
+_DEFAULT_VIEW = look_at_pose(CameraConfig())
+DEFAULT_CAMERA_POSE = tuple(float(v) for v in np.concatenate(
+    [_DEFAULT_VIEW[:3, 3], quaternion_from_matrix(_DEFAULT_VIEW[:3, :3])]))
 #: Suffixes of the object specification files the ``object`` parameter accepts.
 SPEC_SUFFIXES = (".json", ".yaml", ".yml")
 #: Largest object specification file the ``object`` parameter reads, bytes (a spec is < 10 kB).
@@ -72,6 +78,16 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               "A profile other than default sets the image size (image_width and image_height "
               "are ignored) and always adds its own depth noise (docs/design/cameras.md).",
               read_only=True, constraints="default, d415, d435, orbbec or zed"),
+    ParamSpec("camera.use_pose", False, "Place the camera at camera.pose instead of the default "
+              "viewpoint (the published extrinsics are that pose: the truth a calibration is "
+              "measured against).", read_only=True),
+    ParamSpec("camera.pose", list(DEFAULT_CAMERA_POSE), "The camera's optical frame in world: "
+              "x, y, z (m), qx, qy, qz, qw (a unit quaternion); used only with camera.use_pose. "
+              "The default is the default viewpoint's.", read_only=True,
+              constraints="7 finite values, unit quaternion"),
+    ParamSpec("calibration.board", False, "Arm mode: a ChArUco calibration board on the tool, "
+              "for pushbot calibrate (sim_bridge.calibration_board, "
+              "docs/design/calibration.md).", read_only=True),
     ParamSpec("depth_noise", False, "Add D415-like depth noise, quantisation and dropouts "
               "(NaN)."),
     ParamSpec("randomize_appearance", False, "Randomise lighting, table and object colours "
@@ -225,6 +241,10 @@ class SimBridgeParams:
         s of sim time.
     arm_real_time_factor : float
         Largest sim time / wall time ratio while the arm moves; 0 = unpaced.
+    camera_pose : tuple of 7 float or None
+        ``camera.pose`` when ``camera.use_pose``, else None (the default viewpoint).
+    calibration_board : bool
+        ``calibration.board``.
     """
 
     object: str
@@ -257,6 +277,8 @@ class SimBridgeParams:
     arm_joint_state_rate: float = 100.0
     arm_max_duration: float = 600.0
     arm_real_time_factor: float = 0.0
+    camera_pose: tuple[float, ...] | None = None
+    calibration_board: bool = False
 
     @classmethod
     def from_values(cls, values: dict[str, Any]) -> SimBridgeParams:
@@ -339,6 +361,9 @@ class SimBridgeParams:
             arm_joint_state_rate=float(values.get("arm.joint_state_rate", 100.0)),
             arm_max_duration=float(values.get("arm.max_duration", 600.0)),
             arm_real_time_factor=float(values.get("arm.real_time_factor", 0.0)),
+            camera_pose=(tuple(float(v) for v in values["camera.pose"])
+                         if values.get("camera.use_pose", False) else None),
+            calibration_board=bool(values.get("calibration.board", False)),
         )
 
     def world_config(self) -> WorldConfig:
@@ -371,6 +396,8 @@ class SimBridgeParams:
             robot=self.robot,
             arm_base_pose=self.arm_base_pose,
             arm_park=self.arm_park,
+            camera_pose=self.camera_pose,
+            calibration_board=self.calibration_board,
         )
 
     def _camera_text(self) -> str:

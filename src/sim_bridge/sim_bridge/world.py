@@ -66,11 +66,13 @@ import pybullet as p
 from numpy.typing import ArrayLike, NDArray
 from pybullet_utils.bullet_client import BulletClient
 
+from push_core.calibration import BoardSpec
 from push_core.geometry import closest_point_on_polyline, object_to_world
 from push_core.objects import ObjectSpec
 from sim_bridge.arm import TrajectoryFollower
 from sim_bridge.arm_motion import ArmRun, run_arm
 from sim_bridge.arm_robot import ArmRobot, JointState, arm_urdf
+from sim_bridge.calibration_board import add_board, camera_pose_matrix, texture_board
 from sim_bridge.camera import CameraConfig, jittered, look_at_pose
 from sim_bridge.config import WorldConfig, finite_vector
 from sim_bridge.physics import (
@@ -217,7 +219,8 @@ class PushWorld:
             look = site_appearance(rng_look)
         else:
             look = random_appearance(rng_look) if cfg.randomize_appearance else Appearance()
-        t_cam = look_at_pose(cfg.camera)
+        t_cam = (look_at_pose(cfg.camera) if cfg.camera_pose is None
+                 else camera_pose_matrix(cfg.camera_pose))
         if cfg.randomize_camera:
             t_cam = jittered(t_cam, cfg.camera, rng_cam)
 
@@ -239,6 +242,8 @@ class PushWorld:
         self._urdf = ""
         if cfg.robot == "arm":
             self._urdf = arm_urdf(cfg.pusher_radius)
+            if cfg.calibration_board:
+                self._urdf = add_board(self._urdf, BoardSpec())
             with tempfile.NamedTemporaryFile("w", suffix=".urdf", delete=False) as f:
                 f.write(self._urdf)
             try:
@@ -246,6 +251,8 @@ class PushWorld:
                                      spec.friction_pusher, scene.table, scene.object)
             finally:
                 os.unlink(f.name)
+            if cfg.calibration_board:
+                texture_board(self._client, self._arm.body, BoardSpec())
         self._physics.step(INITIAL_SETTLE_STEPS)
 
     def close(self) -> None:

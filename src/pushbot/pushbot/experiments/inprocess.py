@@ -91,10 +91,11 @@ class EpisodeRunner:
         self._lrn: Any = None
 
     # -- cached resources -----------------------------------------------------------------------
-    def _make_world(self, trial: Trial) -> Any:
+    def _make_world(self, trial: Trial, camera_pose: Any = None) -> Any:
         from sim_bridge.world import PushWorld, WorldConfig, quiet_stdout
 
-        cfg = WorldConfig(**trial.world_kwargs())
+        cfg = WorldConfig(**trial.world_kwargs(), **(
+            {} if camera_pose is None else {"camera_pose": tuple(camera_pose)}))
         with quiet_stdout():  # pybullet prints "argv[0]=" when it connects
             if self._world is None:
                 self._world = PushWorld(cfg)
@@ -135,21 +136,24 @@ class EpisodeRunner:
         return Planner(PlannerConfig(**trial.planner_kwargs(), pusher_radius=radius,
                                      workspace=world.workspace), model)
 
-    def run(self, trial: Trial) -> dict[str, Any]:
+    def run(self, trial: Trial, camera_pose: Any = None, extrinsics: Any = None
+            ) -> dict[str, Any]:
         """Run one trial; returns the episode record (module docstring,
-        docs/design/evaluation.md#episode-record)."""
+        docs/design/evaluation.md#episode-record). ``camera_pose`` (x, y, z, qx, qy, qz, qw)
+        places the camera (``WorldConfig.camera_pose``); ``extrinsics`` (4, 4), the
+        ``T_world_camera`` perception uses instead of the true one (a calibration's)."""
         if not isinstance(trial, Trial):
             raise ValueError(f"trial: expected a pushbot.runner.protocol.Trial, got "
                              f"{type(trial).__name__}")
         t_start = time.perf_counter()
-        world = self._make_world(trial)
+        world = self._make_world(trial, camera_pose)
         spec = world.object_spec
         order = symmetry_order_of_polygon(spec.polyline())
         pose0_true = world.object_pose()
         goal_true = pose0_true + trial.goal_offset()
         rec = new_record(trial.as_dict(), perception_failures=0, poses_predicted=[])
         source = _GroundTruth(world) if trial.state == "gt" else _Filter(
-            world, self.segmenter(), self._ekf_config(trial))
+            world, self.segmenter(), self._ekf_config(trial), extrinsics)
         try:
             state = source.first()
         except _NoPose as exc:
@@ -252,10 +256,11 @@ class _GroundTruth:
 class _Filter:
     """The ``filter`` state source: rendered frames -> segmentation -> EKF."""
 
-    def __init__(self, world: Any, segmenter: Any, config: EKFConfig) -> None:
+    def __init__(self, world: Any, segmenter: Any, config: EKFConfig,
+                 extrinsics: Any = None) -> None:
         from push_perception.tracker import EpisodeTracker
 
-        self.world = world
+        self.world, self.extrinsics = world, extrinsics
         self.segmenter = segmenter
         self.config = replace(config, pusher_radius=world.config.pusher_radius)
         self.tracker = EpisodeTracker()
@@ -266,7 +271,10 @@ class _Filter:
         from push_perception.perception_config import PerceptionError
 
         try:
-            return self.tracker.measure_frame(self.segmenter, self.world.render())
+            frame = self.world.render()
+            if self.extrinsics is not None:
+                frame = replace(frame, T_world_camera=np.asarray(self.extrinsics, dtype=float))
+            return self.tracker.measure_frame(self.segmenter, frame)
         except PerceptionError as exc:
             self.failures += 1
             raise _NoPose(f"{exc.kind}: {exc}") from None
@@ -315,7 +323,8 @@ _RUNNER: EpisodeRunner | None = None
 _RUNNER_KEY: tuple = ()
 
 
-def run_trial(trial: Trial, **options: Any) -> dict[str, Any]:
+def run_trial(trial: Trial, camera_pose: Any = None, extrinsics: Any = None,
+              **options: Any) -> dict[str, Any]:
     """Run one trial in this process and return its episode record.
 
     Parameters
@@ -325,6 +334,8 @@ def run_trial(trial: Trial, **options: Any) -> dict[str, Any]:
         ``segmentation_weights``, ``lrn_weights`` (paths, "" = bundled) and ``ekf_config``
         (:class:`push_core.estimator.EKFConfig`) of :class:`EpisodeRunner`. A process keeps one
         runner (world and networks cached) per set of options.
+    camera_pose, extrinsics
+        As :meth:`EpisodeRunner.run`.
     """
     global _RUNNER, _RUNNER_KEY
     key = tuple(sorted(options.items()))
@@ -332,4 +343,4 @@ def run_trial(trial: Trial, **options: Any) -> dict[str, Any]:
         if _RUNNER is not None:
             _RUNNER.close()
         _RUNNER, _RUNNER_KEY = EpisodeRunner(**options), key
-    return _RUNNER.run(trial)
+    return _RUNNER.run(trial, camera_pose, extrinsics)

@@ -8,10 +8,10 @@ dynamics, reward and success with push_core's *public* library API only
 this module for private names) and writes LeRobot-style metrics.
 
 Units, frames, the T and the agent's controller (the env as push_core sees it):
-:mod:`pushbot.experiments.pusht_world`.
+:mod:`pushbot.experiments.pusht.world`.
 
 Each push is planned in closed loop from the observed pose (the state, or the pose fitted to
-the 96 x 96 image, :mod:`pushbot.experiments.pusht_vision`), with the disc's position as the
+the 96 x 96 image, :mod:`pushbot.experiments.pusht.vision`), with the disc's position as the
 start of the transit planner: the disc cannot lift, so it travels around the T to the approach
 point, pushes, and the next push is planned from the new observation.
 """
@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 
 from push_core.planner import NoFeasiblePush, Planner, PushPlan
 from push_core.pushable import Pusher, PushObject
-from pushbot.experiments.pusht_world import (
+from pushbot.experiments.pusht.world import (
     ENV_ID,
     METRES_PER_UNIT,
     MISSING,
@@ -54,7 +54,7 @@ TWO_FACES = True
 TRANSIT_MARGIN = 4.0
 #: ``--object-model``: ``env`` reads the T from the env's body (outline, COM, mass, moment,
 #: friction); ``estimated`` perceives the outline and estimates the rest online
-#: (:mod:`pushbot.experiments.pusht_estimated`), the env's bodies and shapes sealed.
+#: (:mod:`pushbot.experiments.pusht.estimated`), the env's bodies and shapes sealed.
 OBJECT_MODELS = ("env", "estimated")
 #: The pusher's radius (env units) with the estimated object model: the robot's own pusher, a
 #: known fact of the setup (the env's agent shape stays sealed; a test checks it agrees).
@@ -147,7 +147,7 @@ class PushTRunner:
         self.control_hz = float(self.env.unwrapped.control_hz)
         self.goal = self.frames.object_pose(self.env.unwrapped.goal_pose)
         if obs == "pixels":
-            from pushbot.experiments.pusht_vision import TeeFitter
+            from pushbot.experiments.pusht.vision import TeeFitter
             ring = tee_body(self.env)[0]
             self.vision = TeeFitter(ring, agent_radius=self.pusher.radius / METRES_PER_UNIT)
 
@@ -177,9 +177,9 @@ class PushTRunner:
     def _init_estimated(self, gym: object) -> None:
         """The env for ``--object-model estimated``: images in both observation modes (the
         outline comes from the first one), the bodies and shapes sealed
-        (:class:`pushbot.experiments.pusht_guard.SealedEnv`); the true T for the diagnostics
+        (:class:`pushbot.experiments.pusht.guard.SealedEnv`); the true T for the diagnostics
         from a second env that the episodes never see."""
-        from pushbot.experiments.pusht_guard import SealedEnv
+        from pushbot.experiments.pusht.guard import SealedEnv
 
         truth_env = gym.make(ENV_ID)
         truth_env.reset(seed=0)
@@ -223,8 +223,8 @@ class PushTRunner:
 
     def _run_estimated(self, seed: int, frames: list | None) -> EpisodeRecord:
         """One episode with the estimated object model (module
-        :mod:`pushbot.experiments.pusht_estimated`)."""
-        from pushbot.experiments import pusht_estimated as E
+        :mod:`pushbot.experiments.pusht.estimated`)."""
+        from pushbot.experiments.pusht import estimated as E
 
         t_start = time.perf_counter()
         obs, info = self.env.reset(seed=seed)

@@ -1,8 +1,8 @@
 """Push-T with the object unknown (``--object-model estimated``): the T perceived.
 
-Nothing of the object comes from the env's physics (:mod:`pushbot.experiments.pusht_guard`
+Nothing of the object comes from the env's physics (:mod:`pushbot.experiments.pusht.guard`
 seals it): the outline and its normals from the first 96 x 96 image of the episode
-(:func:`pushbot.experiments.pusht_vision.fit_outline`), the centre of mass, limit surface
+(:func:`pushbot.experiments.pusht.vision.fit_outline`), the centre of mass, limit surface
 ``l`` and friction ``m`` estimated online by push_core's EKF from the pushes, starting from
 the priors of the robot graph (:class:`push_core.estimator.EKFConfig` defaults, the
 ``push_estimator`` parameters: COM at the outline's centroid with the area's second moment as
@@ -11,7 +11,7 @@ covariance, ``l_0`` the uniform-pressure guess with 25 % standard deviation, ``m
 
 Frames: the **perceived object frame** has its origin at the area centroid of the outline
 perceived in the episode's first image and the env's axes at that moment (env units here,
-metres in push_core: :data:`pushbot.experiments.pusht_world.METRES_PER_UNIT`). Its pose is
+metres in push_core: :data:`pushbot.experiments.pusht.world.METRES_PER_UNIT`). Its pose is
 tracked from the image (``--obs pixels``: the outline fitted to each image) or follows from
 the state's block pose (``--obs state``): the state reports the pose of an unknown reference
 frame ``B`` on the block; the perceived frame's pose in ``B``, ``D = B_0^-1 P_0``, is fixed by
@@ -35,7 +35,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from push_core.shapes import Polygon
 from push_core.transit import point_polygon_distance
-from pushbot.experiments.pusht_vision import (
+from pushbot.experiments.pusht.vision import (
     AGENT_MARGIN,
     TeeFitter,
     colour_fractions,
@@ -88,7 +88,7 @@ class PerceivedTee:
 
 def perceive_tee(image: ArrayLike, agent: ArrayLike, agent_radius: float) -> PerceivedTee:
     """The object's outline from an image (96, 96, 3) and the agent position (env units):
-    :func:`pushbot.experiments.pusht_vision.fit_outline`, re-centred on its area centroid."""
+    :func:`pushbot.experiments.pusht.vision.fit_outline`, re-centred on its area centroid."""
     poly, residual = fit_outline(image, agent, agent_radius)
     centre = Polygon(poly, field="outline").centroid  # raises for a self-intersecting fit
     return PerceivedTee(outline=poly - centre, pose=np.array([centre[0], centre[1], 0.0]),
@@ -97,7 +97,7 @@ def perceive_tee(image: ArrayLike, agent: ArrayLike, agent_radius: float) -> Per
 
 def tracker(outline: ArrayLike, agent_radius: float) -> TeeFitter:
     """The pose fitter of a perceived outline (P, 2) (env units): its signed distance on a
-    grid of :data:`SDF_CELL` (:func:`pushbot.experiments.pusht_vision.sdf_grid`)."""
+    grid of :data:`SDF_CELL` (:func:`pushbot.experiments.pusht.vision.sdf_grid`)."""
     return TeeFitter(outline, agent_radius=agent_radius, sdf_cell=SDF_CELL)
 
 

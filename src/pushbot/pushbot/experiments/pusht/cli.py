@@ -5,10 +5,10 @@ Runs episodes of the learned-pushing benchmark with the env's own dynamics, rewa
 observation of Diffusion Policy) and writes ``OUT/results.json`` (top-level ``success_rate``,
 ``success_wilson_95``, ``avg_max_reward``, ``mean_max_coverage``, ``steps_mean``, ...,
 ``episodes``) and videos of the first K episodes (``OUT/videos``). The adapter, frames and
-units: :mod:`pushbot.experiments.pusht_adapter`; pose from pixels:
-:mod:`pushbot.experiments.pusht_vision`; ``--object-model estimated`` (the T unknown: outline
+units: :mod:`pushbot.experiments.pusht.adapter`; pose from pixels:
+:mod:`pushbot.experiments.pusht.vision`; ``--object-model estimated`` (the T unknown: outline
 from the image, COM, limit surface and friction estimated online):
-:mod:`pushbot.experiments.pusht_estimated`. Needs ``pip install 'pushbot[pusht]'``.
+:mod:`pushbot.experiments.pusht.estimated`. Needs ``pip install 'pushbot[pusht]'``.
 """
 
 from __future__ import annotations
@@ -42,10 +42,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``pushbot eval pusht``; prints the metrics, writes results.json."""
-    from pushbot.experiments import pusht_adapter
+    from pushbot.experiments.pusht import adapter
 
     try:
-        result = pusht_adapter.evaluate(args.episodes, args.seed0, args.max_steps, args.obs,
+        result = adapter.evaluate(args.episodes, args.seed0, args.max_steps, args.obs,
                                         args.out, args.video, args.workers, progress=True,
                                         object_model=args.object_model)
     except ImportError as exc:

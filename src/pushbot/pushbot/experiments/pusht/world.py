@@ -1,6 +1,6 @@
 """The Push-T env as push_core sees it: the T, the frames and the agent's controller.
 
-The env is gym-pusht's ``gym_pusht/PushT-v0`` (:mod:`pushbot.experiments.pusht_adapter` plans
+The env is gym-pusht's ``gym_pusht/PushT-v0`` (:mod:`pushbot.experiments.pusht.adapter` plans
 in it). Units and frames (checked against gym-pusht 0.1.8, ``envs/pusht.py``):
 
 - **Scale**: one env unit (a pixel of the 512 x 512 render) is taken as 1 mm
