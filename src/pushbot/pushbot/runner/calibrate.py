@@ -140,8 +140,10 @@ def run_calibrate(args: argparse.Namespace) -> int:
         try:
             outcome = robot.calibrate(_setup(args, robot), print)
         except CalibrationRefused as refusal:
-            print(f"pushbot calibrate: refused ({refusal.kind}): {refusal}; the previous "
-                  f"calibration ({args.out}) is kept", file=sys.stderr)
+            kept = (f"the previous calibration ({args.out}) is kept" if args.out.exists()
+                    else f"nothing written to {args.out}")
+            print(f"pushbot calibrate: refused ({refusal.kind}): {refusal}; {kept}",
+                  file=sys.stderr)
             return EXIT_REFUSED
         finally:
             if not args.no_park:
