@@ -51,9 +51,13 @@ def _self_intersections(vertices: np.ndarray) -> list[tuple[int, int]]:
     n = len(p)
     i, j = np.triu_indices(n, k=2)
     keep = ~((i == 0) & (j == n - 1))  # the closing edge is adjacent to edge 0
+    scale = max(float(np.ptp(vertices)), _EPS)
+    # Edges whose bounding boxes (grown by the touching margin) are apart can neither cross
+    # nor touch: only the other pairs go through the exact tests below (the same answer).
+    lo, hi = np.minimum(p, q) - 1e-9 * scale, np.maximum(p, q) + 1e-9 * scale
+    keep &= np.all((lo[i] <= hi[j]) & (lo[j] <= hi[i]), axis=-1)
     i, j = i[keep], j[keep]
     a, b, c, d = p[i], q[i], p[j], q[j]
-    scale = max(float(np.ptp(vertices)), _EPS)
     tol = 1e-9 * scale * scale
     d1 = _cross(b - a, c - a)
     d2 = _cross(b - a, d - a)
