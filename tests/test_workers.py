@@ -1,11 +1,11 @@
 """The suite's parallel workers keep a module's shared fixture on one worker, set up once.
 
 ``make test`` runs ``pytest -n <cores + 1> --dist loadgroup``; tests/conftest.py marks the tests
-that use a module-, class- or package-scoped fixture with their file's ``xdist_group``. pytest-
-xdist 3.8 carries the group in the test's node id, which pytest 9.2 no longer lets it change: the
-groups were then silently ignored and a shared graph was started once per worker (the demo ran
-twice per suite). This runs a small suite (tests/workers/shared_fixture_suite.py) on two real
-workers through the project's conftest and counts the set-ups.
+that use a module-, class- or package-scoped fixture with their file's ``xdist_group``.
+pytest-xdist 3.8 carries the group in the test's node id, which pytest 9.2 no longer lets it
+change: the groups were then silently ignored and a shared graph was started once per worker (the
+demo ran twice per suite). This runs a small suite (tests/workers/shared_fixture_suite.py) on two
+real workers through the project's conftest and counts the set-ups.
 """
 
 from __future__ import annotations
