@@ -91,6 +91,12 @@ def test_a_dry_run_plans_and_refuses_and_moves_nothing(graph: GraphRunner) -> No
     client = graph._client()
     client.executor_enable(False)
     try:
+        # Disabling parks an arm that is not at its park posture (after the episode above it
+        # may not be yet): the executor says "disabled" once nothing of its own runs; only then
+        # is the held posture the one a dry run must leave alone.
+        graph.wait(lambda: bool(graph.rec.executor_status)
+                   and graph.rec.executor_status[-1].get("state") == "disabled", 60.0,
+                   "executor/status state 'disabled' (the park on disabling finished)")
         stamp0, q0, _ = _held_joint_state(graph)
         true0 = graph.rec.true[-1][1].copy()
         n_refusals, n_paths = len(graph.rec.refusals), graph.rec.executor_paths

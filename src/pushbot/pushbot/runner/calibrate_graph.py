@@ -1,16 +1,21 @@
 """The running graph as the calibration procedure's robot (``pushbot calibrate``).
 
-:class:`GraphRobot` is :class:`pushbot.runner.calibration.CalibrationRobot` over ROS: a move
-is a goal on ``executor/joint_goal`` (sent once ``executor/status`` says the executor is ready,
-or disabled: the dry run plans it and refuses), waited for on ``executor/goal_result``; the
-view's frame is the first ``camera/color/image_raw`` stamped after the joint state that showed
-the goal reached; the joints are ``/joint_states``; the arm's model is the executor's (its
-``/robot_description`` and parameters, read through its parameter services).
+:class:`GraphRobot` is :class:`pushbot.runner.calibration.CalibrationRobot` over ROS: a move is
+a goal on ``executor/joint_goal`` (sent once ``executor/status`` says the executor is ready, or
+disabled: the dry run plans it and refuses), waited for on ``executor/goal_result``; the view's
+frame is the first ``camera/color/image_raw`` stamped after the arm is held at the goal
+(:data:`HELD_STATES` joint states received after the answer within :data:`HELD` rad of each
+other: the executor answers ``reached`` when its plan's time is over and the arm tracks it,
+which on a loaded machine is before the arm has settled, and this process may not yet have read
+the joint states the executor judged by); the joints are the newest ``/joint_states`` (held);
+the arm's model is the executor's (its ``/robot_description`` and parameters, read through its
+parameter services).
 """
 
 from __future__ import annotations
 
 import time
+from collections import deque
 from collections.abc import Callable
 from typing import Any
 
@@ -24,6 +29,9 @@ __all__ = ["GraphRobot"]
 
 #: Longest wait for the graph's inputs (camera_info, the model, the first joint state), s.
 INPUT_TIMEOUT = 20.0
+#: The arm counts as held at a goal after this many joint states within ``HELD`` rad of each
+#: other (push_executor's own rule for a held arm, ``MeasuredArm``).
+HELD_STATES, HELD = 3, 1e-4
 
 
 def _stamp(msg: Any) -> float:
@@ -68,8 +76,8 @@ class GraphRobot:
         self._JointState = JointState
         sub = node.create_subscription
         sub(String, "/robot_description", lambda m: setattr(self, "_urdf", m.data), LATCHED_QOS)
-        sub(JointState, "/joint_states", lambda m: setattr(self, "_joint_msg", m),
-            JOINT_STATE_QOS)
+        self._recent: deque[Any] = deque(maxlen=HELD_STATES)
+        sub(JointState, "/joint_states", self._on_joints, JOINT_STATE_QOS)
         sub(Image, "camera/color/image_raw", lambda m: setattr(self, "_image", m), SENSOR_QOS)
         sub(CameraInfo, "camera/color/camera_info", lambda m: setattr(self, "_info", m),
             SENSOR_QOS)
@@ -78,6 +86,21 @@ class GraphRobot:
         self._pub_goal = node.create_publisher(JointState, "executor/joint_goal", RELIABLE_QOS)
 
     # ---- inputs ------------------------------------------------------------------------------
+    def _on_joints(self, msg: Any) -> None:
+        self._joint_msg = msg
+        self._recent.append(msg)
+
+    def _held(self) -> bool:
+        """The last :data:`HELD_STATES` joint states received (since the deque was cleared)
+        within :data:`HELD` rad of each other."""
+        if len(self._recent) < HELD_STATES:
+            return False
+        try:
+            q = np.array([self._posture(m) for m in self._recent])
+        except CalibrationRefused:
+            return False
+        return bool(np.ptp(q, axis=0).max() <= HELD)
+
     def _on_status(self, msg: Any) -> None:
         self._status = {kv.key: kv.value for kv in msg.values[:64]}
 
@@ -145,7 +168,9 @@ class GraphRobot:
         return run_calibration(self, self.arm, setup, self.params.motion, log)
 
     def joints(self) -> NDArray[np.float64]:
-        msg = self._joint_msg
+        return self._posture(self._joint_msg)
+
+    def _posture(self, msg: Any) -> NDArray[np.float64]:
         by_name = dict(zip(msg.name, msg.position, strict=False))
         missing = [j for j in self.arm.joint_names if j not in by_name]
         if missing:
@@ -179,7 +204,10 @@ class GraphRobot:
         answer = self._results.pop(key)
         if answer.kind != "reached":
             return answer.kind, answer.reason
-        reached = _stamp(self._joint_msg)
+        self._recent.clear()
+        if not self._wait(self._held, self.move_timeout):
+            return "timeout", f"the arm was not held at the goal within {self.move_timeout:g} s"
+        reached = _stamp(self._recent[-1])
         if not self._wait(lambda: self._image is not None and _stamp(self._image) > reached,
                           self.move_timeout):
             return "timeout", "no colour frame after the move"
